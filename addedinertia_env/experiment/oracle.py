@@ -1,0 +1,37 @@
+"""An ideal tracking controller for the simulated rig only: computed torque on the truth.
+
+It reads the simulator's true state and true parameters, so it exists to test the
+identification methods (physics.md section 4: with ideal tracking the energy method must
+return the true lambda66 to 0.05 %), never to be benchmarked or deployed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..rig import forces
+from ..rig.mujoco_rig import MujocoRig
+
+
+class OracleController:
+    name = "oracle"
+
+    def __init__(self, rig: MujocoRig, omega_c: float = 40.0):
+        self.rig = rig
+        self.kp, self.kd = omega_c**2, 2.0 * omega_c
+
+    def reset(self, context) -> None:
+        self.ctx = context
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        p, s, ctx = self.rig.params, self.rig.true_state(), self.ctx
+        ref = ctx.reference
+        t = s.t + 0.5 * ctx.dt  # the torque acts over the coming sample
+        if t < ref.t_begin:
+            return np.zeros(1, dtype=np.float32), state
+        J = p.hull.J_hull + p.hull.lambda66
+        acc = float(ref.accel(t)) + self.kp * (float(ref.phi(t)) - s.phi) + self.kd * (float(ref.rate(t)) - s.w)
+        hull_torque = J * acc + p.spring.c * (s.phi - forces.true_neutral(p)) \
+            - float(forces.hull_extra_torque(s.phi, s.w, s.water_rate, p))
+        i = -hull_torque / self.rig.k_t  # reaction of the motor torque on the hull
+        return np.array([np.clip(i / p.motor.i_max, -1, 1)], dtype=np.float32), state

@@ -1,0 +1,191 @@
+"""The reverse-symmetric experiment as a state machine over any rig (patent RU 2627023).
+
+Phases, as recorded in the run record:
+
+1. ``idle``: the rod is twisted to ``phi_n - alpha`` and the hull held on the brake;
+2. ``free``: brake released, motor passive (open circuit: no electric work); the hull
+   swings through neutral and slows to a stop; the brake is set at the predicted stop;
+3. ``hold``: hull braked for ``hold_s``; the controller may spin the flywheel;
+4. ``reverse``: brake released; the controller drives the hull along the time mirror of
+   the free stroke's fitted law (sensor data only);
+5. ``idle``: motor passive again for ``tail_s``.
+
+The controller acts only in ``hold`` and ``reverse`` through :meth:`Experiment.step`; the
+rest runs by itself. The same object drives the MuJoCo rig, the batched rig's single
+view, or the real bench through ``hw_adapter``: it only uses the rig protocol
+(``reset``, ``set_brake``, ``step``, ``dt``, ``known``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from ..record import FORMAT, RunRecord
+from ..rig.motor import MotorCommand
+from ..rig.sensors import Reading
+from .filters import RateEstimator
+from .reference import MirroredReference, StrokeLaw, fit_stroke
+
+PASSIVE = MotorCommand("passive", 0.0)
+
+
+@dataclass(frozen=True)
+class ExperimentPlan:
+    """How one reverse-symmetric experiment is run."""
+
+    alpha: float = 0.1  # rad, twist of the rod before release
+    hold_s: float = 2.0  # s, brake hold at the reversal
+    settle_s: float = 0.1  # s, braked idle before release
+    tail_s: float = 0.1  # s, passive idle after the reverse stroke
+    lead_s: float = 0.05  # s, the fitted stroke starts this long before the neutral crossing
+    stop_window_s: float = 0.05  # s, quadratic fit window that predicts the stop
+    max_free_s: float = 30.0  # s, give up if the hull never stops
+
+    def __post_init__(self) -> None:
+        checks = {"alpha": self.alpha != 0 and abs(self.alpha) < 1.0, "hold_s": self.hold_s >= 0,
+                  "settle_s": self.settle_s >= 0, "tail_s": self.tail_s >= 0, "lead_s": self.lead_s > 0,
+                  "stop_window_s": self.stop_window_s > 0, "max_free_s": self.max_free_s > 0}
+        for name, ok in checks.items():
+            value = getattr(self, name)
+            if not (ok and math.isfinite(value)):
+                raise ValueError(f"ExperimentPlan.{name} = {value!r} is out of range "
+                                 "(alpha: 0 < |alpha| < 1 rad; times: >= 0 s)")
+
+
+class ExperimentError(RuntimeError):
+    """The experiment could not proceed (the hull never stopped, never crossed neutral)."""
+
+
+class Experiment:
+    """One reverse-symmetric experiment on ``rig``; see the module docstring."""
+
+    def __init__(self, rig: Any, plan: ExperimentPlan | None = None):
+        self.rig = rig
+        self.plan = plan or ExperimentPlan()
+        self.known = rig.known
+        self.phase = "idle"
+        self.done = False
+        self._log: dict[str, list] = {k: [] for k in ("t", "phase", "phi", "psi", "u", "i", "i_cmd", "u_cmd", "brake")}
+        self.law: StrokeLaw | None = None
+        self.reference: MirroredReference | None = None
+        self.inertia_prior = float("nan")
+        self.last: Reading | None = None
+        self.hull_rate = RateEstimator(rig.dt)
+        self.flywheel_rate = RateEstimator(rig.dt)
+        self.electric_energy = 0.0  # J, integral of measured u*i over hold and reverse
+        self.saturated_steps = 0
+        self.controlled_steps = 0
+        self.t_brake = self.t_release = float("nan")
+
+    # --- phases that run by themselves -------------------------------------------------
+    def start(self) -> None:
+        """Twist, release and run the free stroke; ends braked, in ``hold``."""
+        p, phi_n = self.plan, float(self.known["phi_neutral"])
+        sign = 1.0 if p.alpha > 0 else -1.0  # direction of the free stroke
+        self._log_reading(self.rig.reset(phi0=phi_n - p.alpha), None)
+        for _ in range(int(round(p.settle_s / self.rig.dt))):
+            self._advance(PASSIVE, "idle")
+        self.rig.set_brake(False)
+        self.t_release = self.last.t
+        self.phase = "free"
+        t_cross = None
+        peak = 0.0
+        window = max(5, int(round(p.stop_window_s / self.rig.dt)))
+        n_max = int(round(p.max_free_s / self.rig.dt))
+        for _ in range(n_max):
+            r = self._advance(PASSIVE, "free")
+            w = sign * self.hull_rate.value
+            peak = max(peak, w)
+            if t_cross is None and sign * (r.phi - phi_n) >= 0:
+                t_cross = r.t
+            if t_cross is not None and w < 0.3 * peak and self._stop_due(window):
+                break
+        else:
+            raise ExperimentError(f"the hull did not stop within {p.max_free_s} s of release")
+        self.rig.set_brake(True)
+        self.t_brake = self.last.t
+        t = np.asarray(self._log["t"])
+        phi = np.asarray(self._log["phi"])
+        self.law = fit_stroke(t, phi, t_cross - p.lead_s, self.t_brake)
+        self.inertia_prior = self.law.inertia_prior(float(self.known["c_torsion"]), phi_n)
+        self.reference = MirroredReference(self.law, t_begin=self.t_brake + p.hold_s)
+        self.phase = "hold" if p.hold_s > 0 else "reverse"
+        if self.phase == "reverse":
+            self.rig.set_brake(False)
+
+    def _stop_due(self, window: int) -> bool:
+        """Predict the stop from a quadratic over the last ``window`` samples; true when due."""
+        t = np.asarray(self._log["t"][-window:])
+        phi = np.asarray(self._log["phi"][-window:])
+        tt = t - t[-1]
+        c2, c1, _ = np.polyfit(tt, phi, 2)
+        if c2 == 0.0:
+            return False
+        t_stop = -c1 / (2.0 * c2)  # relative to the newest sample
+        return t_stop <= 0.5 * self.rig.dt
+
+    # --- the controlled part -----------------------------------------------------------
+    @property
+    def needs_control(self) -> bool:
+        return not self.done and self.phase in ("hold", "reverse")
+
+    def step(self, cmd: MotorCommand) -> Reading:
+        """One sample under the controller's command (hold or reverse phase)."""
+        if not self.needs_control:
+            raise ExperimentError(f"step() called in phase {self.phase!r}; call start() first, and stop when done")
+        p = self.plan
+        self.controlled_steps += 1
+        if cmd.mode == "current" and abs(cmd.value) >= float(self.known.get("i_max", math.inf)):
+            self.saturated_steps += 1
+        r = self._advance(cmd, self.phase)
+        if self.phase == "hold" and r.t >= self.reference.t_begin - 0.5 * self.rig.dt:
+            self.rig.set_brake(False)
+            self.phase = "reverse"
+        elif self.phase == "reverse" and r.t >= self.reference.t_end - 0.5 * self.rig.dt:
+            self.phase = "idle"
+            for _ in range(int(round(p.tail_s / self.rig.dt))):
+                self._advance(PASSIVE, "idle")
+            self.done = True
+        return r
+
+    # --- bookkeeping -----------------------------------------------------------------
+    def _advance(self, cmd: MotorCommand, phase: str) -> Reading:
+        r = self.rig.step(cmd)
+        self._log_reading(r, cmd, phase)
+        return r
+
+    def _log_reading(self, r: Reading, cmd: MotorCommand | None, phase: str = "idle") -> None:
+        if self.last is not None and phase in ("hold", "reverse"):
+            self.electric_energy += abs(r.u * r.i) * (r.t - self.last.t)
+        self.last = r
+        log = self._log
+        log["t"].append(r.t)
+        log["phase"].append(phase)
+        log["phi"].append(r.phi)
+        log["psi"].append(r.psi)
+        log["u"].append(r.u)
+        log["i"].append(r.i)
+        log["brake"].append(1.0 if r.brake else 0.0)
+        log["i_cmd"].append(cmd.value if cmd is not None and cmd.mode == "current" else 0.0)
+        log["u_cmd"].append(cmd.value if cmd is not None and cmd.mode == "voltage" else 0.0)
+        self.hull_rate.update(r.phi)
+        self.flywheel_rate.update(r.psi)
+
+    def record(self, run_id: str = "run", extra_experiment: dict | None = None) -> RunRecord:
+        """The run record so far (complete once ``done``)."""
+        samples = {k: np.asarray(v, dtype=str if k == "phase" else float) for k, v in self._log.items()}
+        experiment = {"kind": "reverse-symmetric", **asdict(self.plan),
+                      "t_release": self.t_release, "t_brake": self.t_brake}
+        if self.law is not None:
+            experiment["stroke_fit_rms_rad"] = self.law.fit_rms
+        experiment.update(extra_experiment or {})
+        meta: dict[str, Any] = {"format": FORMAT, "run_id": run_id, "source": getattr(self.rig, "source", "sim"),
+                                "rig": self.known, "experiment": experiment}
+        truth = getattr(self.rig, "truth", None)
+        if callable(truth) and truth() is not None:
+            meta["truth"] = truth()
+        return RunRecord(samples=samples, meta=meta)

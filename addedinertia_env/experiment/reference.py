@@ -1,0 +1,117 @@
+"""The free stroke's smooth law and its time mirror: the reverse stroke's reference.
+
+The patent fits a kinematic law ``phi = f(t)`` to the decelerating part of the free stroke
+as the encoder saw it, and drives the hull back along ``f(2 t2 + Delta - t')``. Here ``f``
+is a least-squares Chebyshev series (numpy) over ``[t_a, t2]``, where ``t_a`` is a little
+before the hull passes the calibrated neutral (fastest point) and ``t2`` is where the
+fitted rate vanishes. Only measured samples and the rig's known constants are used.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.polynomial import chebyshev as C
+
+DEFAULT_DEGREE = 11
+
+
+@dataclass(frozen=True)
+class StrokeLaw:
+    """Smooth fit ``phi = f(t)`` of the decelerating free stroke."""
+
+    coef: np.ndarray  # Chebyshev coefficients on the mapped interval [-1, 1]
+    t_start: float  # s, start of the fitted segment
+    t_stop: float  # s, where the fitted rate is zero (the forward stroke's end, t2)
+    fit_rms: float  # rad, residual RMS of the fit
+
+    def _x(self, t):
+        return (2.0 * np.asarray(t, dtype=float) - (self.t_start + self.t_stop)) / (self.t_stop - self.t_start)
+
+    @property
+    def _scale(self) -> float:
+        return 2.0 / (self.t_stop - self.t_start)
+
+    def phi(self, t):
+        return C.chebval(self._x(t), self.coef)
+
+    def rate(self, t):
+        return C.chebval(self._x(t), C.chebder(self.coef)) * self._scale
+
+    def accel(self, t):
+        return C.chebval(self._x(t), C.chebder(self.coef, 2)) * self._scale**2
+
+    @property
+    def duration(self) -> float:
+        return self.t_stop - self.t_start
+
+    @property
+    def phi_stop(self) -> float:
+        return float(self.phi(self.t_stop))
+
+    @property
+    def peak_rate(self) -> float:
+        tt = np.linspace(self.t_start, self.t_stop, 201)
+        return float(np.max(np.abs(self.rate(tt))))
+
+    def inertia_prior(self, c: float, phi_neutral: float) -> float:
+        """``J_h + lambda66`` seen at the stop, where rate-dependent damping vanishes:
+        ``J = -c (phi2 - phi_n) / f''(t2)``. A prior, biased by any memory or dry friction."""
+        return float(-c * (self.phi_stop - phi_neutral) / self.accel(self.t_stop))
+
+
+@dataclass(frozen=True)
+class MirroredReference:
+    """``phi_ref(t) = f(t2 - (t - t_begin))`` for ``t`` in ``[t_begin, t_begin + duration]``."""
+
+    law: StrokeLaw
+    t_begin: float  # s, start of the reverse stroke (end of the hold)
+
+    @property
+    def t_end(self) -> float:
+        return self.t_begin + self.law.duration
+
+    def _mirror(self, t):
+        return self.law.t_stop - (np.clip(t, self.t_begin, self.t_end) - self.t_begin)
+
+    def phi(self, t):
+        return self.law.phi(self._mirror(t))
+
+    def rate(self, t):
+        return -self.law.rate(self._mirror(t))
+
+    def accel(self, t):
+        return self.law.accel(self._mirror(t))
+
+
+def fit_stroke(t: np.ndarray, phi: np.ndarray, t_start: float, t_stop_guess: float,
+               degree: int = DEFAULT_DEGREE) -> StrokeLaw:
+    """Fit the decelerating stroke on ``[t_start, t_stop_guess]`` and locate its stop.
+
+    ``t_stop_guess`` is the moment the brake was set; the fitted rate's zero nearest to
+    it (searched a little beyond it) is returned as ``t_stop``.
+    """
+    sel = (t >= t_start) & (t <= t_stop_guess)
+    if sel.sum() < 3 * degree:
+        raise ValueError(f"free stroke too short to fit: {int(sel.sum())} samples on "
+                         f"[{t_start:.3f}, {t_stop_guess:.3f}] s, need at least {3 * degree}")
+    ts, ps = t[sel], phi[sel]
+    a, b = ts[0], ts[-1]
+    x = (2.0 * ts - (a + b)) / (b - a)
+    coef = C.chebfit(x, ps, degree)
+    rms = float(np.sqrt(np.mean((C.chebval(x, coef) - ps) ** 2)))
+    provisional = StrokeLaw(coef=coef, t_start=a, t_stop=b, fit_rms=rms)
+    # Rate zero near the brake time: solve on a fine grid over the last 20 % of the stroke.
+    tt = np.linspace(a + 0.8 * (b - a), b, 2001)
+    rr = provisional.rate(tt)
+    sign_change = np.nonzero(np.signbit(rr[:-1]) != np.signbit(rr[1:]))[0]
+    if len(sign_change):
+        k = sign_change[-1]
+        t_stop = float(tt[k] - rr[k] * (tt[k + 1] - tt[k]) / (rr[k + 1] - rr[k]))
+    else:
+        t_stop = float(tt[np.argmin(np.abs(rr))])
+    # Re-express the same polynomial on [a, t_stop] so that t_stop is the law's end.
+    x_new = (2.0 * ts[ts <= t_stop] - (a + t_stop)) / (t_stop - a)
+    coef_new = C.chebfit(x_new, C.chebval((2.0 * ts[ts <= t_stop] - (a + b)) / (b - a), coef), degree)
+    return StrokeLaw(coef=coef_new, t_start=a, t_stop=t_stop, fit_rms=rms)

@@ -1,0 +1,35 @@
+"""Run one reverse-symmetric experiment with a controller: the loop every caller shares."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..record import RunRecord
+from ..task import ReverseStrokeTask
+from .protocol import Experiment, ExperimentPlan
+
+
+def controller_context(exp: Experiment):
+    """What a controller may know once the free stroke is recorded."""
+    from agents.base import ControllerContext  # noqa: PLC0415 - agents depends on this package
+
+    return ControllerContext(rig=exp.known, layout=ReverseStrokeTask.layout, reference=exp.reference,
+                             inertia_prior=exp.inertia_prior, dt=exp.rig.dt, hold_s=exp.plan.hold_s)
+
+
+def run_experiment(rig: Any, controller: Any, plan: ExperimentPlan | None = None,
+                   run_id: str = "run") -> RunRecord:
+    """Twist, release, hold and reverse under ``controller``; returns the run record.
+
+    ``controller`` is anything with ``predict(obs) -> (action, state)``; if it also has
+    ``reset(context)``, it is called once the free stroke has been recorded.
+    """
+    exp = Experiment(rig, plan)
+    exp.start()
+    task = ReverseStrokeTask(i_max=float(exp.known["i_max"]))
+    if hasattr(controller, "reset"):
+        controller.reset(controller_context(exp))
+    while exp.needs_control:
+        action, _ = controller.predict(task.observe(exp), deterministic=True)
+        exp.step(task.command(action))
+    return exp.record(run_id)

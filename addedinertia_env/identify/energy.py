@@ -1,0 +1,269 @@
+"""The energy method of patent RU 2627023, in the general form of physics.md section 4.
+
+For a boundary angle ``phi1`` passed forward at ``t1`` and in reverse at ``t4`` (the hull
+rests at ``t2``, end of the free stroke, and ``t3``, end of the hold)::
+
+    (J_h + lambda66) (w1f^2 + w1r^2) / 2 =
+        Pi(t2) - Pi(t1) + Pi(t3) - Pi(t4)            (spring, with measured angles)
+      + (A_r + B_r) - (A_f + B_f)                     (motor work, rotor-bearing work)
+      + K(t2) + K(t3) - K(t1) - K(t4)                 (flywheel energy 1/2 J_f (w + Omega)^2)
+      - dW                                            (dissipation mismatch, optional)
+
+The hydrodynamic dissipation cancels if the reverse stroke retraces ``|w(phi)|``. What
+the controller fails to retrace leaves ``dW = integral D'(|w|) (|w_r| - |w_f|) dphi``,
+which is estimated from the record itself (a damping law fitted to the forward stroke)
+and removed; half of it is kept as uncertainty.
+
+Motor work: ``A = sum k_t i dpsi`` (current and flywheel encoder; default) or, as the
+patent does, electric energy minus ohmic and magnetic energy
+``int u i dt - R int i^2 dt - [L i^2 / 2]``. The current-sensor offset is calibrated on
+the free stroke, where the motor is open-circuit and the true current is zero.
+
+Only the record's samples and its ``rig`` block are used; never ``truth``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..record import RunRecord
+from .common import IdentificationError, Result, local_fit, pooled_interval, segment, smooth_angle
+
+# Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
+# the patent drops the nearly uniform middle of the stroke, and too near the stop the
+# kinetic energy (the denominator) vanishes.
+DEFAULT_FRACTIONS = (0.3, 0.4, 0.5, 0.6, 0.7)
+WORK_FORMS = ("reaction", "current", "electric")
+CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
+
+
+@dataclass
+class Interval:
+    """One boundary angle in one run."""
+
+    run: str
+    phi1: float
+    lambda66: float
+    sigma: float
+    w1f: float
+    w1r: float
+    terms: dict[str, float] = field(default_factory=dict)
+    rejected: str = ""
+
+
+def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=DEFAULT_FRACTIONS,
+                    asymmetry_correction: bool = True) -> Result:
+    """lambda66 from one or more reverse-symmetric runs, with a 95 % interval."""
+    if work not in WORK_FORMS:
+        raise ValueError(f"work={work!r}: expected one of {WORK_FORMS}")
+    intervals: list[Interval] = []
+    for rec in records:
+        intervals += _run_intervals(rec, work, fractions, asymmetry_correction)
+    good = [iv for iv in intervals if not iv.rejected]
+    if not good:
+        reasons = "; ".join(sorted({iv.rejected for iv in intervals})) or "no usable interval"
+        raise IdentificationError(f"energy method: every interval was rejected ({reasons})")
+    by_run: dict[str, list[Interval]] = {}
+    for iv in good:
+        by_run.setdefault(iv.run, []).append(iv)
+    # Intervals of one run share most of their data: combine them to one value per run
+    # whose uncertainty is the typical interval's, plus their spread; then pool runs.
+    run_values, run_sigmas = [], []
+    for ivs in by_run.values():
+        lam = np.array([iv.lambda66 for iv in ivs])
+        sig = np.array([iv.sigma for iv in ivs])
+        wts = 1.0 / sig**2
+        run_values.append(float(np.sum(wts * lam) / np.sum(wts)))
+        spread = float(np.std(lam, ddof=1)) if len(lam) > 1 else 0.0
+        run_sigmas.append(float(np.sqrt(np.median(sig) ** 2 + spread**2)))
+    value, lo, hi = pooled_interval(np.array(run_values), np.array(run_sigmas))
+    return Result(method="energy", lambda66=value, ci95=(lo, hi), n_intervals=len(good),
+                  details={"work": work, "asymmetry_correction": asymmetry_correction, "n_runs": len(by_run),
+                           "per_run": run_values, "rejected": len(intervals) - len(good),
+                           "intervals": [iv.__dict__ for iv in intervals]})
+
+
+def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: bool) -> list[Interval]:
+    rig = rec.rig
+    J_h, J_f, c = float(rig["J_hull"]), float(rig["J_flywheel"]), float(rig["c_torsion"])
+    phi_n, k_t, R, L = float(rig["phi_neutral"]), float(rig["k_t"]), float(rig["R"]), float(rig["L"])
+    fric = rig.get("motor_friction") or {}
+    f_visc, f_coul = float(fric.get("viscous", 0.0)), float(fric.get("coulomb", 0.0))
+    if rec.experiment.get("kind") != "reverse-symmetric":
+        raise IdentificationError(f"{rec.name}: the energy method needs a reverse-symmetric run, "
+                                  f"not {rec.experiment.get('kind')!r}")
+    t, phi, psi = rec.t, rec["phi"], rec["psi"]
+    free, hold, rev = segment(rec, "free"), segment(rec, "hold"), segment(rec, "reverse")
+    if free is None or rev is None:
+        raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
+    i_offset = float(np.mean(rec["i"][free]))  # open circuit on the free stroke: true i = 0
+    i = rec["i"] - i_offset
+    phi_s, psi_s = smooth_angle(t, phi), smooth_angle(t, psi)  # for work increments only
+    k2 = free.stop - 1  # last free sample: the brake is set (t2)
+    k3 = (hold.stop - 1) if hold is not None else rev.start - 1  # last braked sample (t3)
+    phi2 = phi[k2]
+    direction = np.sign(phi2 - phi_n)
+    phi1_list = rec.experiment.get("phi1") or [phi_n + f * (phi2 - phi_n) for f in fractions]
+    sample_dt = 1.0 / float(rig["sample_rate"])
+    fwd_law = _forward_damping_law(rec, free, k2, J_h, c, phi_n, i)
+
+    def rate(k: int, angle: np.ndarray) -> float:
+        return local_fit(t, angle, t[k], half_width=0.03)[1]
+
+    def flywheel_energy(k: int) -> float:
+        return 0.5 * J_f * (rate(k, phi) + rate(k, psi)) ** 2
+
+    def motor_work(a: int, b: int) -> tuple[float, float]:
+        """Work on [t_a, t_b] (sample indices), and its 1-sigma noise, J."""
+        s = slice(a, b + 1)
+        i_mid = 0.5 * (i[s][1:] + i[s][:-1])
+        dpsi = np.diff(psi_s[s])
+        if work == "reaction":
+            # Work of the motor's reaction on the hull: -(k_t i - M_f) dphi.
+            dphi = np.diff(phi_s[s])
+            omega = dpsi / np.diff(t[s])
+            torque = k_t * i_mid - (f_visc * omega + f_coul * np.sign(omega))
+            A = -float(np.sum(torque * dphi))
+            noise_i = float(np.std(rec["i"][free]))
+            sigma = k_t * noise_i * float(np.sqrt(np.sum(dphi**2) / 2.0)) + CURRENT_GAIN_UNCERTAINTY * abs(A)
+            return A, sigma
+        if work == "current":
+            A = k_t * float(np.sum(i_mid * dpsi))
+        else:
+            u_mid = 0.5 * (rec["u"][s][1:] + rec["u"][s][:-1])
+            dt = np.diff(t[s])
+            A = float(np.sum(u_mid * i_mid * dt) - R * np.sum(i_mid**2 * dt) - 0.5 * L * (i[b] ** 2 - i[a] ** 2))
+        noise_i = float(np.std(rec["i"][free]))
+        sigma = k_t * noise_i * float(np.sqrt(np.sum(dpsi**2) / 2.0)) + CURRENT_GAIN_UNCERTAINTY * abs(A)
+        return A, sigma
+
+    def bearing_work(a: int, b: int) -> float:
+        s = slice(a, b + 1)
+        omega = np.gradient(psi[s], t[s])
+        return -float(np.sum((f_visc * omega[:-1] + f_coul * np.sign(omega[:-1])) * np.diff(psi[s])))
+
+    out: list[Interval] = []
+    for phi1 in phi1_list:
+        iv = Interval(run=rec.name, phi1=float(phi1), lambda66=float("nan"), sigma=float("inf"), w1f=0.0, w1r=0.0)
+        out.append(iv)
+        k1 = _crossing(phi, free.start, k2, phi1, direction)
+        k4 = _crossing(phi, rev.start, rev.stop - 1, phi1, -direction)
+        if k1 is None or k4 is None:
+            iv.rejected = "boundary angle not passed on both strokes"
+            continue
+        # Refine the crossing instants and rates with local quadratic fits.
+        t1, w1f, sw1f = _crossing_fit(t, phi, k1, phi1)
+        t4, w1r, sw1r = _crossing_fit(t, phi, k4, phi1)
+        k1, k4 = int(np.argmin(np.abs(t - t1))), int(np.argmin(np.abs(t - t4)))
+        A_f, sA_f = motor_work(k1, k2)
+        A_r, sA_r = motor_work(k3, k4)
+        if work == "reaction":  # the hull's own balance: no flywheel energy, rotor friction inside A
+            B_f = B_r = 0.0
+            K1 = K2 = K3 = K4 = 0.0
+        else:
+            B_f, B_r = bearing_work(k1, k2), bearing_work(k3, k4)
+            K1, K2, K3, K4 = (flywheel_energy(k) for k in (k1, k2, k3, k4))
+        spring = 0.5 * c * ((phi[k2] - phi_n) ** 2 - (phi1 - phi_n) ** 2 + (phi[k3] - phi_n) ** 2 - (phi1 - phi_n) ** 2)
+        # Hull kinetic energy left at t2, t3 (nearly zero; the brake holds the hull).
+        J_guess = fwd_law["J"] if fwd_law else J_h
+        hull_rest = 0.5 * J_guess * (rate(k2, phi) ** 2 + rate(k3, phi) ** 2)
+        dW, s_dW = (_dissipation_mismatch(t, phi, k1, k2, k3, k4, fwd_law, direction)
+                    if (asymmetry_correction and fwd_law) else (0.0, 0.0))
+        numerator = spring + (A_r + B_r) - (A_f + B_f) + K2 + K3 - K1 - K4 + hull_rest - dW
+        denom = 0.5 * (w1f**2 + w1r**2)
+        J_total = numerator / denom
+        lam = J_total - J_h
+        # Uncertainty: work noise and gain, rate fits, dissipation-mismatch model.
+        s_num = float(np.sqrt(sA_f**2 + sA_r**2 + s_dW**2))
+        s_den = float(np.sqrt((w1f * sw1f) ** 2 + (w1r * sw1r) ** 2))
+        sigma = float(np.sqrt((s_num / denom) ** 2 + (J_total * s_den / denom) ** 2))
+        sat = float(np.mean(np.abs(rec["i_cmd"][k3:k4 + 1]) >= 0.999 * float(rig.get("i_max", np.inf)))) \
+            if "i_cmd" in rec.samples else 0.0
+        iv.lambda66, iv.sigma, iv.w1f, iv.w1r = float(lam), sigma, float(w1f), float(w1r)
+        iv.terms = {"spring": spring, "A_f": A_f, "A_r": A_r, "B_f": B_f, "B_r": B_r, "K1": K1, "K2": K2,
+                    "K3": K3, "K4": K4, "hull_rest": hull_rest, "dW": dW, "saturated_frac": sat,
+                    "t1": t1, "t4": t4, "speed_mismatch": abs(abs(w1r) - abs(w1f)) / max(abs(w1f), 1e-12)}
+        if sat > 0.02:
+            iv.rejected = f"current at its limit for {sat:.0%} of the reverse stroke"
+        elif iv.terms["speed_mismatch"] > 0.2:
+            iv.rejected = f"reverse speed at phi1 differs by {iv.terms['speed_mismatch']:.0%} from the forward speed"
+    del sample_dt
+    return out
+
+
+def _crossing(phi: np.ndarray, a: int, b: int, level: float, direction: float) -> int | None:
+    """First sample in [a, b) after which ``phi`` has crossed ``level`` moving in ``direction``."""
+    seg = direction * (phi[a:b] - level)
+    idx = np.nonzero((seg[:-1] < 0) & (seg[1:] >= 0))[0]
+    return None if not len(idx) else int(a + idx[0] + 1)
+
+
+def _crossing_fit(t: np.ndarray, phi: np.ndarray, k: int, level: float, half_width: float = 0.03):
+    """Time where a local cubic through ``phi`` equals ``level``; rate there and its sigma."""
+    tc = t[k]
+    coef, cov, rms = local_fit(t, phi, tc, half_width=half_width, full=True)
+    poly = np.polynomial.Polynomial(coef)  # phi ~ poly(s), s = t - tc
+    dpoly = poly.deriv()
+    s = 0.0
+    for _ in range(6):  # Newton on poly(s) = level
+        s -= (poly(s) - level) / dpoly(s)
+    w = float(dpoly(s))
+    grad = np.array([k * s ** (k - 1) if k else 0.0 for k in range(len(coef))])  # d(rate)/d(coef)
+    sw = float(np.sqrt(grad @ cov @ grad))
+    return float(tc + s), float(w), sw
+
+
+def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_h: float, c: float, phi_n: float,
+                         i: np.ndarray) -> dict | None:
+    """Damping torque magnitude ``D(w) = d1 |w| + d2 w^2`` seen on the forward stroke.
+
+    From ``J phi'' + c (phi - phi_n) = -D(w) sign(w)`` with ``J`` and the damping fitted
+    jointly by least squares on smoothed derivatives of the free stroke's second half.
+    """
+    from scipy.signal import savgol_filter  # noqa: PLC0415
+
+    t, phi = rec.t, rec["phi"]
+    a = free.start + (k2 - free.start) // 3
+    if k2 - a < 60:
+        return None
+    dt = float(np.median(np.diff(t[a:k2])))
+    win = 41
+    seg = phi[a - win:k2 + 1] if a >= win else phi[a:k2 + 1]
+    w = savgol_filter(seg, win, 3, deriv=1, delta=dt)
+    acc = savgol_filter(seg, win, 3, deriv=2, delta=dt)
+    keep = slice(win, len(seg) - win // 2)
+    w, acc, ph = w[keep], acc[keep], seg[keep]
+    # -c (phi - phi_n) = J acc + d1 w + d2 w|w|   (linear in J, d1, d2)
+    X = np.column_stack([acc, w, w * np.abs(w)])
+    y = -c * (ph - phi_n)
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    J, d1, d2 = (float(x) for x in coef)
+    if not np.isfinite(J) or J <= 0:
+        return None
+    return {"J": J, "d1": max(d1, 0.0), "d2": max(d2, 0.0)}
+
+
+def _dissipation_mismatch(t, phi, k1, k2, k3, k4, law, direction) -> tuple[float, float]:
+    """``dW = W_reverse - W_forward`` from the two strokes' speed profiles over angle."""
+    from scipy.signal import savgol_filter  # noqa: PLC0415
+
+    def speed_over_angle(a: int, b: int):
+        lo, hi = max(a - 30, 0), min(b + 30, len(t) - 1)
+        dt = float(np.median(np.diff(t[lo:hi])))
+        speed = np.abs(savgol_filter(phi[lo:hi + 1], 41, 3, deriv=1, delta=dt))
+        ang = phi[lo:hi + 1]
+        order = np.argsort(ang)
+        return ang[order], speed[order]
+
+    af, sf = speed_over_angle(k1, k2)
+    ar, sr = speed_over_angle(k3, k4)
+    grid = np.linspace(phi[k1], phi[k2], 200)
+    vf, vr = np.interp(grid, af, sf), np.interp(grid, ar, sr)
+
+    def D(v):
+        return law["d1"] * v + law["d2"] * v * v
+
+    dW = float(np.trapezoid(D(vr) - D(vf), direction * grid)) if len(grid) > 1 else 0.0
+    return dW, 0.5 * abs(dW)

@@ -1,0 +1,290 @@
+"""Run records, format ``addedinertia-run/1`` (``../shared/spec/run-record.md``).
+
+One experiment is a CSV of samples plus a JSON of metadata with the same stem. Readers
+refuse bad input with the file, the line or column, the value and what was expected;
+they never drop rows. Writers are atomic: a temporary file in the same folder, then an
+``os.replace`` to the final name.
+
+Estimators read ``record.rig`` and ``record.experiment``; only scoring reads
+``record.truth_lambda66`` (simulated runs).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+FORMAT = "addedinertia-run/1"
+PHASES = ("free", "hold", "reverse", "idle")
+REQUIRED_COLUMNS = ("t", "phase", "phi", "psi", "u", "i")
+OPTIONAL_NUMERIC_COLUMNS = ("u_cmd", "i_cmd", "brake")
+REQUIRED_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "phi_neutral", "k_t", "R", "L", "sample_rate")
+POSITIVE_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L", "sample_rate")
+EXPERIMENT_KINDS = ("reverse-symmetric", "free-decay", "forced-oscillation")
+SOURCES = ("sim", "emulator", "bench")
+MAX_GAP_PERIODS = 5.0
+
+
+class RecordError(ValueError):
+    """A run record that cannot be used; the message names file, place, value, expectation."""
+
+
+@dataclass
+class RunRecord:
+    """Samples (column name -> array; ``phase`` is an array of str) and metadata."""
+
+    samples: dict[str, np.ndarray]
+    meta: dict[str, Any]
+    path: Path | None = None
+    gaps: list[tuple[float, float]] = field(default_factory=list)  # (t_before, gap_s) beyond 5 periods
+
+    # Convenience views -------------------------------------------------------------
+    def __getitem__(self, column: str) -> np.ndarray:
+        return self.samples[column]
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.samples["t"]
+
+    @property
+    def phase(self) -> np.ndarray:
+        return self.samples["phase"]
+
+    @property
+    def rig(self) -> dict[str, Any]:
+        return self.meta["rig"]
+
+    @property
+    def experiment(self) -> dict[str, Any]:
+        return self.meta["experiment"]
+
+    @property
+    def run_id(self) -> str:
+        return str(self.meta.get("run_id", ""))
+
+    @property
+    def name(self) -> str:
+        return str(self.path) if self.path is not None else self.run_id or "<record>"
+
+    def phase_mask(self, name: str) -> np.ndarray:
+        return self.phase == name
+
+    def truth_lambda66(self) -> float | None:
+        """For scoring simulated runs only. Estimators must not call this."""
+        truth = self.meta.get("truth")
+        return None if not truth else float(truth["lambda66"])
+
+    def without_truth(self) -> "RunRecord":
+        """A copy whose metadata has no ``truth``: what estimators are given."""
+        meta = {k: v for k, v in self.meta.items() if k != "truth"}
+        return RunRecord(samples=self.samples, meta=meta, path=self.path, gaps=self.gaps)
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+# --- writing -----------------------------------------------------------------------
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_record(record: RunRecord, csv_path: str | os.PathLike) -> Path:
+    """Write ``record`` as ``STEM.csv`` + ``STEM.json``; returns the CSV path."""
+    csv_path = Path(csv_path)
+    if csv_path.suffix != ".csv":
+        raise RecordError(f"{csv_path}: a run record's sample file must end in .csv")
+    cols = list(record.samples)
+    missing = [c for c in REQUIRED_COLUMNS if c not in cols]
+    if missing:
+        raise RecordError(f"{csv_path}: cannot write a record without columns {missing}")
+    n = len(record.samples["t"])
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    columns = [record.samples[c] for c in cols]
+    for k in range(n):
+        w.writerow([_fmt(col[k]) for col in columns])
+    meta = dict(record.meta)
+    meta.setdefault("format", FORMAT)
+    meta.setdefault("run_id", csv_path.stem)
+    # JSON first, then CSV: a reader needs both, and each appears whole or not at all.
+    _atomic_write_text(csv_path.with_suffix(".json"), json.dumps(meta, indent=2, sort_keys=False) + "\n")
+    _atomic_write_text(csv_path, buf.getvalue())
+    record.path = csv_path
+    return csv_path
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, (str, np.str_)):
+        return str(v)
+    if isinstance(v, (bool, np.bool_)):
+        return "1" if v else "0"
+    return repr(float(v))
+
+
+# --- reading -----------------------------------------------------------------------
+
+def read_record(path: str | os.PathLike) -> RunRecord:
+    """Read and validate a record from its CSV path (or its JSON path)."""
+    path = Path(path)
+    if path.suffix == ".json":
+        csv_path, json_path = path.with_suffix(".csv"), path
+    elif path.suffix == ".csv":
+        csv_path, json_path = path, path.with_suffix(".json")
+    else:
+        raise RecordError(f"{path}: expected a run record's .csv (or .json) file")
+    if not csv_path.exists() and not json_path.exists():
+        raise RecordError(f"{path}: no such file")
+    if not json_path.exists():
+        raise RecordError(f"{csv_path}: no matching metadata file {json_path.name} beside it")
+    if not csv_path.exists():
+        raise RecordError(f"{json_path}: no matching sample file {csv_path.name} beside it")
+    meta = _read_meta(json_path)
+    samples = _read_samples(csv_path)
+    gaps = _check_samples(csv_path, samples, meta)
+    return RunRecord(samples=samples, meta=meta, path=csv_path, gaps=gaps)
+
+
+def _read_meta(json_path: Path) -> dict[str, Any]:
+    try:
+        meta = json.loads(json_path.read_text())
+    except json.JSONDecodeError as e:
+        raise RecordError(f"{json_path}: line {e.lineno} column {e.colno}: not valid JSON ({e.msg})") from None
+    except UnicodeDecodeError:
+        raise RecordError(f"{json_path}: not UTF-8 text") from None
+    if not isinstance(meta, dict):
+        raise RecordError(f"{json_path}: expected a JSON object at the top level, got {type(meta).__name__}")
+    for key in ("format", "rig", "experiment"):
+        if key not in meta:
+            raise RecordError(f"{json_path}: missing key '{key}'")
+    if meta["format"] != FORMAT:
+        raise RecordError(f"{json_path}: key 'format' is {meta['format']!r}; this reader knows only {FORMAT!r}")
+    if "source" in meta and meta["source"] not in SOURCES:
+        raise RecordError(f"{json_path}: key 'source' is {meta['source']!r}; expected one of {SOURCES}")
+    rig = meta["rig"]
+    if not isinstance(rig, dict):
+        raise RecordError(f"{json_path}: key 'rig' must be an object, got {rig!r}")
+    for key in REQUIRED_RIG_KEYS:
+        if key not in rig:
+            raise RecordError(f"{json_path}: missing key 'rig.{key}'")
+        value = rig[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise RecordError(f"{json_path}: key 'rig.{key}' is {value!r}; expected a finite number")
+    for key in POSITIVE_RIG_KEYS:
+        if rig[key] <= 0:
+            raise RecordError(f"{json_path}: key 'rig.{key}' is {rig[key]!r}; expected a number > 0 (SI units)")
+    if abs(rig["phi_neutral"]) > 2 * math.pi:
+        raise RecordError(f"{json_path}: key 'rig.phi_neutral' is {rig['phi_neutral']!r} rad; expected |value| <= 2 pi")
+    friction = rig.get("motor_friction", {})
+    if not isinstance(friction, dict):
+        raise RecordError(f"{json_path}: key 'rig.motor_friction' must be an object with 'viscous' and 'coulomb'")
+    for key, value in friction.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise RecordError(f"{json_path}: key 'rig.motor_friction.{key}' is {value!r}; expected a finite number >= 0")
+    exp = meta["experiment"]
+    if not isinstance(exp, dict) or "kind" not in exp:
+        raise RecordError(f"{json_path}: missing key 'experiment.kind'")
+    if exp["kind"] not in EXPERIMENT_KINDS:
+        raise RecordError(f"{json_path}: key 'experiment.kind' is {exp['kind']!r}; expected one of {EXPERIMENT_KINDS}")
+    phi1 = exp.get("phi1")
+    if phi1 is not None and (not isinstance(phi1, list) or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and abs(x) <= 2 * math.pi
+            for x in phi1)):
+        raise RecordError(f"{json_path}: key 'experiment.phi1' is {phi1!r}; expected a list of angles in rad, |angle| <= 2 pi")
+    return meta
+
+
+def _read_samples(csv_path: Path) -> dict[str, np.ndarray]:
+    try:
+        text = csv_path.read_text()
+    except UnicodeDecodeError:
+        raise RecordError(f"{csv_path}: not UTF-8 text") from None
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        raise RecordError(f"{csv_path}: empty file; expected a header row with {list(REQUIRED_COLUMNS)}")
+    header = [h.strip() for h in rows[0]]
+    if len(set(header)) != len(header):
+        dup = sorted({h for h in header if header.count(h) > 1})
+        raise RecordError(f"{csv_path}: line 1: duplicate column(s) {dup}")
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    if missing:
+        raise RecordError(f"{csv_path}: line 1: missing required column(s) {missing}; header is {header}")
+    body = rows[1:]
+    if not body:
+        raise RecordError(f"{csv_path}: header only, no samples")
+    for k, row in enumerate(body):
+        if len(row) != len(header):
+            raise RecordError(f"{csv_path}: line {k + 2}: {len(row)} fields, expected {len(header)} as in the header")
+    columns = list(zip(*body))
+    samples: dict[str, np.ndarray] = {}
+    for name, col in zip(header, columns):
+        if name == "phase":
+            arr = np.array([c.strip() for c in col], dtype=object).astype(str)
+            bad = ~np.isin(arr, PHASES)
+            if bad.any():
+                k = int(np.argmax(bad))
+                raise RecordError(f"{csv_path}: line {k + 2}, column 'phase': {arr[k]!r}; expected one of {PHASES}")
+            samples[name] = arr
+            continue
+        numeric = name in REQUIRED_COLUMNS or name in OPTIONAL_NUMERIC_COLUMNS
+        try:
+            arr = np.array(col, dtype=float)
+        except ValueError:
+            if not numeric:
+                samples[name] = np.array(col, dtype=object).astype(str)  # kept, unused
+                continue
+            for k, c in enumerate(col):
+                try:
+                    float(c)
+                except ValueError:
+                    raise RecordError(f"{csv_path}: line {k + 2}, column '{name}': {c!r} is not a number") from None
+            raise
+        if numeric and not np.all(np.isfinite(arr)):
+            k = int(np.argmax(~np.isfinite(arr)))
+            raise RecordError(f"{csv_path}: line {k + 2}, column '{name}': {col[k]!r}; expected a finite number")
+        samples[name] = arr
+    return samples
+
+
+def _check_samples(csv_path: Path, s: dict[str, np.ndarray], meta: dict) -> list[tuple[float, float]]:
+    t = s["t"]
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        k = int(np.argmax(dt <= 0))
+        raise RecordError(f"{csv_path}: line {k + 3}, column 't': {t[k + 1]!r} after {t[k]!r}; "
+                          "expected strictly increasing sample times")
+    for name in ("phi",):
+        big = np.abs(s[name]) > 2 * math.pi
+        if big.any():
+            k = int(np.argmax(big))
+            raise RecordError(f"{csv_path}: line {k + 2}, column '{name}': {s[name][k]!r} rad; expected |phi| <= 2 pi "
+                              "(hull yaw in radians, not degrees or counts?)")
+    if "brake" in s:
+        bad = ~np.isin(s["brake"], (0.0, 1.0))
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise RecordError(f"{csv_path}: line {k + 2}, column 'brake': {s['brake'][k]!r}; expected 0 or 1")
+    period = 1.0 / float(meta["rig"]["sample_rate"])
+    gaps = [(float(t[k]), float(dt[k])) for k in np.nonzero(dt > MAX_GAP_PERIODS * period)[0]]
+    return gaps

@@ -1,0 +1,63 @@
+"""The DC motor's electrical side, integrated exactly.
+
+``L di/dt = u - R i - k_e Omega`` has time constant ``L/R`` (about 1 ms), comparable with
+the sample period, so explicit Runge-Kutta on ``i`` is unstable for steps above about
+2.8 L/R (physics.md section 2). With ``u`` and ``Omega`` held over a step the equation is
+linear, and its exact solution is used instead::
+
+    i(t) = i_ss + (i0 - i_ss) exp(-t R / L),   i_ss = (u - k_e Omega) / R
+
+Modes (what the drive does with the controller's command):
+
+* ``passive``: terminals open, no current, the terminal voltage is the back-EMF;
+* ``voltage``: the command is a terminal voltage, clipped to the supply;
+* ``current``: the drive's current loop picks the voltage that brings ``i`` to the
+  command by the end of the sample (dead-beat), clipped to the supply; the command itself
+  is clipped to the current limit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MODES = ("passive", "current", "voltage")
+
+
+@dataclass(frozen=True)
+class MotorCommand:
+    mode: str = "passive"  # one of MODES
+    value: float = 0.0  # A in current mode, V in voltage mode
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"motor mode {self.mode!r}: expected one of {MODES}")
+        if not np.isfinite(self.value):
+            raise ValueError(f"motor command {self.value!r}: expected a finite number")
+
+
+def terminal_voltage(cmd: MotorCommand, i0, omega, *, R, L, k_e, u_max, i_max, sample_dt):
+    """Voltage the drive holds over the next sample, V (works on arrays)."""
+    if cmd.mode == "voltage":
+        return np.clip(cmd.value, -u_max, u_max)
+    if cmd.mode == "current":
+        target = np.clip(cmd.value, -i_max, i_max)
+        a = np.exp(-sample_dt * R / L)
+        i_ss = (target - a * i0) / (1.0 - a)
+        return np.clip(R * i_ss + k_e * omega, -u_max, u_max)
+    return k_e * omega  # passive: open circuit, the terminals show the back-EMF
+
+
+def current_step(i0, u, omega, h, *, R, L, k_e):
+    """Exact current after ``h`` seconds, and its mean over the step, A.
+
+    The mean is what produces torque over the step, so ``k_t * mean * dpsi`` is the
+    motor's mechanical work exactly when ``Omega`` is constant.
+    """
+    tau = L / R
+    i_ss = (u - k_e * omega) / R
+    decay = np.exp(-h / tau)
+    i1 = i_ss + (i0 - i_ss) * decay
+    mean = i_ss + (i0 - i_ss) * tau / h * (1.0 - decay)
+    return i1, mean

@@ -1,0 +1,222 @@
+"""The simulated rig, with MuJoCo as the rigid-body engine.
+
+Model (physics.md section 2): a ``hull`` body on a vertical ``hull_yaw`` hinge carrying the
+torsion spring (``stiffness``, ``springref``), with the hull's yaw inertia as its body
+inertia and ``lambda66`` as the joint's armature (exact for a constant added inertia);
+a ``flywheel`` child body on a coaxial ``flywheel_spin`` hinge (angle ``psi`` relative to
+the hull) driven by a ``motor`` actuator. Because the flywheel is the hull's child, the
+motor's reaction on the hull comes out of the mass matrix; it is never added by hand.
+The hull brake is a joint equality constraint, switched on where the hull stands.
+
+Everything else comes from :mod:`.forces` as applied generalised forces, and the motor
+current from :mod:`.motor`'s exact update.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from . import forces
+from .motor import MotorCommand, current_step, terminal_voltage
+from .params import RigParams
+from .sensors import Reading, Sensors
+
+HULL_JOINT = "hull_yaw"
+FLYWHEEL_JOINT = "flywheel_spin"
+MOTOR = "motor"
+BRAKE = "brake"
+
+
+def build_mjcf(p: RigParams) -> str:
+    """MJCF text of the rig. Geoms are for rendering only (no mass, no contacts)."""
+    J_h, J_f = p.hull.J_hull, p.motor.J_flywheel
+    # Flywheel: a steel disc drawn with the radius that gives J_f for a 5 cm thick disc.
+    disc_radius = (2.0 * J_f / (7850.0 * math.pi * 0.05)) ** 0.25
+    return f"""
+<mujoco model="addedinertia-rig">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{p.physics_dt!r}" integrator="RK4" gravity="0 0 0">
+    <flag contact="disable"/>
+  </option>
+  <visual><global offwidth="640" offheight="480"/></visual>
+  <worldbody>
+    <light pos="0 0 3" dir="0 0 -1"/>
+    <geom name="tank_floor" type="plane" size="2 1 0.01" pos="0 0 -0.3" rgba="0.2 0.4 0.6 1"/>
+    <body name="hull">
+      <joint name="{HULL_JOINT}" type="hinge" axis="0 0 1"
+             stiffness="{p.spring.c!r}" springref="{forces.true_neutral(p)!r}"
+             armature="{p.hull.lambda66!r}"/>
+      <inertial pos="0 0 0" mass="1" diaginertia="{J_h!r} {J_h!r} {J_h!r}"/>
+      <geom type="ellipsoid" size="1.0 0.1 0.125" mass="0" rgba="0.85 0.85 0.8 1"/>
+      <body name="flywheel" pos="0 0 0.2">
+        <joint name="{FLYWHEEL_JOINT}" type="hinge" axis="0 0 1"/>
+        <inertial pos="0 0 0" mass="1" diaginertia="{J_f!r} {J_f!r} {J_f!r}"/>
+        <geom type="cylinder" size="{disc_radius:.4f} 0.025" mass="0" rgba="0.6 0.1 0.1 1"/>
+        <geom type="box" pos="{disc_radius * 0.7:.4f} 0 0.03" size="0.02 0.01 0.01" mass="0" rgba="1 1 0 1"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="{MOTOR}" joint="{FLYWHEEL_JOINT}" gear="1"/>
+  </actuator>
+  <equality>
+    <joint name="{BRAKE}" joint1="{HULL_JOINT}" active="false" solref="{2 * p.physics_dt!r} 1"
+           solimp="0.999 0.9999 0.001"/>
+  </equality>
+</mujoco>
+"""
+
+
+@dataclass(frozen=True)
+class TrueState:
+    """The simulator's state, for scoring and physics tests only."""
+
+    t: float
+    phi: float  # rad
+    w: float  # rad/s, hull yaw rate
+    psi: float  # rad, flywheel relative to hull
+    omega: float  # rad/s, flywheel rate relative to hull
+    i: float  # A, motor current
+    u: float  # V, terminal voltage held over the last sample
+    water_rate: float  # rad/s, fluid-memory state
+    energy: float  # J, mechanical energy T + Pi
+    motor_work: float  # J, cumulative integral of k_t i Omega dt
+    dissipated_hull: float  # J, cumulative work of non-spring hull torques (<= 0 for damping)
+    dissipated_flywheel: float  # J, cumulative work of rotor friction
+    electric_energy: float  # J, cumulative integral of u i dt
+    ohmic_loss: float  # J, cumulative integral of R i^2 dt
+
+
+class MujocoRig:
+    """One simulated rig; see :class:`addedinertia_env.rig.interface.Rig` for the protocol."""
+
+    source = "sim"
+
+    def __init__(self, params: RigParams, seed: int | np.random.SeedSequence | None = None):
+        self.params = params
+        self.model = mujoco.MjModel.from_xml_string(build_mjcf(params))
+        self.data = mujoco.MjData(self.model)
+        self._hull_dof = self.model.jnt_dofadr[self.model.joint(HULL_JOINT).id]
+        self._fly_dof = self.model.jnt_dofadr[self.model.joint(FLYWHEEL_JOINT).id]
+        self._hull_qpos = self.model.jnt_qposadr[self.model.joint(HULL_JOINT).id]
+        self._fly_qpos = self.model.jnt_qposadr[self.model.joint(FLYWHEEL_JOINT).id]
+        self._motor = self.model.actuator(MOTOR).id
+        self._brake = self.model.equality(BRAKE).id
+        self.k_t = forces.true_torque_constant(params)
+        self.sensors = Sensors(params, np.random.default_rng(seed))
+        self.reset()
+
+    # --- protocol -------------------------------------------------------------------
+    @property
+    def dt(self) -> float:
+        return self.params.sensors.dt
+
+    @property
+    def known(self) -> dict:
+        """The run record's ``rig`` block: what the experimenter knows."""
+        return self.params.known()
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
+        """Place the hull at ``phi0`` (rod twisted), motor passive, brake as given."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[self._hull_qpos] = phi0
+        self.data.qpos[self._fly_qpos] = psi0
+        self.data.qvel[self._fly_dof] = omega0
+        mujoco.mj_forward(self.model, self.data)
+        self.i = 0.0
+        self.u = self.k_t * omega0  # open circuit: the terminals show the back-EMF
+        self.water_rate = 0.0
+        self.motor_work = self.dissipated_hull = self.dissipated_flywheel = 0.0
+        self.electric_energy = self.ohmic_loss = 0.0
+        self.sensors.reset()
+        self.set_brake(brake)
+        return self._read()
+
+    def set_brake(self, on: bool) -> None:
+        self.brake = bool(on)
+        if on:  # hold the hull where it stands: phi = polycoef[0]
+            self.model.eq_data[self._brake, :5] = 0.0
+            self.model.eq_data[self._brake, 0] = self.data.qpos[self._hull_qpos]
+        self.data.eq_active[self._brake] = 1 if on else 0
+
+    def step(self, cmd: MotorCommand) -> Reading:
+        """Advance one sample period under ``cmd`` and return the new reading."""
+        p, m = self.params, self.params.motor
+        d = self.data
+        h = p.physics_dt
+        omega = d.qvel[self._fly_dof]
+        passive = cmd.mode == "passive"
+        u = terminal_voltage(cmd, self.i, omega, R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max,
+                             i_max=m.i_max, sample_dt=p.sensors.dt)
+        for _ in range(p.physics_substeps):
+            phi, w = d.qpos[self._hull_qpos], d.qvel[self._hull_dof]
+            psi0, omega = d.qpos[self._fly_qpos], d.qvel[self._fly_dof]
+            if passive:
+                i1 = i_mean = 0.0
+                u = self.k_t * omega
+            else:
+                i1, i_mean = current_step(self.i, u, omega, h, R=m.R, L=m.L, k_e=self.k_t)
+            q_hull = float(forces.hull_extra_torque(phi, w, self.water_rate, p))
+            q_fly = float(forces.flywheel_friction_torque(omega, p))
+            torque = self.k_t * i_mean
+            d.qfrc_applied[self._hull_dof] = q_hull
+            d.qfrc_applied[self._fly_dof] = q_fly
+            d.ctrl[self._motor] = torque
+            self.water_rate += h * float(forces.water_rate_derivative(w, self.water_rate, p))
+            mujoco.mj_step(self.model, self.data)
+            dphi = d.qpos[self._hull_qpos] - phi
+            dpsi = d.qpos[self._fly_qpos] - psi0
+            self.motor_work += torque * dpsi
+            self.dissipated_hull += q_hull * dphi
+            self.dissipated_flywheel += q_fly * dpsi
+            if not passive:
+                # Exact integrals over the step with u held: int(u i) = u * mean(i);
+                # int(R i^2) from the exponential solution.
+                self.electric_energy += u * i_mean * h
+                self.ohmic_loss += m.R * _mean_square_current(self.i, i1, u, omega, h, m.R, m.L, self.k_t) * h
+            self.i = float(i1)
+        self.u = float(u)
+        return self._read()
+
+    def truth(self) -> dict:
+        """The run record's ``truth`` block (scoring only)."""
+        h = self.params.hull
+        return {"lambda66": h.lambda66, "effects": self.params.effects.to_dict(),
+                "damping": {"b1": h.b1, "b2": h.b2}, "k_t": self.k_t,
+                "phi_neutral": forces.true_neutral(self.params)}
+
+    def true_state(self) -> TrueState:
+        """Simulator truth: for scoring and tests, never for estimators or controllers."""
+        d, p = self.data, self.params
+        phi, w = float(d.qpos[self._hull_qpos]), float(d.qvel[self._hull_dof])
+        omega = float(d.qvel[self._fly_dof])
+        energy = float(forces.kinetic_energy(w, omega, p) + forces.potential_energy(phi, p))
+        return TrueState(t=float(d.time), phi=phi, w=w, psi=float(d.qpos[self._fly_qpos]), omega=omega,
+                         i=self.i, u=self.u, water_rate=self.water_rate, energy=energy,
+                         motor_work=self.motor_work, dissipated_hull=self.dissipated_hull,
+                         dissipated_flywheel=self.dissipated_flywheel,
+                         electric_energy=self.electric_energy, ohmic_loss=self.ohmic_loss)
+
+    # --- internals ------------------------------------------------------------------
+    def _read(self) -> Reading:
+        d = self.data
+        return self.sensors.read(float(d.time), float(d.qpos[self._hull_qpos]), float(d.qpos[self._fly_qpos]),
+                                 self.u, self.i, self.brake)
+
+
+def _mean_square_current(i0, i1, u, omega, h, R, L, k_e) -> float:
+    """Mean of i(t)^2 over a step of the exact exponential solution."""
+    tau = L / R
+    i_ss = (u - k_e * omega) / R
+    a = i0 - i_ss
+    e1 = math.exp(-h / tau)
+    e2 = e1 * e1
+    return i_ss**2 + 2 * i_ss * a * tau / h * (1 - e1) + a**2 * tau / (2 * h) * (1 - e2)

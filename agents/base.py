@@ -1,0 +1,69 @@
+"""What a controller is given, and the base class of the classical controllers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from addedinertia_env.experiment.reference import MirroredReference
+from addedinertia_env.task import ObservationLayout
+
+
+@dataclass(frozen=True)
+class ControllerContext:
+    """Known before the controlled part of an episode begins (sensor data and rig constants only)."""
+
+    rig: dict[str, Any]  # the run record's ``rig`` block (known constants, SI)
+    layout: ObservationLayout  # named access to observation entries
+    reference: MirroredReference  # the mirrored free-stroke law, from the encoder
+    inertia_prior: float  # kg m^2, J_hull + lambda66 seen at the free stroke's stop
+    dt: float  # s, control period
+    hold_s: float  # s, duration of the brake hold before the reverse stroke
+
+    @property
+    def i_max(self) -> float:
+        return float(self.rig["i_max"])
+
+    @property
+    def k_t(self) -> float:
+        return float(self.rig["k_t"])
+
+
+class Controller:
+    """Base class: subclasses implement :meth:`current` in amperes, in physical units."""
+
+    name = "controller"
+
+    def reset(self, context: ControllerContext) -> None:
+        self.ctx = context
+
+    def current(self, obs: dict[str, float]) -> float:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def predict(self, observation: np.ndarray, state: Any = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, Any]:
+        obs = self.ctx.layout.decode(np.asarray(observation, dtype=float).reshape(-1))
+        i = float(np.clip(self.current(obs) / self.ctx.i_max, -1.0, 1.0))
+        return np.array([i], dtype=np.float32), state
+
+
+def stroke_feedforward_current(ctx: ControllerContext, phi_ref_rel: float, accel_ref: float, J: float) -> float:
+    """Current that makes the hull retrace the mirrored stroke, from the recorded law, A.
+
+    On the free stroke ``J f'' + c (f - phi_n) = Q_w(f')`` (the damping torque). On the
+    mirror the rate changes sign, so the motor must supply ``-2 Q_w``; its reaction on
+    the hull is ``-k_t i``, hence ``i = -2 (J f'' + c (f - phi_n)) / k_t``.
+    """
+    c = float(ctx.rig["c_torsion"])
+    return -2.0 * (J * accel_ref + c * phi_ref_rel) / ctx.k_t
+
+
+def stroke_impulse(ctx: ControllerContext, J: float, n: int = 400) -> float:
+    """Angular impulse (N m s) the feedforward puts on the flywheel over the reverse stroke."""
+    law = ctx.reference.law
+    s = np.linspace(law.t_start, law.t_stop, n)
+    phi_n = float(ctx.rig["phi_neutral"])
+    torque = -2.0 * (J * law.accel(s) + float(ctx.rig["c_torsion"]) * (law.phi(s) - phi_n))
+    return float(np.trapezoid(torque, s))
