@@ -24,7 +24,7 @@ def endpoint_slope_weights(n: int, dt: float) -> np.ndarray:
 class RateEstimator:
     """Causal rate from angle samples; returns 0 until the window has filled once."""
 
-    def __init__(self, dt: float, window_s: float = 0.02):
+    def __init__(self, dt: float, window_s: float = 0.04):
         self.dt = dt
         self.n = max(3, int(round(window_s / dt)))
         self.w = endpoint_slope_weights(self.n, dt)

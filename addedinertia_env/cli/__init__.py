@@ -1,0 +1,49 @@
+"""The ``addedinertia`` command line.
+
+Each subcommand lives in its own module of this package and exposes
+``register(subparsers)``, which adds its parser and sets ``func(args) -> int``. Modules
+are found by name, so adding a command means adding a file. Errors in the input (bad
+records, bad configs, bad options) print one line on stderr and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from .common import BAD_INPUT, fail
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="addedinertia",
+        description="Identify the added moment of inertia lambda66 of a hull on a reverse-symmetric yaw rig.")
+    from .. import __version__  # noqa: PLC0415
+
+    parser.add_argument("--version", action="version", version=f"addedinertia {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if info.name == "common":
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        if hasattr(module, "register"):
+            module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except BAD_INPUT as e:
+        return fail(e)
+    except KeyboardInterrupt:
+        print("addedinertia: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

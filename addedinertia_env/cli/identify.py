@@ -1,0 +1,40 @@
+"""``addedinertia identify RUN.csv ... [--method M] [--json]``: lambda66 with a 95 % interval."""
+
+from __future__ import annotations
+
+from ..identify import METHODS, identify
+from ..record import read_record
+from .common import emit_json, info
+
+
+def register(sub) -> None:
+    p = sub.add_parser("identify", help="estimate lambda66 from run records",
+                       description="Estimate lambda66 (kg m^2) with a 95 %% interval from one or more run records.")
+    p.add_argument("records", nargs="+", metavar="RUN.csv")
+    p.add_argument("--method", choices=sorted(METHODS), default="energy")
+    p.add_argument("--work", choices=("reaction", "current", "electric"), default=None,
+                   help="energy method: how motor work is measured (default: reaction)")
+    p.add_argument("--verbose", action="store_true", help="include every interval in the JSON")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    records = [read_record(path) for path in args.records]
+    for rec in records:
+        for t_before, gap in rec.gaps:
+            info(f"{rec.name}: warning: gap of {gap:.4f} s in 't' after t = {t_before:.4f} s")
+    options = {}
+    if args.work is not None:
+        if args.method != "energy":
+            info("--work applies to the energy method only; ignored")
+        else:
+            options["work"] = args.work
+    result = identify(records, args.method, **options)
+    if args.json:
+        emit_json(result.to_json(verbose=args.verbose))
+    else:
+        lo, hi = result.ci95
+        print(f"lambda66 = {result.lambda66:.4f} kg m^2  (95 % interval {lo:.4f} .. {hi:.4f}; "
+              f"method {result.method}, {result.n_intervals} intervals)")
+    return 0

@@ -1,0 +1,188 @@
+"""Rig presets: validated YAML in ``configs/rigs/`` turned into :class:`RigParams`.
+
+Unknown keys are refused by name, with the keys that are allowed; every number must be
+finite and of the right sign (the dataclasses check that). ``hull.added_inertia`` and
+``hull.J_hull`` may be computed from geometry (Lamb's spheroid), so that a preset never
+types in a number that a closed form gives.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from . import hydro
+from .effects import Effects
+from .params import HullParams, MotorParams, RigParams, SensorParams, SpringParams
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
+RIG_DIR = CONFIG_DIR / "rigs"
+
+
+class ConfigError(ValueError):
+    """A configuration file or override that cannot be used; the message says how to fix it."""
+
+
+def available_rigs() -> list[str]:
+    return sorted(p.stem for p in RIG_DIR.glob("*.yaml"))
+
+
+def rig_path(name: str) -> Path:
+    p = Path(name)
+    if p.suffix in (".yaml", ".yml") and p.exists():
+        return p
+    candidate = RIG_DIR / f"{name}.yaml"
+    if not candidate.exists():
+        raise ConfigError(f"unknown rig {name!r}; expected one of {', '.join(available_rigs())} or a path to a .yaml file")
+    return candidate
+
+
+def load_preset(name: str) -> dict[str, Any]:
+    """The raw preset mapping (validated for top-level keys)."""
+    path = rig_path(name)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{path}: not valid YAML ({e})") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping at the top level")
+    _only_keys(data, {"name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps",
+                      "effects", "experiment"}, str(path))
+    data["_path"] = str(path)
+    return data
+
+
+def load_rig(name: str, effects: Effects | None = None, sensors: SensorParams | None = None) -> RigParams:
+    """A :class:`RigParams` from preset ``name`` (or a YAML path)."""
+    return rig_from_mapping(load_preset(name), effects=effects, sensors=sensors)
+
+
+def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
+                     sensors: SensorParams | None = None) -> RigParams:
+    where = data.get("_path", "rig")
+    hull = _hull({"name": data.get("name", "custom"), **(data.get("hull") or {})}, f"{where}: hull")
+    spring = _build(SpringParams, data.get("spring") or {}, f"{where}: spring")
+    motor = _build(MotorParams, data.get("motor") or {}, f"{where}: motor")
+    sens = sensors or _build(SensorParams, data.get("sensors") or {}, f"{where}: sensors")
+    eff = effects if effects is not None else Effects.from_dict(data.get("effects"), f"{where}: effects")
+    kwargs: dict[str, Any] = {}
+    for key in ("brake_torque", "physics_substeps"):
+        if key in data:
+            kwargs[key] = data[key]
+    try:
+        return RigParams(hull=hull, spring=spring, motor=motor, sensors=sens, effects=eff, **kwargs)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{where}: {e}") from None
+
+
+def _hull(d: dict[str, Any], where: str) -> HullParams:
+    _only_keys(d, {"J_hull", "added_inertia", "lambda66", "b1", "b2", "damping", "name"}, where)
+    out: dict[str, Any] = {}
+    if "name" in d:
+        out["name"] = str(d["name"])
+    J = d.get("J_hull", HullParams.J_hull)
+    if isinstance(J, dict):
+        _only_keys(J, {"model", "length", "beam", "extra"}, f"{where}.J_hull")
+        if J.get("model") != "floating-spheroid":
+            raise ConfigError(f"{where}.J_hull.model = {J.get('model')!r}: expected 'floating-spheroid' or a number")
+        a, b = 0.5 * _num(J, "length", where), 0.5 * _num(J, "beam", where)
+        J = hydro.spheroid_displaced_yaw_inertia(a, b, immersed_fraction=0.5) + float(J.get("extra", 0.0))
+    out["J_hull"] = J
+    if "lambda66" in d and "added_inertia" in d:
+        raise ConfigError(f"{where}: give either 'lambda66' or 'added_inertia', not both")
+    if "added_inertia" in d:
+        ai = d["added_inertia"]
+        if not isinstance(ai, dict):
+            raise ConfigError(f"{where}.added_inertia: expected a mapping with 'model'")
+        model = ai.get("model")
+        if model == "given":
+            _only_keys(ai, {"model", "value"}, f"{where}.added_inertia")
+            out["lambda66"] = _num(ai, "value", f"{where}.added_inertia")
+        elif model == "lamb-spheroid":
+            _only_keys(ai, {"model", "length", "beam", "immersion"}, f"{where}.added_inertia")
+            out["lambda66"] = hydro.spheroid_added_yaw_inertia(
+                _num(ai, "length", where), _num(ai, "beam", where), str(ai.get("immersion", "half")))
+        else:
+            raise ConfigError(f"{where}.added_inertia.model = {model!r}: expected 'given' or 'lamb-spheroid'")
+    elif "lambda66" in d:
+        out["lambda66"] = d["lambda66"]
+    if "b1" in d:
+        out["b1"] = d["b1"]
+    if "b2" in d and "damping" in d:
+        raise ConfigError(f"{where}: give either 'b2' or 'damping', not both")
+    if "damping" in d:
+        dm = d["damping"]
+        _only_keys(dm, {"model", "length", "draft", "drag_coefficient"}, f"{where}.damping")
+        if dm.get("model") != "cross-flow":
+            raise ConfigError(f"{where}.damping.model = {dm.get('model')!r}: expected 'cross-flow'")
+        out["b2"] = hydro.quadratic_yaw_damping(_num(dm, "length", where), _num(dm, "draft", where),
+                                                _num(dm, "drag_coefficient", where))
+    elif "b2" in d:
+        out["b2"] = d["b2"]
+    return _build(HullParams, out, where)
+
+
+def _build(cls, d: dict[str, Any], where: str):
+    allowed = {f.name for f in dataclasses.fields(cls)}
+    if not isinstance(d, dict):
+        raise ConfigError(f"{where}: expected a mapping of {sorted(allowed)}")
+    _only_keys(d, allowed, where)
+    for key, value in d.items():
+        if key != "name" and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise ConfigError(f"{where}.{key} = {value!r}: expected a number (SI units)")
+    try:
+        return cls(**d)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{where}: {e}") from None
+
+
+def _only_keys(d: dict[str, Any], allowed: set[str], where: str) -> None:
+    unknown = sorted(set(d) - allowed - {"_path"})
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(allowed)}")
+
+
+def _num(d: dict[str, Any], key: str, where: str) -> float:
+    if key not in d:
+        raise ConfigError(f"{where}: missing key {key!r}")
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise ConfigError(f"{where}.{key} = {v!r}: expected a finite number > 0")
+    return float(v)
+
+
+def plan_from_preset(data: dict[str, Any], **overrides: Any):
+    """The preset's ``experiment`` block as an :class:`ExperimentPlan`, with overrides."""
+    from ..experiment.protocol import ExperimentPlan  # noqa: PLC0415 - avoid an import cycle
+
+    exp = dict(data.get("experiment") or {})
+    allowed = {f.name for f in dataclasses.fields(ExperimentPlan)}
+    _only_keys(exp, allowed, f"{data.get('_path', 'rig')}: experiment")
+    exp.update({k: v for k, v in overrides.items() if v is not None})
+    try:
+        return ExperimentPlan(**exp)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{data.get('_path', 'rig')}: experiment: {e}") from None
+
+
+SENSOR_QUALITY = ("ideal", "good", "realistic", "poor")
+
+
+def sensors_for_quality(quality: str, base: SensorParams | None = None) -> SensorParams:
+    """Sensor sets used by scenarios: ``realistic`` is physics.md section 7."""
+    base = base or SensorParams()
+    if quality == "ideal":
+        return SensorParams.ideal(base.sample_rate)
+    if quality == "good":
+        return dataclasses.replace(base, phi_counts=2**20, psi_counts=2**16, current_noise=0.003,
+                                   current_offset=0.001, current_gain_error=0.002)
+    if quality == "realistic":
+        return base
+    if quality == "poor":
+        return dataclasses.replace(base, phi_counts=2**16, psi_counts=4096, current_noise=0.03,
+                                   current_offset=0.01, current_gain_error=0.01)
+    raise ConfigError(f"sensor quality {quality!r}: expected one of {', '.join(SENSOR_QUALITY)}")

@@ -1,0 +1,94 @@
+"""Seeded scenarios: a rig preset with hull, damping, sensors and protocol randomised.
+
+One seed makes one scenario. Its randomness is split with ``np.random.SeedSequence.spawn``
+into independent streams (hull draw, sensor noise, controller/experiment), so that
+changing how one component draws never shifts another's numbers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .experiment.protocol import ExperimentPlan
+from .rig.effects import Effects
+from .rig.params import RigParams
+from .rig.presets import CONFIG_DIR, ConfigError, load_preset, plan_from_preset, rig_from_mapping, sensors_for_quality
+
+RANGE_KEYS = {"lambda_ratio", "drag_coefficient", "b1", "period_s", "J_flywheel", "k_t", "alpha", "hold_s",
+              "sensor_quality"}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    seed: int
+    rig: RigParams
+    plan: ExperimentPlan
+    sensor_seed: np.random.SeedSequence
+    controller_seed: np.random.SeedSequence
+    sensor_quality: str
+
+
+def load_ranges(path: str | Path | None = None) -> dict[str, Any]:
+    path = Path(path) if path else CONFIG_DIR / "randomization.yaml"
+    data = yaml.safe_load(path.read_text()) or {}
+    unknown = sorted(set(data) - RANGE_KEYS)
+    if unknown:
+        raise ConfigError(f"{path}: unknown key(s) {unknown}; allowed keys are {sorted(RANGE_KEYS)}")
+    for key, value in data.items():
+        if key == "sensor_quality":
+            continue
+        if not (isinstance(value, list) and len(value) == 2 and all(isinstance(v, (int, float)) for v in value)
+                and value[0] <= value[1]):
+            raise ConfigError(f"{path}: {key} = {value!r}; expected [low, high] with low <= high")
+    return data
+
+
+def make_scenario(seed: int, preset: str = "wigley-2m", ranges: dict[str, Any] | None = None,
+                  fixed: dict[str, Any] | None = None, effects: Effects | None = None,
+                  name: str | None = None) -> Scenario:
+    """Scenario number ``seed``: draws each key of ``ranges`` unless ``fixed`` pins it."""
+    ranges = load_ranges() if ranges is None else ranges
+    fixed = dict(fixed or {})
+    hull_ss, sensor_ss, ctrl_ss = np.random.SeedSequence(seed).spawn(3)
+    rng = np.random.default_rng(hull_ss)
+    draw: dict[str, Any] = {}
+    for key in sorted(RANGE_KEYS):  # fixed order: one draw per key whether used or not
+        if key == "sensor_quality":
+            options = ranges.get(key, ["realistic"])
+            pick = options[int(rng.integers(len(options)))]
+        else:
+            lo, hi = ranges.get(key, [math.nan, math.nan])
+            pick = float(rng.uniform(lo, hi)) if math.isfinite(lo) else None
+        draw[key] = fixed.get(key, pick)
+    preset_data = load_preset(preset)
+    base = rig_from_mapping(preset_data)
+    hull, motor, spring = base.hull, base.motor, base.spring
+    if draw["lambda_ratio"] is not None:
+        hull = dataclasses.replace(hull, lambda66=draw["lambda_ratio"] * hull.J_hull)
+    if draw["drag_coefficient"] is not None:
+        # b2 scales with Cd: rescale the preset's (which is for its own Cd).
+        cd0 = (preset_data.get("hull", {}).get("damping") or {}).get("drag_coefficient", 2.0)
+        hull = dataclasses.replace(hull, b2=hull.b2 * draw["drag_coefficient"] / cd0)
+    if draw["b1"] is not None:
+        hull = dataclasses.replace(hull, b1=draw["b1"])
+    if draw["J_flywheel"] is not None:
+        motor = dataclasses.replace(motor, J_flywheel=draw["J_flywheel"])
+    if draw["k_t"] is not None:
+        motor = dataclasses.replace(motor, k_t=draw["k_t"])
+    if draw["period_s"] is not None:
+        spring = dataclasses.replace(spring, c=(hull.J_hull + hull.lambda66) * (2 * math.pi / draw["period_s"]) ** 2)
+    quality = draw["sensor_quality"] or "realistic"
+    rig = RigParams(hull=hull, spring=spring, motor=motor, sensors=sensors_for_quality(quality, base.sensors),
+                    effects=effects if effects is not None else base.effects, brake_torque=base.brake_torque,
+                    physics_substeps=base.physics_substeps)
+    plan = plan_from_preset(preset_data, alpha=draw["alpha"], hold_s=draw["hold_s"])
+    return Scenario(name=name or f"{preset}/{seed}", seed=seed, rig=rig, plan=plan, sensor_seed=sensor_ss,
+                    controller_seed=ctrl_ss, sensor_quality=quality)
