@@ -38,6 +38,7 @@ OBSERVATION_FIELDS: dict[str, tuple[str, float]] = {
     "electric_energy": ("J", 20.0),  # integral of |u i| so far
 }
 OBS_LIMIT = 10.0  # observations are clipped to +-OBS_LIMIT after normalising
+_SCALES = np.array([scale for _, scale in OBSERVATION_FIELDS.values()])
 
 
 @dataclass(frozen=True)
@@ -121,8 +122,8 @@ class ReverseStrokeTask:
             "phase_progress": float(np.clip(progress, 0.0, 1.0)),
             "electric_energy": exp.electric_energy,
         }
-        obs = np.array([values[n] / OBSERVATION_FIELDS[n][1] for n in self.layout.names], dtype=np.float32)
-        return np.clip(obs, -OBS_LIMIT, OBS_LIMIT)
+        obs = np.fromiter((values[n] for n in self.layout.names), float, self.layout.size) / _SCALES
+        return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
 
     # Reward -------------------------------------------------------------------------
     def reward_terms(self, exp: Experiment, energy_before: float, cmd: MotorCommand) -> dict[str, float]:

@@ -26,6 +26,11 @@ class StrokeLaw:
     t_stop: float  # s, where the fitted rate is zero (the forward stroke's end, t2)
     fit_rms: float  # rad, residual RMS of the fit
 
+    def __post_init__(self) -> None:
+        # Derivative series, computed once (the reference is evaluated every control step).
+        object.__setattr__(self, "_d1", C.chebder(self.coef))
+        object.__setattr__(self, "_d2", C.chebder(self.coef, 2))
+
     def _x(self, t):
         return (2.0 * np.asarray(t, dtype=float) - (self.t_start + self.t_stop)) / (self.t_stop - self.t_start)
 
@@ -37,10 +42,10 @@ class StrokeLaw:
         return C.chebval(self._x(t), self.coef)
 
     def rate(self, t):
-        return C.chebval(self._x(t), C.chebder(self.coef)) * self._scale
+        return C.chebval(self._x(t), self._d1) * self._scale
 
     def accel(self, t):
-        return C.chebval(self._x(t), C.chebder(self.coef, 2)) * self._scale**2
+        return C.chebval(self._x(t), self._d2) * self._scale**2
 
     @property
     def duration(self) -> float:
@@ -73,6 +78,8 @@ class MirroredReference:
         return self.t_begin + self.law.duration
 
     def _mirror(self, t):
+        if isinstance(t, float):
+            return self.law.t_stop - (min(max(t, self.t_begin), self.t_end) - self.t_begin)
         return self.law.t_stop - (np.clip(t, self.t_begin, self.t_end) - self.t_begin)
 
     def phi(self, t):
