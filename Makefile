@@ -28,6 +28,26 @@ test-slow: $(STAMP)
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -q -m ''
 
+# Controller benchmark (docs/LEADERBOARD.md, docs/CONTROLLERS.md): every controller on the
+# held-out test split of standard-v0, then the ranking with figures.
+BENCH_SUITE ?= standard-v0
+BENCH_CONTROLLERS ?= pd feedforward-pd pid lqr ilc mpc
+BENCH_JOBS ?= 2
+BENCH_ROWS = $(foreach c,$(BENCH_CONTROLLERS),out/bench/$(BENCH_SUITE)-$(c).jsonl)
+
+bench: $(STAMP)
+	$(BIN)/addedinertia bench run --suite smoke --controller feedforward-pd --out out/bench/smoke-feedforward-pd.jsonl
+
+leaderboard: $(STAMP)
+	for c in $(BENCH_CONTROLLERS); do \
+	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller $$c --jobs $(BENCH_JOBS) \
+	    --out out/bench/$(BENCH_SUITE)-$$c.jsonl || exit 1; \
+	done
+	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format md --out docs/LEADERBOARD.md \
+	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
+	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format html --out out/bench/leaderboard.html \
+	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
+
 accuracy-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.experiment.accuracy_table --hulls 24 --out docs/ACCURACY.md
 

@@ -15,6 +15,25 @@ PHASE_COLOURS = {"idle": "0.85", "free": "#cfe8ff", "hold": "#ffe7b3", "reverse"
 
 def plot_run(record: RunRecord, path: str | os.PathLike, title: str = "") -> Path:
     """Three stacked panels over time with the phases shaded; written atomically as PNG."""
+    fig = run_figure(record, title)  # selects the Agg backend before pyplot is imported
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=110)
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def run_figure(record: RunRecord, title: str = ""):
+    """The figure of :func:`plot_run` (a matplotlib Figure; the caller closes it)."""
     import matplotlib  # noqa: PLC0415 - plotting is optional at import time
 
     matplotlib.use("Agg")
@@ -35,18 +54,7 @@ def plot_run(record: RunRecord, path: str | os.PathLike, title: str = "") -> Pat
     axes[0].legend(handles, list(PHASE_COLOURS), loc="upper right", ncol=4, fontsize=8)
     axes[0].set_title(title or f"run {record.run_id}")
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    finally:
-        plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return fig
 
 
 def _shade(ax, t: np.ndarray, phase: np.ndarray) -> None:

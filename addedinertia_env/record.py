@@ -32,6 +32,17 @@ POSITIVE_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L", "samp
 EXPERIMENT_KINDS = ("reverse-symmetric", "free-decay", "forced-oscillation")
 SOURCES = ("sim", "emulator", "bench")
 MAX_GAP_PERIODS = 5.0
+# What each required ``rig`` key holds, for error messages.
+RIG_KEY_MEANING = {
+    "J_hull": "hull + rod + frame + stator yaw inertia, kg m^2",
+    "J_flywheel": "flywheel + rotor inertia, kg m^2",
+    "c_torsion": "torsion rod stiffness, N m/rad",
+    "phi_neutral": "calibrated neutral angle, rad",
+    "k_t": "motor torque constant, N m/A",
+    "R": "winding resistance, ohm",
+    "L": "winding inductance, H",
+    "sample_rate": "sampling rate, Hz",
+}
 
 
 class RecordError(ValueError):
@@ -94,19 +105,35 @@ class RunRecord:
 
 # --- writing -----------------------------------------------------------------------
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+def _atomic_write_texts(files: list[tuple[Path, str]]) -> None:
+    """Write every ``(path, text)`` to a temporary file beside it, then rename them all.
+
+    Nothing under a final name changes until every temporary file is complete and on
+    disk, so a crash while writing (disk full, killed process) leaves the older files
+    there intact; only the renames themselves, which do not write data, come after.
+    """
+    temps: list[tuple[str, Path]] = []
     try:
-        with os.fdopen(fd, "w", newline="") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+        for path, text in files:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+            temps.append((tmp, path))
+            with os.fdopen(fd, "w", newline="") as f:
+                f.write(text)
+                f.flush()
+                os.fsync(f.fileno())
+        while temps:
+            tmp, path = temps[0]
+            os.replace(tmp, path)
+            temps.pop(0)
+    finally:
+        for tmp, _ in temps:  # only left over after an error
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    _atomic_write_texts([(path, text)])
 
 
 def write_record(record: RunRecord, csv_path: str | os.PathLike) -> Path:
@@ -128,9 +155,10 @@ def write_record(record: RunRecord, csv_path: str | os.PathLike) -> Path:
     meta = dict(record.meta)
     meta.setdefault("format", FORMAT)
     meta.setdefault("run_id", csv_path.stem)
-    # JSON first, then CSV: a reader needs both, and each appears whole or not at all.
-    _atomic_write_text(csv_path.with_suffix(".json"), json.dumps(meta, indent=2, sort_keys=False) + "\n")
-    _atomic_write_text(csv_path, buf.getvalue())
+    # Both files are written in full before either final name changes (JSON renamed
+    # first, then CSV): a crash while writing leaves an older record whole.
+    _atomic_write_texts([(csv_path.with_suffix(".json"), json.dumps(meta, indent=2, sort_keys=False) + "\n"),
+                         (csv_path, buf.getvalue())])
     record.path = csv_path
     return csv_path
 
@@ -155,11 +183,13 @@ def read_record(path: str | os.PathLike) -> RunRecord:
     else:
         raise RecordError(f"{path}: expected a run record's .csv (or .json) file")
     if not csv_path.exists() and not json_path.exists():
-        raise RecordError(f"{path}: no such file")
+        raise RecordError(f"{path}: no such file; expected a run record {csv_path.name} with {json_path.name} beside it")
     if not json_path.exists():
-        raise RecordError(f"{csv_path}: no matching metadata file {json_path.name} beside it")
+        raise RecordError(f"{csv_path}: no matching metadata file {json_path.name} beside it; "
+                          "expected a CSV and a JSON file with the same stem")
     if not csv_path.exists():
-        raise RecordError(f"{json_path}: no matching sample file {csv_path.name} beside it")
+        raise RecordError(f"{json_path}: no matching sample file {csv_path.name} beside it; "
+                          "expected a CSV and a JSON file with the same stem")
     meta = _read_meta(json_path)
     samples = _read_samples(csv_path)
     gaps = _check_samples(csv_path, samples, meta)
@@ -172,12 +202,16 @@ def _read_meta(json_path: Path) -> dict[str, Any]:
     except json.JSONDecodeError as e:
         raise RecordError(f"{json_path}: line {e.lineno} column {e.colno}: not valid JSON ({e.msg})") from None
     except UnicodeDecodeError:
-        raise RecordError(f"{json_path}: not UTF-8 text") from None
+        raise RecordError(f"{json_path}: not UTF-8 text; expected a JSON file") from None
+    except OSError as e:
+        raise RecordError(f"{json_path}: cannot read ({e.strerror}); expected a readable JSON file") from None
     if not isinstance(meta, dict):
         raise RecordError(f"{json_path}: expected a JSON object at the top level, got {type(meta).__name__}")
-    for key in ("format", "rig", "experiment"):
+    expected_top = {"format": f"{FORMAT!r}", "rig": "an object of rig constants",
+                    "experiment": "an object with 'kind'"}
+    for key, what in expected_top.items():
         if key not in meta:
-            raise RecordError(f"{json_path}: missing key '{key}'")
+            raise RecordError(f"{json_path}: missing key '{key}'; expected {what}")
     if meta["format"] != FORMAT:
         raise RecordError(f"{json_path}: key 'format' is {meta['format']!r}; this reader knows only {FORMAT!r}")
     if "source" in meta and meta["source"] not in SOURCES:
@@ -187,7 +221,7 @@ def _read_meta(json_path: Path) -> dict[str, Any]:
         raise RecordError(f"{json_path}: key 'rig' must be an object, got {rig!r}")
     for key in REQUIRED_RIG_KEYS:
         if key not in rig:
-            raise RecordError(f"{json_path}: missing key 'rig.{key}'")
+            raise RecordError(f"{json_path}: missing key 'rig.{key}'; expected a number ({RIG_KEY_MEANING[key]})")
         value = rig[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise RecordError(f"{json_path}: key 'rig.{key}' is {value!r}; expected a finite number")
@@ -203,8 +237,10 @@ def _read_meta(json_path: Path) -> dict[str, Any]:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
             raise RecordError(f"{json_path}: key 'rig.motor_friction.{key}' is {value!r}; expected a finite number >= 0")
     exp = meta["experiment"]
-    if not isinstance(exp, dict) or "kind" not in exp:
-        raise RecordError(f"{json_path}: missing key 'experiment.kind'")
+    if not isinstance(exp, dict):
+        raise RecordError(f"{json_path}: key 'experiment' must be an object, got {exp!r}")
+    if "kind" not in exp:
+        raise RecordError(f"{json_path}: missing key 'experiment.kind'; expected one of {EXPERIMENT_KINDS}")
     if exp["kind"] not in EXPERIMENT_KINDS:
         raise RecordError(f"{json_path}: key 'experiment.kind' is {exp['kind']!r}; expected one of {EXPERIMENT_KINDS}")
     phi1 = exp.get("phi1")
@@ -219,20 +255,23 @@ def _read_samples(csv_path: Path) -> dict[str, np.ndarray]:
     try:
         text = csv_path.read_text()
     except UnicodeDecodeError:
-        raise RecordError(f"{csv_path}: not UTF-8 text") from None
+        raise RecordError(f"{csv_path}: not UTF-8 text; expected a CSV file") from None
+    except OSError as e:
+        raise RecordError(f"{csv_path}: cannot read ({e.strerror}); expected a readable CSV file") from None
     rows = list(csv.reader(io.StringIO(text)))
     if not rows:
         raise RecordError(f"{csv_path}: empty file; expected a header row with {list(REQUIRED_COLUMNS)}")
     header = [h.strip() for h in rows[0]]
     if len(set(header)) != len(header):
         dup = sorted({h for h in header if header.count(h) > 1})
-        raise RecordError(f"{csv_path}: line 1: duplicate column(s) {dup}")
+        raise RecordError(f"{csv_path}: line 1: duplicate column(s) {dup}; expected each column once")
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
     if missing:
-        raise RecordError(f"{csv_path}: line 1: missing required column(s) {missing}; header is {header}")
+        raise RecordError(f"{csv_path}: line 1: missing required column(s) {missing}; "
+                          f"expected at least {list(REQUIRED_COLUMNS)}, header is {header}")
     body = rows[1:]
     if not body:
-        raise RecordError(f"{csv_path}: header only, no samples")
+        raise RecordError(f"{csv_path}: header only; expected at least one sample row")
     for k, row in enumerate(body):
         if len(row) != len(header):
             raise RecordError(f"{csv_path}: line {k + 2}: {len(row)} fields, expected {len(header)} as in the header")
@@ -258,7 +297,8 @@ def _read_samples(csv_path: Path) -> dict[str, np.ndarray]:
                 try:
                     float(c)
                 except ValueError:
-                    raise RecordError(f"{csv_path}: line {k + 2}, column '{name}': {c!r} is not a number") from None
+                    raise RecordError(f"{csv_path}: line {k + 2}, column '{name}': {c!r} is not a number; "
+                                      "expected a finite number") from None
             raise
         if numeric and not np.all(np.isfinite(arr)):
             k = int(np.argmax(~np.isfinite(arr)))

@@ -1,50 +1,127 @@
-"""Feedforward from the recorded law + PD feedback, with flywheel pre-spin: the default.
+"""Feedforward from the recorded law + PD feedback, with flywheel pre-spin; and the bare PD.
 
-Tuning procedure (documented in docs/CONTROLLERS.md): the loop is placed at
-``omega_c`` rad/s with damping ``zeta``: ``Kp = omega_c^2``, ``Kd = 2 zeta omega_c``,
-scaled by the prior inertia. ``omega_c`` is limited by encoder quantisation noise fed
-through ``Kd`` (physics.md section 7); 10 rad/s keeps the chatter under about 1 A.
+:class:`StrokeController` holds what every classical controller here shares: the hold
+phase (flywheel pre-spin), the hull observer (:mod:`agents.observer`), the feedforward
+current that retraces the mirrored stroke, and the current limit. Subclasses write only
+:meth:`StrokeController.feedback`, in amperes.
+
+Tuning procedure (docs/CONTROLLERS.md): the loop is placed at ``omega_c`` rad/s with
+damping ``zeta``: ``Kp = omega_c^2``, ``Kd = 2 zeta omega_c``, scaled by the prior
+inertia. ``omega_c`` is limited by encoder quantisation noise fed through ``Kd``
+(physics.md section 7); the observer lowers that noise. The knobs and their ranges are
+:attr:`FeedforwardPD.KNOBS`; tuned values live in configs/controllers/tuned.yaml.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .base import Controller, ControllerContext, stroke_feedforward_current, stroke_impulse
+from .observer import HullObserver
+from .tuning import resolve_params
 
 
-class FeedforwardPD(Controller):
-    name = "feedforward-pd"
+class StrokeController(Controller):
+    """Shared machinery: pre-spin in the hold, observer, feedforward, limit; see module doc.
 
-    def __init__(self, omega_c: float = 10.0, zeta: float = 1.0, feedforward: bool = True,
-                 prespin: bool = True, spinup_time_s: float = 0.4):
-        self.kp, self.kd = omega_c**2, 2.0 * zeta * omega_c
-        self.feedforward, self.prespin, self.spinup_time_s = feedforward, prespin, spinup_time_s
+    Parameters common to all subclasses:
+    ``feedforward`` (bool) add the recorded-law current; ``prespin`` (bool) spin the
+    flywheel during the hold so that it ends the stroke with the speed it started with,
+    reversed; ``spinup_time_s`` (s) time constant of that spin-up; ``observer`` (bool)
+    use :class:`~agents.observer.HullObserver` (else the task's windowed rate
+    estimate); ``observer_bandwidth`` (rad/s) its residual-torque bandwidth.
+    """
 
+    name = "stroke"
+    DEFAULTS: dict[str, Any] = {"feedforward": True, "prespin": True, "spinup_time_s": 0.4,
+                                "observer": True, "observer_bandwidth": 20.0}
+    KNOBS: dict[str, tuple[float, float, str]] = {}  # name -> (low, high, "log" | "lin"), for tuning
+
+    def __init__(self, tuned: bool = True, **overrides: Any):
+        self.params = resolve_params(self.name if tuned else None, self.DEFAULTS, overrides)
+        for key, value in self.params.items():
+            setattr(self, key, value)
+
+    # --- per stroke -------------------------------------------------------------------
     def reset(self, context: ControllerContext) -> None:
         super().reset(context)
+        rig = context.rig
         self.J = context.inertia_prior
-        impulse = stroke_impulse(context, self.J) if (self.feedforward and self.prespin) else 0.0
-        self.omega_start = -impulse / (2.0 * float(context.rig["J_flywheel"]))
+        self.c = float(rig["c_torsion"])
+        impulse = stroke_impulse(context, self.J) if self.prespin else 0.0
+        self.omega_start = -impulse / (2.0 * float(rig["J_flywheel"]))
+        counts = int((rig.get("encoder_counts") or {}).get("phi", 0))
+        self.obs_filter = HullObserver(self.J, self.c, context.k_t, context.dt, counts,
+                                       disturbance_bandwidth=float(self.observer_bandwidth))
+        self.started = False
+        self.i_prev = 0.0
+        self.d_expected_prev = 0.0
+
+    def hold_current(self, obs: dict[str, float]) -> float:
+        if not self.prespin:
+            return 0.0
+        J_f = float(self.ctx.rig["J_flywheel"])
+        return J_f * (self.omega_start - obs["flywheel_rate"]) / (self.spinup_time_s * self.ctx.k_t)
+
+    def expected_damping(self, obs: dict[str, float]) -> float:
+        """Damping torque (N m) the mirrored stroke meets: ``-(J accel_ref + c phi_ref)``."""
+        return -(self.J * obs["accel_ref"] + self.c * obs["phi_ref"])
+
+    def track_state(self, obs: dict[str, float]) -> tuple[float, float]:
+        """Tracking errors ``(phi_ref - phi, rate_ref - w)`` from the observer (or the task)."""
+        if not self.observer:
+            return obs["tracking_error"], obs["rate_error"]
+        if not self.started:
+            self.obs_filter.start(obs["phi"], 0.0, 0.0)  # braked until now: at rest
+            self.started = True
+        else:
+            self.obs_filter.predict(self.i_prev, self.d_expected_prev)
+            self.obs_filter.correct(obs["phi"])
+        self.d_expected_prev = self.expected_damping(obs)
+        return obs["phi_ref"] - self.obs_filter.phi, obs["rate_ref"] - self.obs_filter.rate
+
+    def feedforward_current(self, obs: dict[str, float]) -> float:
+        if not self.feedforward:
+            return 0.0
+        return stroke_feedforward_current(self.ctx, obs["phi_ref"], obs["accel_ref"], self.J)
+
+    def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:  # pragma: no cover
+        raise NotImplementedError
 
     def current(self, obs: dict[str, float]) -> float:
         ctx = self.ctx
         if obs["is_hold"] > 0.5:
-            if not self.prespin:
-                return 0.0
-            J_f = float(ctx.rig["J_flywheel"])
-            return J_f * (self.omega_start - obs["flywheel_rate"]) / (self.spinup_time_s * ctx.k_t)
-        i = 0.0
-        if self.feedforward:
-            i += stroke_feedforward_current(ctx, obs["phi_ref"], obs["accel_ref"], self.J)
-        i -= self.J * (self.kp * obs["tracking_error"] + self.kd * obs["rate_error"]) / ctx.k_t
-        return float(np.clip(i, -ctx.i_max, ctx.i_max))
+            i = self.hold_current(obs)
+        elif obs["is_reverse"] > 0.5:
+            e, e_rate = self.track_state(obs)
+            i = self.feedforward_current(obs) + self.feedback(obs, e, e_rate)
+        else:
+            i = 0.0
+        i = float(np.clip(i, -ctx.i_max, ctx.i_max))
+        self.i_prev = i
+        return i
+
+
+class FeedforwardPD(StrokeController):
+    """Feedforward + PD on the observer's state + pre-spin: the project's default controller."""
+
+    name = "feedforward-pd"
+    DEFAULTS = {**StrokeController.DEFAULTS, "omega_c": 10.0, "zeta": 1.0}
+    KNOBS = {"omega_c": (3.0, 40.0, "log"), "zeta": (0.5, 2.0, "lin"), "observer_bandwidth": (2.0, 80.0, "log")}
+
+    def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:
+        kp, kd = self.omega_c**2, 2.0 * self.zeta * self.omega_c
+        # Positive error (hull behind) needs more hull torque, i.e. negative current.
+        return -self.J * (kp * e + kd * e_rate) / self.ctx.k_t
 
 
 class PD(FeedforwardPD):
-    """The bare PD baseline: the same loop without feedforward or pre-spin."""
+    """The bare PD baseline: the same loop without feedforward, pre-spin or observer, untuned."""
 
     name = "pd"
 
     def __init__(self, omega_c: float = 10.0, zeta: float = 1.0):
-        super().__init__(omega_c=omega_c, zeta=zeta, feedforward=False, prespin=False)
+        super().__init__(tuned=False, omega_c=omega_c, zeta=zeta, feedforward=False, prespin=False,
+                         observer=False)

@@ -16,8 +16,20 @@ import sys
 from .common import BAD_INPUT, fail
 
 
+class OneLineErrorParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr and exit status 2.
+
+    argparse prints the whole usage block before the error; the command line's contract
+    (docs/ARCHITECTURE.md) is one line. Subparsers inherit the class.
+    """
+
+    def error(self, message: str):
+        print(f"{self.prog}: error: {message} (see '{self.prog} --help')", file=sys.stderr)
+        raise SystemExit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineErrorParser(
         prog="addedinertia",
         description="Identify the added moment of inertia lambda66 of a hull on a reverse-symmetric yaw rig.")
     from .. import __version__  # noqa: PLC0415
@@ -35,7 +47,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # usage error (2, one line already printed), --help or --version (0)
+        return e.code if isinstance(e.code, int) else 2
     try:
         return int(args.func(args) or 0)
     except BAD_INPUT as e:

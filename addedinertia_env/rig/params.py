@@ -115,6 +115,9 @@ class RigParams:
 
     def __post_init__(self) -> None:
         _positive(self, "brake_torque", "physics_substeps")
+        if isinstance(self.physics_substeps, bool) or int(self.physics_substeps) != self.physics_substeps:
+            raise ValueError(f"RigParams.physics_substeps = {self.physics_substeps!r}: expected a whole number >= 1")
+        object.__setattr__(self, "physics_substeps", int(self.physics_substeps))
 
     @property
     def J_total(self) -> float:

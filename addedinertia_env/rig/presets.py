@@ -41,6 +41,9 @@ def rig_path(name: str) -> Path:
     return candidate
 
 
+TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps", "effects", "experiment")
+
+
 def load_preset(name: str) -> dict[str, Any]:
     """The raw preset mapping (validated for top-level keys)."""
     path = rig_path(name)
@@ -50,8 +53,7 @@ def load_preset(name: str) -> dict[str, Any]:
         raise ConfigError(f"{path}: not valid YAML ({e})") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
-    _only_keys(data, {"name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps",
-                      "effects", "experiment"}, str(path))
+    _only_keys(data, set(TOP_KEYS), str(path))
     data["_path"] = str(path)
     return data
 
@@ -64,11 +66,17 @@ def load_rig(name: str, effects: Effects | None = None, sensors: SensorParams | 
 def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
                      sensors: SensorParams | None = None) -> RigParams:
     where = data.get("_path", "rig")
-    hull = _hull({"name": data.get("name", "custom"), **(data.get("hull") or {})}, f"{where}: hull")
+    _only_keys(data, set(TOP_KEYS), where)
+    hull_block = data.get("hull") or {}
+    _only_keys(hull_block, set(HULL_KEYS), f"{where}: hull")
+    hull = _hull({"name": data.get("name", "custom"), **hull_block}, f"{where}: hull")
     spring = _build(SpringParams, data.get("spring") or {}, f"{where}: spring")
     motor = _build(MotorParams, data.get("motor") or {}, f"{where}: motor")
     sens = sensors or _build(SensorParams, data.get("sensors") or {}, f"{where}: sensors")
-    eff = effects if effects is not None else Effects.from_dict(data.get("effects"), f"{where}: effects")
+    try:
+        eff = effects if effects is not None else Effects.from_dict(data.get("effects"), f"{where}: effects")
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
     kwargs: dict[str, Any] = {}
     for key in ("brake_torque", "physics_substeps"):
         if key in data:
@@ -79,8 +87,11 @@ def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
         raise ConfigError(f"{where}: {e}") from None
 
 
+HULL_KEYS = ("J_hull", "added_inertia", "lambda66", "b1", "b2", "damping", "name")
+
+
 def _hull(d: dict[str, Any], where: str) -> HullParams:
-    _only_keys(d, {"J_hull", "added_inertia", "lambda66", "b1", "b2", "damping", "name"}, where)
+    _only_keys(d, set(HULL_KEYS), where)
     out: dict[str, Any] = {}
     if "name" in d:
         out["name"] = str(d["name"])
@@ -89,23 +100,29 @@ def _hull(d: dict[str, Any], where: str) -> HullParams:
         _only_keys(J, {"model", "length", "beam", "extra"}, f"{where}.J_hull")
         if J.get("model") != "floating-spheroid":
             raise ConfigError(f"{where}.J_hull.model = {J.get('model')!r}: expected 'floating-spheroid' or a number")
-        a, b = 0.5 * _num(J, "length", where), 0.5 * _num(J, "beam", where)
-        J = hydro.spheroid_displaced_yaw_inertia(a, b, immersed_fraction=0.5) + float(J.get("extra", 0.0))
+        a, b = 0.5 * _num(J, "length", f"{where}.J_hull"), 0.5 * _num(J, "beam", f"{where}.J_hull")
+        extra = J.get("extra", 0.0)
+        if isinstance(extra, bool) or not isinstance(extra, (int, float)) or not math.isfinite(extra) or extra < 0:
+            raise ConfigError(f"{where}.J_hull.extra = {extra!r}: expected a finite number >= 0 (kg m^2)")
+        J = hydro.spheroid_displaced_yaw_inertia(a, b, immersed_fraction=0.5) + float(extra)
     out["J_hull"] = J
     if "lambda66" in d and "added_inertia" in d:
         raise ConfigError(f"{where}: give either 'lambda66' or 'added_inertia', not both")
     if "added_inertia" in d:
         ai = d["added_inertia"]
         if not isinstance(ai, dict):
-            raise ConfigError(f"{where}.added_inertia: expected a mapping with 'model'")
+            raise ConfigError(f"{where}.added_inertia = {ai!r}: expected a mapping with 'model'")
         model = ai.get("model")
         if model == "given":
             _only_keys(ai, {"model", "value"}, f"{where}.added_inertia")
             out["lambda66"] = _num(ai, "value", f"{where}.added_inertia")
         elif model == "lamb-spheroid":
             _only_keys(ai, {"model", "length", "beam", "immersion"}, f"{where}.added_inertia")
+            immersion = ai.get("immersion", "half")
+            if immersion not in ("half", "full"):
+                raise ConfigError(f"{where}.added_inertia.immersion = {immersion!r}: expected 'half' or 'full'")
             out["lambda66"] = hydro.spheroid_added_yaw_inertia(
-                _num(ai, "length", where), _num(ai, "beam", where), str(ai.get("immersion", "half")))
+                _num(ai, "length", f"{where}.added_inertia"), _num(ai, "beam", f"{where}.added_inertia"), immersion)
         else:
             raise ConfigError(f"{where}.added_inertia.model = {model!r}: expected 'given' or 'lamb-spheroid'")
     elif "lambda66" in d:
@@ -119,8 +136,9 @@ def _hull(d: dict[str, Any], where: str) -> HullParams:
         _only_keys(dm, {"model", "length", "draft", "drag_coefficient"}, f"{where}.damping")
         if dm.get("model") != "cross-flow":
             raise ConfigError(f"{where}.damping.model = {dm.get('model')!r}: expected 'cross-flow'")
-        out["b2"] = hydro.quadratic_yaw_damping(_num(dm, "length", where), _num(dm, "draft", where),
-                                                _num(dm, "drag_coefficient", where))
+        out["b2"] = hydro.quadratic_yaw_damping(_num(dm, "length", f"{where}.damping"),
+                                                _num(dm, "draft", f"{where}.damping"),
+                                                _num(dm, "drag_coefficient", f"{where}.damping"))
     elif "b2" in d:
         out["b2"] = d["b2"]
     return _build(HullParams, out, where)
@@ -141,6 +159,8 @@ def _build(cls, d: dict[str, Any], where: str):
 
 
 def _only_keys(d: dict[str, Any], allowed: set[str], where: str) -> None:
+    if not isinstance(d, dict):
+        raise ConfigError(f"{where} = {d!r}: expected a mapping with keys from {sorted(allowed)}")
     unknown = sorted(set(d) - allowed - {"_path"})
     if unknown:
         raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(allowed)}")
@@ -163,6 +183,9 @@ def plan_from_preset(data: dict[str, Any], **overrides: Any):
     allowed = {f.name for f in dataclasses.fields(ExperimentPlan)}
     _only_keys(exp, allowed, f"{data.get('_path', 'rig')}: experiment")
     exp.update({k: v for k, v in overrides.items() if v is not None})
+    for key, value in exp.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{data.get('_path', 'rig')}: experiment.{key} = {value!r}: expected a number (SI units)")
     try:
         return ExperimentPlan(**exp)
     except (TypeError, ValueError) as e:

@@ -1,0 +1,165 @@
+"""Benchmark suites: named, seeded scenario sets in ``configs/suites/*.yaml``.
+
+A suite file::
+
+    name: standard-v0
+    description: free text
+    presets: [wigley-2m, spheroid-7]     # scenario seed s uses presets[s % len(presets)]
+    ranges: randomization.yaml           # a file in configs/ or an inline mapping (scenarios.py keys)
+    fixed: {}                            # keys of ranges pinned to one value
+    splits:
+      tuning: {first_seed: 100000, count: 24}   # used by `bench tune` only
+      test:   {first_seed: 200000, count: 30}   # held out: never used for tuning
+
+The split seed ranges must not overlap: the test seeds are never seen by tuning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..rig.presets import CONFIG_DIR, ConfigError
+from ..scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
+
+SUITE_DIR = CONFIG_DIR / "suites"
+SUITE_KEYS = {"name", "description", "presets", "ranges", "fixed", "splits"}
+SPLITS = ("tuning", "test")
+
+
+def available_suites() -> list[str]:
+    return sorted(p.stem for p in SUITE_DIR.glob("*.yaml"))
+
+
+@dataclass(frozen=True)
+class EpisodeTask:
+    """One benchmark episode, independent of every other (picklable)."""
+
+    suite: str
+    split: str
+    scenario: Scenario
+    preset: str
+    controller: str
+    controller_kwargs: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Suite:
+    name: str
+    description: str
+    presets: tuple[str, ...]
+    ranges: dict[str, Any]
+    fixed: dict[str, Any]
+    splits: dict[str, tuple[int, int]]  # split -> (first_seed, count)
+
+    def seeds(self, split: str) -> list[int]:
+        if split == "all":
+            return [s for name in SPLITS for s in self.seeds(name)]
+        if split not in self.splits:
+            raise ConfigError(f"suite {self.name!r}: no split {split!r}; expected one of "
+                              f"{', '.join([*self.splits, 'all'])}")
+        first, count = self.splits[split]
+        return list(range(first, first + count))
+
+    def split_of(self, seed: int) -> str:
+        for name, (first, count) in self.splits.items():
+            if first <= seed < first + count:
+                return name
+        raise ConfigError(f"suite {self.name!r}: seed {seed} is in no split")
+
+    def preset_for(self, seed: int) -> str:
+        return self.presets[seed % len(self.presets)]
+
+    def scenario(self, seed: int) -> Scenario:
+        preset = self.preset_for(seed)
+        return make_scenario(seed, preset=preset, ranges=self.ranges, fixed=self.fixed,
+                             name=f"{self.name}/{self.split_of(seed)}/{seed}")
+
+    def scenarios(self, split: str = "test") -> list[Scenario]:
+        return [self.scenario(s) for s in self.seeds(split)]
+
+    def task(self, scenario: Scenario, controller: str, controller_kwargs: dict[str, Any] | None = None,
+             tuned: bool = True) -> EpisodeTask:
+        kwargs = dict(controller_kwargs or {})
+        if not tuned:
+            kwargs["tuned"] = False
+        return EpisodeTask(suite=self.name, split=self.split_of(scenario.seed), scenario=scenario,
+                           preset=self.preset_for(scenario.seed), controller=controller, controller_kwargs=kwargs)
+
+
+def suite_path(name: str) -> Path:
+    p = Path(name)
+    if p.suffix in (".yaml", ".yml") and p.exists():
+        return p
+    candidate = SUITE_DIR / f"{name}.yaml"
+    if not candidate.exists():
+        raise ConfigError(f"unknown suite {name!r}; expected one of {', '.join(available_suites())} "
+                          "or a path to a suite .yaml file")
+    return candidate
+
+
+def load_suite(name: str) -> Suite:
+    """The suite ``name`` (a file in configs/suites/ or a path), validated."""
+    path = suite_path(name)
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{path}: not valid YAML ({e})") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping with keys {sorted(SUITE_KEYS)}")
+    unknown = sorted(set(data) - SUITE_KEYS)
+    if unknown:
+        raise ConfigError(f"{path}: unknown key(s) {unknown}; allowed keys are {sorted(SUITE_KEYS)}")
+    presets = data.get("presets") or ["wigley-2m"]
+    if not (isinstance(presets, list) and all(isinstance(p, str) for p in presets)):
+        raise ConfigError(f"{path}: presets = {presets!r}; expected a list of rig preset names")
+    ranges_spec = data.get("ranges", "randomization.yaml")
+    if isinstance(ranges_spec, str):
+        ranges = load_ranges(CONFIG_DIR / ranges_spec)
+    elif isinstance(ranges_spec, dict):
+        ranges = _validate_inline_ranges(ranges_spec, path)
+    else:
+        raise ConfigError(f"{path}: ranges = {ranges_spec!r}; expected a file name in configs/ or a mapping")
+    fixed = data.get("fixed") or {}
+    bad = sorted(set(fixed) - RANGE_KEYS)
+    if bad:
+        raise ConfigError(f"{path}: fixed has unknown key(s) {bad}; allowed keys are {sorted(RANGE_KEYS)}")
+    splits_raw = data.get("splits") or {}
+    splits: dict[str, tuple[int, int]] = {}
+    for split, spec in splits_raw.items():
+        if split not in SPLITS:
+            raise ConfigError(f"{path}: split {split!r}; expected {' and/or '.join(SPLITS)}")
+        if not (isinstance(spec, dict) and isinstance(spec.get("first_seed"), int)
+                and isinstance(spec.get("count"), int) and spec["count"] > 0 and spec["first_seed"] >= 0):
+            raise ConfigError(f"{path}: splits.{split} = {spec!r}; expected {{first_seed: int >= 0, count: int > 0}}")
+        splits[split] = (spec["first_seed"], spec["count"])
+    if not splits:
+        raise ConfigError(f"{path}: no splits; expected splits.test (and splits.tuning)")
+    ranges_list = sorted(splits.values())
+    for (a0, n0), (a1, _) in zip(ranges_list, ranges_list[1:]):
+        if a0 + n0 > a1:
+            raise ConfigError(f"{path}: split seed ranges overlap; the test seeds must never be used for tuning")
+    from ..rig.presets import rig_path  # noqa: PLC0415
+
+    for p in presets:
+        rig_path(p)
+    return Suite(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
+                 presets=tuple(presets), ranges=ranges, fixed=dict(fixed), splits=splits)
+
+
+def _validate_inline_ranges(ranges: dict[str, Any], path: Path) -> dict[str, Any]:
+    unknown = sorted(set(ranges) - RANGE_KEYS)
+    if unknown:
+        raise ConfigError(f"{path}: ranges has unknown key(s) {unknown}; allowed keys are {sorted(RANGE_KEYS)}")
+    for key, value in ranges.items():
+        if key == "sensor_quality":
+            if not (isinstance(value, list) and value):
+                raise ConfigError(f"{path}: ranges.sensor_quality = {value!r}; expected a list of quality names")
+            continue
+        if not (isinstance(value, list) and len(value) == 2 and all(isinstance(v, (int, float)) for v in value)
+                and value[0] <= value[1]):
+            raise ConfigError(f"{path}: ranges.{key} = {value!r}; expected [low, high] with low <= high")
+    return dict(ranges)

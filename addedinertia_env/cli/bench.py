@@ -1,0 +1,208 @@
+"""``addedinertia bench run|leaderboard|tune``: the controller benchmark.
+
+* ``bench run --suite NAME --controller NAME [--split test] [--seeds N] [--out FILE.jsonl]``
+  one JSON line per episode (fields: addedinertia_env/bench/runner.py);
+* ``bench leaderboard FILES... [--format md|html|json] [--out FILE]`` ranks controllers;
+* ``bench tune --suite NAME --controller NAME`` tunes on the suite's tuning split only
+  and stores the gains in configs/controllers/tuned.yaml (agents/tuning.py).
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import re
+import shlex
+import sys
+from pathlib import Path
+
+from .common import BadInput, emit_json, info, positive_int
+
+
+def register(sub) -> None:
+    p = sub.add_parser("bench", help="benchmark controllers on a suite of scenarios; rank them")
+    bsub = p.add_subparsers(dest="bench_command", required=True, metavar="ACTION")
+
+    r = bsub.add_parser("run", help="run a controller on a suite; one JSON line per episode")
+    r.add_argument("--suite", required=True, help="suite name in configs/suites/ or a .yaml path")
+    r.add_argument("--controller", required=True, help="pd, feedforward-pd, pid, lqr, ilc, mpc, onnx:PATH or module:factory")
+    r.add_argument("--split", default="test", choices=("test", "tuning", "all"), help="scenario split (default: test)")
+    r.add_argument("--seeds", type=positive_int, default=None, help="only the first N scenarios of the split")
+    r.add_argument("--out", default=None, help="JSON-lines file (default: out/bench/SUITE-CONTROLLER.jsonl)")
+    r.add_argument("--jobs", type=positive_int, default=min(2, os.cpu_count() or 1), help="worker processes")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    r.add_argument("--json", action="store_true", help="print a one-object summary on stdout")
+    r.set_defaults(func=run_bench)
+
+    lb = bsub.add_parser("leaderboard", help="rank controllers from bench rows")
+    lb.add_argument("files", nargs="+", metavar="FILE.jsonl")
+    lb.add_argument("--format", choices=("md", "html", "json"), default="md")
+    lb.add_argument("--out", default=None, help="output file (figures go to FILE's folder, in figures/); default stdout")
+    lb.add_argument("--title", default="Controller leaderboard")
+    lb.set_defaults(func=run_leaderboard)
+
+    t = bsub.add_parser("tune", help="tune a classical controller on the suite's tuning split")
+    t.add_argument("--suite", default="standard-v0")
+    t.add_argument("--controller", required=True)
+    t.add_argument("--candidates", type=positive_int, default=8, help="random-search candidates (incl. defaults)")
+    t.add_argument("--scenarios", type=positive_int, default=8, help="tuning-split scenarios per candidate")
+    t.add_argument("--seed", type=int, default=0, help="random-search seed")
+    t.add_argument("--jobs", type=positive_int, default=min(2, os.cpu_count() or 1))
+    t.add_argument("--dry-run", action="store_true", help="do not write configs/controllers/tuned.yaml")
+    t.add_argument("--no-progress", action="store_true")
+    t.add_argument("--json", action="store_true")
+    t.set_defaults(func=run_tune)
+
+
+def _check_controller(name: str) -> None:
+    """Refuse an unknown controller before any episode runs (exit status 2)."""
+    from agents.registry import CLASSICAL, UnknownController, _load  # noqa: PLC0415
+
+    if name in CLASSICAL or name.startswith("onnx:"):
+        if name.startswith("onnx:") and not Path(name[5:]).exists():
+            raise BadInput(f"--controller {name!r}: no such ONNX file {name[5:]!r}")
+        return
+    if ":" not in name:
+        raise BadInput(f"--controller {name!r}: expected one of {', '.join(sorted(CLASSICAL))}, "
+                       "onnx:PATH or module:factory")
+    try:
+        _load(name)
+    except UnknownController as e:
+        raise BadInput(str(e)) from None
+
+
+def run_bench(args) -> int:
+    from ..bench.runner import run_tasks, write_rows  # noqa: PLC0415
+    from ..bench.suites import load_suite  # noqa: PLC0415
+
+    suite = load_suite(args.suite)
+    _check_controller(args.controller)
+    scenarios = suite.scenarios(args.split)
+    if args.seeds is not None:
+        scenarios = scenarios[:args.seeds]
+    tasks = [suite.task(sc, args.controller) for sc in scenarios]
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", args.controller)
+    out = Path(args.out or f"out/bench/{suite.name}-{safe}.jsonl")
+    info(f"bench: {len(tasks)} scenario(s) of {suite.name}/{args.split} with {args.controller}, {args.jobs} job(s)")
+    rows = run_tasks(tasks, jobs=args.jobs, progress=not args.no_progress, desc=args.controller)
+    write_rows(rows, out)
+    failures = sum(r["rel_error"] is None for r in rows)
+    info(f"wrote {len(rows)} row(s) to {out} ({failures} failure(s))")
+    if args.json:
+        import numpy as np  # noqa: PLC0415
+
+        errs = [abs(r["rel_error"]) if r["rel_error"] is not None else float("inf") for r in rows]
+        emit_json({"suite": suite.name, "split": args.split, "controller": args.controller, "rows": len(rows),
+                   "out": str(out), "failures": failures, "median_abs_error": float(np.median(errs))})
+    return 0
+
+
+def machine_line() -> str:
+    cpu = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{os.cpu_count()} CPU core(s) (nproc), {cpu}, {platform.system()} {platform.release()}"
+
+
+def _preamble(rows: list[dict], files: list[str]) -> str:
+    suites = sorted({f"{r['suite']}/{r.get('split', '?')}" for r in rows})
+    return "\n".join([
+        f"Produced {datetime.date.today().isoformat()} by `addedinertia bench leaderboard "
+        f"{' '.join(shlex.quote(f) for f in files)}` (via `make leaderboard`).",
+        f"Suite/split: {', '.join(suites)}. Machine: {machine_line()}.",
+        "Score: |lambda66 estimate / truth - 1| of the energy method (`identify([record], 'energy')`) on each "
+        "episode; a failed run or identification counts as an infinite error (a failure).",
+        "Median with a 95 % percentile-bootstrap interval (2000 resamples, seed 0); IQM = mean of the middle 50 %; "
+        "energy = integral of |u i| over hold + reverse stroke. ILC is scored on its last of 3 learning cycles.",
+    ])
+
+
+def _breakdown(rows: list[dict], order: list[str], key: str) -> str:
+    """Median |error| per controller and per value of ``key`` (Markdown)."""
+    import numpy as np  # noqa: PLC0415
+
+    from ..bench.leaderboard import abs_errors  # noqa: PLC0415
+
+    values = sorted({str(r.get(key)) for r in rows})
+    lines = [f"| controller | " + " | ".join(f"{key} = {v}" for v in values) + " |", "|" + "---|" * (len(values) + 1)]
+    for name in order:
+        cells = []
+        for v in values:
+            rs = [r for r in rows if r["controller"] == name and str(r.get(key)) == v]
+            cells.append(f"{100 * float(np.median(abs_errors(rs))):.3f} % (n={len(rs)})" if rs else "-")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def run_leaderboard(args) -> int:
+    from ..bench.leaderboard import RowsError, load_rows, render_html, render_markdown, summarise  # noqa: PLC0415
+    from ..bench.plots import plot_error_vs_energy, plot_per_scenario  # noqa: PLC0415
+
+    try:
+        rows = load_rows(args.files)
+    except RowsError as e:
+        raise BadInput(str(e)) from None
+    entries = summarise(rows)
+    order = [e["controller"] for e in entries]
+    if args.format == "json":
+        obj = {"title": args.title, "entries": entries, "files": args.files}
+        if args.out:
+            import json  # noqa: PLC0415
+
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.out).write_text(json.dumps(obj, indent=1, allow_nan=False, default=str) + "\n")
+        emit_json(obj)
+        return 0
+    out = Path(args.out) if args.out else None
+    figures = {}
+    if out is not None:
+        fig_dir = out.parent / "figures"
+        fig_dir.mkdir(parents=True, exist_ok=True)
+        stem = out.stem.lower()
+        figures["|error| against energy"] = plot_error_vs_energy(rows, order, fig_dir / f"{stem}-error-energy.png")
+        figures["per-scenario |error|"] = plot_per_scenario(rows, order, fig_dir / f"{stem}-per-scenario.png")
+    preamble = _preamble(rows, args.files)
+    if args.format == "md":
+        text = f"# {args.title}\n\n" + render_markdown(entries, figures, out.parent if out else None, preamble)
+        text += "\n## Median |error| by sensor quality\n\n" + _breakdown(rows, order, "sensor_quality") + "\n"
+        text += "\n## Median |error| by rig preset\n\n" + _breakdown(rows, order, "preset") + "\n"
+    else:
+        text = render_html(entries, figures, args.title, preamble)
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = out.with_name(out.name + ".tmp")
+        tmp.write_text(text)
+        os.replace(tmp, out)
+        info(f"wrote {out}" + (f" and {len(figures)} figure(s) in {out.parent / 'figures'}" if figures else ""))
+    return 0
+
+
+def run_tune(args) -> int:
+    from agents.tuning import tune, write_tuned  # noqa: PLC0415
+
+    from ..bench.suites import load_suite  # noqa: PLC0415
+
+    load_suite(args.suite)
+    try:
+        result = tune(args.controller, suite=args.suite, candidates=args.candidates, scenarios=args.scenarios,
+                      seed=args.seed, jobs=args.jobs, progress=not args.no_progress)
+    except ValueError as e:
+        raise BadInput(str(e)) from None
+    command = (f"addedinertia bench tune --suite {args.suite} --controller {args.controller} "
+               f"--candidates {args.candidates} --scenarios {args.scenarios} --seed {args.seed}")
+    for t in result["trials"]:
+        info(f"  score {100 * t['score']:.3f} %  energy {t['median_energy_J']:.2f} J  {t['params']}")
+    info(f"best: {result['params']} (median |error| {100 * result['score']:.3f} % on the tuning split)")
+    if not args.dry_run:
+        info(f"wrote {write_tuned(args.controller, result, command)}")
+    if args.json:
+        emit_json({"controller": args.controller, "suite": args.suite, **result, "command": command})
+    return 0

@@ -1,0 +1,309 @@
+"""``AddedInertia/ReverseStroke-v0``: one reverse-symmetric experiment per episode."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from ..experiment.protocol import Experiment
+from ..experiment.runner import controller_context as _runner_context
+from ..identify import IdentificationError, identify
+from ..record import RunRecord
+from ..rig.mujoco_rig import MujocoRig
+from ..scenarios import Scenario, load_ranges
+from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
+from .config import EnvConfig
+from .render import RigRenderer, plot_frame
+
+RENDER_MODES = ("rgb_array", "plot")
+NOMINAL_SAMPLE_RATE = 1000.0  # Hz, for render_fps only (the presets' sample rate)
+
+
+def simulated_rig(scenario: Scenario) -> MujocoRig:
+    """The default rig factory: the MuJoCo rig of ``scenario`` with its own sensor-noise stream."""
+    return MujocoRig(scenario.rig, seed=scenario.sensor_seed)
+
+
+class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
+    """The reverse stroke of patent RU 2627023 on a simulated yaw rig, as a Gymnasium environment.
+
+    Description
+        A ship hull floats on a torsion rod; a motor on the hull spins a flywheel, and
+        its reaction turns the hull. Each episode is one experiment: the rod is twisted
+        by ``alpha`` and released with the motor passive; the hull swings through
+        neutral and slows to a stop, where a brake holds it for ``hold_s`` seconds. Then
+        the brake opens and the hull must retrace the free stroke backwards in time (the
+        *mirrored reference*, fitted to the encoder record of the free stroke). The
+        energy method (``identify(..., "energy")``) then estimates the hull's added
+        moment of inertia ``lambda66`` from the record. It is exact only if the reverse
+        stroke mirrors the free one, and its error grows with the energy that flows
+        through the motor: the agent should track symmetrically with little energy.
+
+        ``reset`` runs everything up to the hold (the agent has nothing to do there);
+        the agent acts from the start of the hold (it may pre-spin the flywheel while
+        the brake takes the reaction) to the end of the reverse stroke. The physics
+        (:class:`~addedinertia_env.rig.mujoco_rig.MujocoRig`), the experiment
+        (:class:`~addedinertia_env.experiment.protocol.Experiment`) and the task
+        (:class:`~addedinertia_env.task.ReverseStrokeTask`) are separate objects; this
+        class only adds action repeat, seeding, scoring and rendering. ``rig_factory``
+        swaps the rig (a batched view, the bench through ``hw_adapter``).
+
+    Action Space
+        ``Box(-1, 1, (1,), float32)``: the motor command as a fraction of the current
+        limit ``i_max`` (``control_mode="current"``, default; the drive's current loop
+        realises it within one sample) or of the supply voltage ``u_max``
+        (``control_mode="voltage"``). Out-of-range actions are clipped; non-finite ones
+        raise ``ValueError``. One action is held for ``action_repeat`` rig samples.
+
+    Observation Space
+        ``Box(-10, 10, (22,), float32)``: the fields of
+        :data:`addedinertia_env.task.OBSERVATION_FIELDS`, each divided by its fixed
+        scale and clipped to +-10. Decode by name with
+        :class:`~addedinertia_env.task.ObservationLayout` (``env.unwrapped.layout``).
+        They come from sensors (hull and motor encoders, current sensor), the
+        sensor-derived reference and the rig's known (calibrated) constants; never from
+        the simulator's true state.
+
+        ====  ===================  =======  =====  ======================================
+        idx   name                 unit     scale  meaning
+        ====  ===================  =======  =====  ======================================
+        0     tracking_error       rad      0.005  phi_ref - phi
+        1     rate_error           rad/s    0.05   rate_ref - estimated hull rate
+        2     phi_ref              rad      0.2    reference, from the neutral
+        3     rate_ref             rad/s    0.3    reference rate (0 in the hold)
+        4     accel_ref            rad/s^2  0.5    reference acceleration (0 in the hold)
+        5-7   ahead_10/50/100ms    rad      .005,  phi_ref(t + h) - phi_ref(t)
+                                            .02,.04
+        8     phi                  rad      0.2    hull encoder, from the neutral
+        9     hull_rate            rad/s    0.3    windowed estimate from the encoder
+        10    flywheel_rate        rad/s    50     from the motor encoder
+        11    current              A        15     current sensor
+        12    is_hold              -        1      1 during the hold
+        13    is_reverse           -        1      1 during the reverse stroke
+        14    phase_progress       -        1      0 at the phase start, 1 at its end
+        15    electric_energy      J        20     integral of abs(u i) so far
+        16    time_to_phase_end    s        5      to the end of the hold / the stroke
+        17    inertia_prior        kg m^2   20     J_hull + lambda66 seen at the stop
+        18    stroke_duration      s        2      of the reverse stroke
+        19    c_torsion            N m/rad  50     known rod stiffness
+        20    k_t                  N m/A    0.25   known torque constant
+        21    J_flywheel           kg m^2   0.1    known flywheel inertia
+        ====  ===================  =======  =====  ======================================
+
+    Rewards
+        The sum of named terms, each in ``info["reward_terms"]`` (summed over the
+        action repeat), weights in ``reward_weights``:
+        ``tracking = -w (e / 1 mrad)^2 dt`` per sample of the reverse stroke;
+        ``energy = -w * joules of abs(u i)`` drawn; ``limits = -w dt`` per sample at the
+        current (or voltage) limit; ``accuracy = -w min(abs(rel_error) / 1 %, 10)``
+        once, at the last step (a failed estimate costs the cap, 10). Defaults
+        ``tracking=1, energy=0.1, limits=1, accuracy=1``. The episode's return does not
+        depend on ``action_repeat``.
+
+    Starting State
+        Scenario (rig, sensors, ``alpha``, ``hold_s``) drawn from the preset and
+        ``configs/randomization.yaml`` (if ``randomize``) with a scenario seed drawn from
+        ``np_random``; the free stroke has run; the hull is braked at its stop; the
+        first observation is the first sample of the hold.
+
+    Episode End
+        Terminated when the reverse stroke and the passive tail after it are over
+        (about ``hold_s`` + half a period of samples: 2,000 to 8,000 at 1 kHz).
+        Truncation only by the registered step limit (20,000 agent steps), which a
+        valid configuration never reaches. The last ``info`` carries ``lambda66_est``,
+        ``lambda66_true`` (the simulator's own parameter; nan on a bench),
+        ``rel_error``, ``ci95``, ``failed`` (the estimate could not be formed),
+        ``energy_J``, ``tracking_rms_rad``, ``saturated_frac``.
+
+    Arguments
+        ``gym.make("AddedInertia/ReverseStroke-v0", render_mode=None, **kwargs)`` with
+        the fields of :class:`~addedinertia_env.envs.config.EnvConfig`: ``preset``
+        (``"wigley-2m"``), ``randomize`` (True), ``ranges`` (overrides of the
+        randomisation ranges, ``{key: [low, high]}``), ``fixed`` (pinned scenario
+        values), ``sensor_quality``, ``hold_s``, ``alpha``, ``scenario_seed``,
+        ``action_repeat`` (1), ``control_mode`` (``"current"``), ``reward_weights``;
+        plus ``rig_factory`` (scenario -> rig) and ``width``/``height`` of frames.
+        ``reset(options=...)`` accepts the scenario options (``preset`` to
+        ``scenario_seed``). ``render_mode``: ``"rgb_array"`` (MuJoCo view of hull and
+        flywheel; needs ``MUJOCO_GL``, see :mod:`.render`) or ``"plot"`` (the episode so
+        far: hull angle, current, flywheel rate over time, phases shaded).
+
+    Version History
+        v0: first version.
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": int(NOMINAL_SAMPLE_RATE)}
+    layout = ReverseStrokeTask.layout
+
+    def __init__(self, render_mode: str | None = None, *, preset: str = "wigley-2m", randomize: bool = True,
+                 ranges: Mapping[str, Any] | None = None, fixed: Mapping[str, Any] | None = None,
+                 sensor_quality: str | None = None, hold_s: float | None = None, alpha: float | None = None,
+                 scenario_seed: int | None = None, action_repeat: int = 1, control_mode: str = "current",
+                 reward_weights: RewardWeights | Mapping[str, float] | None = None,
+                 rig_factory: Callable[[Scenario], Any] | None = None, width: int = 480, height: int = 360):
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"ReverseStrokeEnv option render_mode={render_mode!r}: expected None or one of {RENDER_MODES}")
+        for name, value in (("width", width), ("height", height)):
+            if not (isinstance(value, int) and not isinstance(value, bool) and 16 <= value <= 4096):
+                raise ValueError(f"ReverseStrokeEnv option {name}={value!r}: expected an integer number of pixels in [16, 4096]")
+        if rig_factory is not None and not callable(rig_factory):
+            raise ValueError(f"ReverseStrokeEnv option rig_factory={rig_factory!r}: expected a callable scenario -> rig")
+        self.config = EnvConfig(preset=preset, randomize=randomize, ranges=ranges or {}, fixed=fixed or {},
+                                sensor_quality=sensor_quality, hold_s=hold_s, alpha=alpha,
+                                scenario_seed=scenario_seed, action_repeat=action_repeat,
+                                control_mode=control_mode, reward_weights=reward_weights or RewardWeights())
+        self.render_mode = render_mode
+        self.rig_factory = rig_factory or simulated_rig
+        self.width, self.height = width, height
+        # One dict per instance (never a shared mutable class attribute).
+        self.metadata = {**type(self).metadata,
+                         "render_fps": max(1, round(NOMINAL_SAMPLE_RATE / self.config.action_repeat))}
+        n = self.layout.size
+        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (n,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self._default_ranges = load_ranges()  # configs/randomization.yaml, read once
+        self.scenario: Scenario | None = None
+        self.rig: Any = None
+        self.experiment: Experiment | None = None
+        self.task: ReverseStrokeTask | None = None
+        self._renderer: RigRenderer | None = None
+        self._episode_config = self.config
+
+    # --- Gymnasium API ----------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        cfg = self.config.with_options(options)
+        drawn = int(self.np_random.integers(0, 2**63 - 1))  # always drawn: the stream stays aligned
+        scenario_seed = cfg.scenario_seed if cfg.scenario_seed is not None else drawn
+        self._episode_config = cfg
+        self.scenario = cfg.scenario(scenario_seed, self._default_ranges)
+        self.rig = self.rig_factory(self.scenario)
+        self.experiment = Experiment(self.rig, self.scenario.plan)
+        self.experiment.start()
+        self.task = ReverseStrokeTask.for_rig(self.experiment.known, self.config.reward_weights,
+                                              self.config.control_mode)
+        self._tracking_sq = 0.0
+        self._tracking_n = 0
+        self._limit_samples = 0
+        self._samples = 0
+        self._summary: dict[str, Any] | None = None
+        if self._renderer is not None:  # a new model: a new renderer at the next render()
+            self._renderer.close()
+            self._renderer = None
+        info = {"scenario": self.scenario.name, "scenario_seed": scenario_seed,
+                "sensor_quality": self.scenario.sensor_quality, "phase": self.experiment.phase,
+                "t": self.experiment.last.t}
+        return self.task.observe(self.experiment), info
+
+    def step(self, action: np.ndarray):
+        exp, task = self.experiment, self.task
+        if exp is None:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        if not exp.needs_control:
+            raise gym.error.ResetNeeded("the experiment is over (terminated); call reset() for the next one")
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (1,) or not np.isfinite(a[0]):
+            raise ValueError(f"action {action!r}: expected one finite number in [-1, 1] (shape (1,))")
+        cmd = task.command(a)
+        tracking = energy = limits = 0.0
+        for _ in range(self.config.action_repeat):
+            before = exp.electric_energy
+            reading = exp.step(cmd)
+            e = task.tracking_error(exp, reading)
+            if e is not None:
+                self._tracking_sq += e * e
+                self._tracking_n += 1
+            at_limit = task.at_limit(cmd, reading)
+            self._limit_samples += at_limit
+            self._samples += 1
+            energy += exp.electric_energy - before
+            tracking += 0.0 if e is None else e * e
+            limits += at_limit
+            if exp.done:
+                break
+        terms = task.terms(tracking_sq=tracking, energy=energy, limit_samples=limits, dt=exp.rig.dt)
+        info: dict[str, Any] = {"phase": exp.phase, "t": exp.last.t}
+        terminated = exp.done
+        if terminated:
+            self._summary = self._score()
+            terms["accuracy"] = task.accuracy_term(self._summary["rel_error"])
+            info.update(self._summary)
+        info["reward_terms"] = terms
+        reward = float(sum(terms.values()))
+        return task.observe(exp), reward, terminated, False, info
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; make the env with render_mode='rgb_array' or 'plot'")
+            return None
+        if self.experiment is None:
+            raise gym.error.ResetNeeded("call reset() before render()")
+        if self.render_mode == "plot":
+            return plot_frame(self.experiment.record(), title=self._title())
+        if self._renderer is None:
+            if not hasattr(self.rig, "model"):
+                raise RuntimeError(f"render_mode='rgb_array' draws a MuJoCo rig; {type(self.rig).__name__} has no model")
+            self._renderer = RigRenderer(self.rig.model, self.width, self.height)
+        exp = self.experiment
+        reference = float(exp.reference.phi(exp.last.t)) if exp.reference is not None else None
+        return self._renderer.render(self.rig.data, reference_angle=reference)
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # --- for controllers, runners and scoring -----------------------------------------
+    def controller_context(self):
+        """The :class:`agents.base.ControllerContext` of this episode (sensor data and known
+        constants only), with ``dt`` the control period (sample period x action repeat)."""
+        if self.experiment is None:
+            raise gym.error.ResetNeeded("call reset() before controller_context()")
+        ctx = _runner_context(self.experiment)
+        return dataclasses.replace(ctx, dt=ctx.dt * self.config.action_repeat)
+
+    def record(self, run_id: str = "run") -> RunRecord:
+        """The episode's run record so far (complete once terminated)."""
+        if self.experiment is None:
+            raise gym.error.ResetNeeded("call reset() before record()")
+        return self.experiment.record(run_id, extra_experiment={"scenario": self.scenario.name})
+
+    def lambda66_true(self) -> float:
+        """The simulated hull's lambda66 (kg m^2): from this env's own parameters; nan on a bench."""
+        if self.scenario is None or getattr(self.rig, "source", "sim") != "sim":
+            return math.nan
+        return float(self.scenario.rig.hull.lambda66)
+
+    # --- internals --------------------------------------------------------------------
+    def _score(self) -> dict[str, Any]:
+        """The benchmark numbers of the finished episode."""
+        exp = self.experiment
+        out: dict[str, Any] = {"failed": False, "failure": ""}
+        try:
+            result = identify([self.record()], "energy")
+            est, ci = float(result.lambda66), [float(result.ci95[0]), float(result.ci95[1])]
+        except IdentificationError as e:
+            est, ci = math.nan, [math.nan, math.nan]
+            out.update(failed=True, failure=str(e))
+        true = self.lambda66_true()
+        rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
+        controlled = max(exp.controlled_steps, 1)
+        out.update(lambda66_est=est, ci95=ci, lambda66_true=true, rel_error=rel,
+                   energy_J=float(exp.electric_energy),
+                   tracking_rms_rad=math.sqrt(self._tracking_sq / self._tracking_n) if self._tracking_n else math.nan,
+                   saturated_frac=self._limit_samples / controlled)
+        return out
+
+    def _title(self) -> str:
+        s = self.scenario
+        text = f"{s.name}: lambda66 true {self.lambda66_true():.3f} kg m^2"
+        if self._summary is not None:
+            text += f", estimate {self._summary['lambda66_est']:.3f} ({100 * self._summary['rel_error']:+.2f} %)"
+        return text
+

@@ -1,0 +1,123 @@
+"""The forced-oscillation experiment (Chinese patent's method on our rig; source 003, physics.md s5).
+
+The patent shakes the model harmonically on a motion platform and measures the force.
+Here the motor is the shaker: a sinusoidal current ``i = I cos(Omega s)`` (current mode)
+puts the reaction ``-k_t i`` on the hull, and ``k_t i`` is the measured force. Phases, as
+recorded (kind ``forced-oscillation``):
+
+1. ``idle``: rod twisted to ``phi_n - alpha``, hull braked, motor passive for
+   ``calibrate_s``: the current sensor reads its own offset here (true current 0);
+2. ``free``: brake released, motor passive, one half swing to the first stop, where the
+   brake is set; its duration gives a natural-frequency guess ``omega_guess = pi / t_half``;
+3. ``idle`` (driven; run-record.md has no ``forced`` phase): brake released, the motor
+   drives at ``ratio * omega_guess`` for each ratio in turn, ``periods`` full drive
+   periods each. Each sinusoid starts at a crest, with the amplitude that would keep the
+   hull's swing at ``|phi_stop - phi_n|`` if the guess were right (clipped to
+   ``current_fraction * i_max``), so the hull starts each segment near its steady motion;
+4. ``idle``: motor passive for ``tail_s``.
+
+The frequencies and the time span of every driven segment are listed in the record's
+``experiment.segments`` (the estimator needs them). Only the rig protocol is used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from ..record import RunRecord
+from ..rig.motor import MotorCommand
+from .filters import RateEstimator
+from .free_decay import PASSIVE, SampleLog
+from .protocol import ExperimentError
+
+
+@dataclass(frozen=True)
+class ForcedPlan:
+    """How one forced-oscillation experiment is run."""
+
+    alpha: float = 0.06  # rad, twist for the initial half swing (also the target drive amplitude scale)
+    calibrate_s: float = 0.5  # s, braked, passive: current-offset calibration
+    ratios: tuple[float, ...] = (0.7, 0.8, 1.25, 1.4)  # drive frequency / natural-frequency guess
+    periods: int = 3  # full drive periods per frequency
+    current_fraction: float = 0.6  # largest drive amplitude as a share of i_max
+    tail_s: float = 0.2  # s, passive idle at the end
+    max_free_s: float = 30.0  # s, give up if the initial half swing never stops
+
+    def __post_init__(self) -> None:
+        checks = {"alpha": self.alpha != 0 and abs(self.alpha) < 1.0, "calibrate_s": self.calibrate_s > 0,
+                  "ratios": len(self.ratios) >= 2 and all(0.1 < r < 5 and abs(r - 1) > 0.05 for r in self.ratios),
+                  "periods": self.periods >= 1, "current_fraction": 0 < self.current_fraction <= 1,
+                  "tail_s": self.tail_s >= 0, "max_free_s": self.max_free_s > 0}
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"ForcedPlan.{name} = {getattr(self, name)!r} is out of range (alpha: 0 < |alpha| < 1 rad; "
+                                 "ratios: at least two, each in (0.1, 5) and not within 5 % of resonance; "
+                                 "periods >= 1; 0 < current_fraction <= 1; calibrate_s > 0)")
+
+    @classmethod
+    def from_any(cls, plan: Any) -> "ForcedPlan":
+        """A plan from ``None``, a :class:`ForcedPlan`, or any plan with ``alpha`` (its twist is reused)."""
+        if plan is None:
+            return cls()
+        if isinstance(plan, cls):
+            return plan
+        return cls(alpha=float(getattr(plan, "alpha", cls.alpha)))
+
+
+def run_forced(rig: Any, plan: Any = None, run_id: str = "run") -> RunRecord:
+    """Calibrate, swing once freely, then drive the hull at several frequencies; see the module docstring."""
+    p = ForcedPlan.from_any(plan)
+    known = rig.known
+    phi_n, c, k_t = float(known["phi_neutral"]), float(known["c_torsion"]), float(known["k_t"])
+    i_cap = p.current_fraction * float(known.get("i_max", 10.0))
+    log = SampleLog()
+    log.add(rig.reset(phi0=phi_n - p.alpha, brake=True), PASSIVE, "idle")
+    for _ in range(int(round(p.calibrate_s / rig.dt))):
+        log.add(rig.step(PASSIVE), PASSIVE, "idle")
+    t_half, phi_stop = _half_swing(rig, log, p, phi_n)
+    omega_guess = math.pi / t_half
+    J_guess = c / omega_guess**2
+    amplitude = abs(phi_stop - phi_n)
+    rig.set_brake(False)
+    segments = []
+    for ratio in p.ratios:
+        omega = ratio * omega_guess
+        side = 1.0 if log.last.phi >= phi_n else -1.0
+        # Undamped steady state of J phi'' + c (phi - phi_n) = -k_t i: phi - phi_n = -k_t i / (c - J omega^2).
+        current = -(c - J_guess * omega**2) * side * amplitude / k_t
+        current = max(-i_cap, min(i_cap, current))
+        t0 = log.last.t
+        n = int(round(p.periods * 2.0 * math.pi / omega / rig.dt))
+        for k in range(1, n + 1):
+            s = k * rig.dt - 0.5 * rig.dt  # the current is held over the coming sample: aim at its middle
+            cmd = MotorCommand("current", current * math.cos(omega * s))
+            log.add(rig.step(cmd), cmd, "idle")
+        segments.append({"omega": omega, "frequency_hz": omega / (2.0 * math.pi), "ratio": ratio,
+                         "current_amplitude": current, "t_start": t0, "t_end": log.last.t})
+    for _ in range(int(round(p.tail_s / rig.dt))):
+        log.add(rig.step(PASSIVE), PASSIVE, "idle")
+    experiment = {"kind": "forced-oscillation", **asdict(p), "ratios": list(p.ratios),
+                  "omega_guess": omega_guess, "t_half_swing": t_half, "segments": segments,
+                  "frequencies_hz": [s["frequency_hz"] for s in segments]}
+    return log.record(rig, experiment, run_id)
+
+
+def _half_swing(rig: Any, log: SampleLog, p: ForcedPlan, phi_n: float) -> tuple[float, float]:
+    """Release, swing passively through neutral to the first stop, brake there; (duration, stop angle)."""
+    rig.set_brake(False)
+    t_release = log.last.t
+    rate = RateEstimator(rig.dt)
+    sign = 1.0 if p.alpha > 0 else -1.0
+    crossed = False
+    peak = 0.0
+    for _ in range(int(round(p.max_free_s / rig.dt))):
+        r = log.add(rig.step(PASSIVE), PASSIVE, "free")
+        w = sign * rate.update(r.phi)
+        peak = max(peak, w)
+        crossed = crossed or sign * (r.phi - phi_n) >= 0
+        if crossed and peak > 0 and w <= 0:
+            rig.set_brake(True)
+            return r.t - t_release, r.phi
+    raise ExperimentError(f"forced oscillation: the hull did not stop within {p.max_free_s} s of release")

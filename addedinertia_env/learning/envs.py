@@ -1,0 +1,92 @@
+"""Training and evaluation environments: one factory, vectorised, optionally residual.
+
+Residual learning (``residual.enabled``): the policy's action ``r`` in [-1, 1] is added,
+times ``scale``, to the action of a classical controller (default ``feedforward-pd``)
+that runs at every sample of the rig (1 kHz) from the same observation::
+
+    action(sample) = clip(base.predict(obs(sample)) + scale * r, -1, 1)
+
+``r`` is held for ``action_repeat`` samples, exactly as
+:class:`agents.onnx_policy.OnnxPolicy` holds it on the benchmark, so training and
+deployment see one controller. The base controller gets ``reset(context)`` with the
+environment's :class:`~agents.base.ControllerContext` (sensor data only) every episode.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .toy import TOY_ENV_ID, register_toy
+
+
+class ResidualWrapper(gym.Wrapper):
+    """Policy action = correction on top of a classical controller; see the module docstring.
+
+    ``env`` must step one rig sample per call (its own ``action_repeat`` = 1) and offer
+    ``controller_context()`` on ``env.unwrapped`` after ``reset``.
+    """
+
+    def __init__(self, env: gym.Env, base: str = "feedforward-pd", scale: float = 0.2, action_repeat: int = 10):
+        super().__init__(env)
+        if action_repeat < 1:
+            raise ValueError(f"action_repeat = {action_repeat!r}; expected an integer >= 1 (samples per action)")
+        self.base_name, self.scale, self.action_repeat = base, float(scale), int(action_repeat)
+        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self._obs: np.ndarray | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        from agents import make_controller  # noqa: PLC0415 - agents imports this package
+
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.base = make_controller(self.base_name)
+        self.base.reset(self.env.unwrapped.controller_context())
+        self._obs = obs
+        return obs, info
+
+    def step(self, action):
+        correction = self.scale * float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], -1.0, 1.0))
+        total = 0.0
+        for _ in range(self.action_repeat):
+            base_action, _ = self.base.predict(self._obs, deterministic=True)
+            a = np.clip(np.asarray(base_action, dtype=np.float32).reshape(1) + correction, -1.0, 1.0)
+            obs, reward, terminated, truncated, info = self.env.step(a.astype(np.float32))
+            total += float(reward)
+            self._obs = obs
+            if terminated or truncated:
+                break
+        return obs, total, terminated, truncated, info
+
+
+def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None, residual: dict[str, Any] | None = None) -> gym.Env:
+    """One environment; with ``residual`` enabled, the env steps single samples under the wrapper."""
+    import addedinertia_env  # noqa: F401, PLC0415 - registers the Gymnasium ids
+
+    if env_id == TOY_ENV_ID:
+        register_toy()
+    kwargs = dict(env_kwargs or {})
+    if residual and residual.get("enabled"):
+        repeat = int(kwargs.pop("action_repeat", 1))
+        env = gym.make(env_id, action_repeat=1, **kwargs)
+        return ResidualWrapper(env, base=residual["base"], scale=residual["scale"], action_repeat=repeat)
+    return gym.make(env_id, **kwargs)
+
+
+def make_vec(env_id: str, env_kwargs: dict[str, Any], residual: dict[str, Any] | None, n_envs: int, seed: int,
+             vec_env: str = "dummy"):
+    """``n_envs`` monitored copies (env ``k`` seeded with ``seed + k`` at its first reset)."""
+    from stable_baselines3.common.env_util import make_vec_env  # noqa: PLC0415
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv  # noqa: PLC0415
+
+    factory = functools.partial(make_env, env_id, env_kwargs, residual)
+    cls = SubprocVecEnv if (vec_env == "subproc" and n_envs > 1) else DummyVecEnv
+    return make_vec_env(factory, n_envs=n_envs, seed=seed, vec_env_cls=cls)
+
+
+def effective_action_repeat(env_kwargs: dict[str, Any]) -> int:
+    """Rig samples per policy action (what the exported policy must hold on the benchmark)."""
+    return int(env_kwargs.get("action_repeat", 1))

@@ -1,0 +1,395 @@
+"""The rig for many environments at once: the MuJoCo model's dynamics on numpy arrays.
+
+One source of truth with :mod:`.mujoco_rig`:
+
+* every generalised force except inertia and the linear spring comes from :mod:`.forces`
+  (the same functions, run on per-environment parameter arrays, :mod:`.batched_params`);
+* the motor current comes from :mod:`.motor` (the same exact exponential update
+  :func:`~.motor.current_step`, the same drive modes :func:`~.motor.terminal_voltage`),
+  with the back-EMF taken at the flywheel's mean rate over the step as
+  :meth:`MujocoRig._mean_flywheel_rate` does, and the torque ``k_t`` x the mean current;
+* the mechanics are integrated with the classic four-stage Runge-Kutta method (MuJoCo's
+  ``RK4``) at ``physics_dt = sample_dt / physics_substeps``, the linear spring and the
+  2x2 mass matrix ``[[J_h + lambda66 + J_f, J_f], [J_f, J_f]]`` (solved in closed form,
+  :func:`mass_matrix_solve`) inside the stages, the extra forces and the motor torque
+  held over each physics step.
+
+:func:`reference_substep` is that physics step written out plainly. With the extra
+torques held, every operation in it is *linear* in ``x = (phi, w, psi, omega, i, u, F1,
+F2)`` (``F1`` the held hull torque plus ``c phi_n``, ``F2`` the held rotor friction): the
+exact current update is linear in ``(i0, u, Omega)`` for a fixed step, the mean-rate
+correction is an acceleration, and RK4 applied to a linear system is a fixed linear map.
+So the whole step is a matrix ``G`` (5 x 8 per environment and kind of step), obtained
+by running :func:`reference_substep` on the unit vectors once (:func:`substep_matrix`).
+A physics step is then: the nonlinear torques from :mod:`.forces`, and one product
+``G x`` (a BLAS matrix product when the whole batch shares its parameters). It equals
+stage-by-stage evaluation to rounding (about 1e-15; tests/test_batched.py checks it).
+
+Kinds of step: motor passive (open circuit: no current, ``u`` shows the back-EMF) or
+driven (current or voltage mode; the drive's voltage is set once per sample by
+:func:`~.motor.terminal_voltage`), hull free or braked.
+
+The brake: MuJoCo holds the hull with a stiff (soft) equality constraint; here a braked
+hull is held exactly: ``phi`` fixed and ``w = 0`` from the moment the brake is set
+(the flywheel keeping its absolute rate ``w + Omega`` through that instant, as under an
+impulse on the hull alone), and then ``J_f Omega' = k_t i + M_f``. Braked, the two agree
+to about 1e-9 rad; a brake set while the hull still moves at rate ``w0`` lets MuJoCo's
+hull slide on for about the constraint's time constant (``2 physics_dt``), so the
+trajectories then differ by about ``w0 x physics_dt`` in ``phi`` (docs/PERFORMANCE.md).
+
+One "step" (:meth:`BatchedRig.step`) is one sample period (``physics_substeps`` physics
+steps), as for :meth:`MujocoRig.step`.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Sequence
+
+import numpy as np
+
+from . import forces
+from .batched_params import BatchedParams
+from .batched_sensors import BatchedReading, BatchedSensors
+from .motor import MODES, current_step, terminal_voltage
+from .params import RigParams
+
+PASSIVE, CURRENT, VOLTAGE = (MODES.index(m) for m in ("passive", "current", "voltage"))
+# Rows of the state block: the moving state, then the inputs held over a physics step.
+PHI, W, PSI, OMEGA, I, U, F1, F2 = range(8)
+STATE = ("phi", "w", "psi", "omega", "i", "u", "F1", "F2")
+N_OUT = 5  # phi, w, psi, omega, i are updated; u, F1, F2 are inputs
+# Kinds of physics step: 2 * braked + driven.
+KIND_NAMES = ("free, passive", "free, driven", "braked, passive", "braked, driven")
+
+
+def mass_matrix_solve(J_hull_added, J_flywheel, f_hull, f_flywheel):
+    """Accelerations ``(phi'', psi'')`` from ``[[J + J_f, J_f], [J_f, J_f]] a = f`` in closed form.
+
+    ``J`` = hull + added inertia, ``J_f`` flywheel, kg m^2; ``f`` generalised forces, N m.
+    """
+    a_hull = (f_hull - f_flywheel) / J_hull_added
+    return a_hull, f_flywheel / J_flywheel - a_hull
+
+
+def free_dynamics(z, c, J, J_f):
+    """``z'`` of the unbraked mechanics, ``z = (phi, w, psi, omega, F1, F2)``, torques held.
+
+    The linear spring ``-c phi + F1`` (``F1`` includes ``c phi_n``) and the mass matrix
+    are evaluated at every stage, as MuJoCo's RK4 does.
+    """
+    phi, w, psi, omega, f1, f2 = z
+    a_hull, a_fly = mass_matrix_solve(J, J_f, f1 - c * phi, f2)
+    zero = 0.0 * phi
+    return (w, a_hull, omega, a_fly, zero, zero)
+
+
+def braked_dynamics(z, c, J, J_f):
+    """``z'`` with the hull held: ``phi`` fixed, ``w = 0``, ``J_f Omega' = F2``."""
+    phi, w, psi, omega, f1, f2 = z
+    zero = 0.0 * phi
+    return (zero, zero, omega, f2 / J_f, zero, zero)
+
+
+def rk4_step(f, z, h, *args):
+    """Classic four-stage Runge-Kutta step of ``z' = f(z, *args)`` (tuples of arrays)."""
+    k1 = f(z, *args)
+    k2 = f(tuple(a + 0.5 * h * b for a, b in zip(z, k1)), *args)
+    k3 = f(tuple(a + 0.5 * h * b for a, b in zip(z, k2)), *args)
+    k4 = f(tuple(a + h * b for a, b in zip(z, k3)), *args)
+    return tuple(a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for a, b1, b2, b3, b4 in zip(z, k1, k2, k3, k4))
+
+
+def reference_substep(x, h: float, kind: int, c, J, J_f, k_t, R, L):
+    """One physics step as :meth:`MujocoRig.step` takes it, on plain arrays.
+
+    ``x``: the 8 entries of :data:`STATE`; ``kind``: 0..3 (:data:`KIND_NAMES`).
+    Returns the new ``(phi, w, psi, omega, i)``. The extra torques in ``F1``/``F2`` come
+    from :mod:`.forces` and are held, as in MuJoCo. Clear, not fast: the rig uses the
+    linear map :func:`substep_matrix` of this function.
+    """
+    phi, w, psi, omega, i0, u, f1, f2_friction = x
+    braked, driven = divmod(kind, 2)
+    if driven:
+        # Back-EMF at the mean flywheel rate over the step (MujocoRig._mean_flywheel_rate).
+        _, i_guess = current_step(i0, u, omega, h, R=R, L=L, k_e=k_t)
+        f_fly = f2_friction + k_t * i_guess
+        if braked:
+            a_fly = f_fly / J_f
+        else:
+            a_fly = mass_matrix_solve(J, J_f, f1 - c * phi, f_fly)[1]
+        i1, i_mean = current_step(i0, u, omega + 0.5 * h * a_fly, h, R=R, L=L, k_e=k_t)
+        f2 = f2_friction + k_t * i_mean
+    else:  # open circuit: no current
+        i1, f2 = 0.0 * i0, f2_friction
+    dynamics = braked_dynamics if braked else free_dynamics
+    phi1, w1, psi1, omega1, _, _ = rk4_step(dynamics, (phi, w, psi, omega, f1, f2), h, c, J, J_f)
+    return phi1, w1, psi1, omega1, i1
+
+
+def substep_matrix(h: float, kind: int, c, J, J_f, k_t, R, L) -> np.ndarray:
+    """The linear map of :func:`reference_substep`: ``new = G @ x``, shape ``(5, 8, n)``.
+
+    Obtained by running :func:`reference_substep` on each unit vector (float64).
+    """
+    n = np.broadcast(c, J, J_f, k_t, R, L).size
+    G = np.zeros((N_OUT, len(STATE), n))
+    for j in range(len(STATE)):
+        unit = tuple(np.full(n, 1.0 if k == j else 0.0) for k in range(len(STATE)))
+        out = reference_substep(unit, h, kind, c, J, J_f, k_t, R, L)
+        for i in range(N_OUT):
+            G[i, j] = out[i]
+    return G
+
+
+class _Command(SimpleNamespace):
+    """Duck-typed :class:`MotorCommand` carrying arrays (for :func:`motor.terminal_voltage`)."""
+
+
+def mode_codes(mode, n: int) -> np.ndarray | int:
+    """Mode names or codes (scalar or per environment) -> :data:`PASSIVE`/:data:`CURRENT`/:data:`VOLTAGE`."""
+    if isinstance(mode, str):
+        if mode not in MODES:
+            raise ValueError(f"motor mode {mode!r}: expected one of {MODES}")
+        return MODES.index(mode)
+    if np.isscalar(mode):
+        code = int(mode)
+        if code not in (PASSIVE, CURRENT, VOLTAGE):
+            raise ValueError(f"motor mode code {mode!r}: expected 0 (passive), 1 (current) or 2 (voltage)")
+        return code
+    codes = np.asarray(mode)
+    if codes.dtype.kind in "US":
+        codes = np.array([MODES.index(m) for m in codes])
+    codes = codes.astype(np.int64).reshape(-1)
+    if codes.shape != (n,) or codes.min() < 0 or codes.max() > 2:
+        raise ValueError(f"motor modes: expected {n} codes in 0..2, got shape {codes.shape}")
+    if np.all(codes == codes[0]):
+        return int(codes[0])
+    return codes
+
+
+class BatchedRig:
+    """``n`` simulated rigs stepped together; each may have its own parameters.
+
+    ``params``: one :class:`RigParams` (repeated ``n_envs`` times), a list of them, or a
+    :class:`BatchedParams`. ``seed``: one seed for a batched noise Generator, or a list
+    of per-environment seeds (each environment then reproduces the sensor noise of a
+    :class:`MujocoRig` with that seed). ``dtype``: float64 (default) or float32.
+    """
+
+    source = "sim"
+
+    def __init__(self, params: RigParams | Sequence[RigParams] | BatchedParams, n_envs: int | None = None,
+                 seed=None, dtype=np.float64):
+        if isinstance(params, RigParams):
+            params = BatchedParams.repeat(params, n_envs or 1, dtype=dtype)
+        elif not isinstance(params, BatchedParams):
+            params = BatchedParams.stack(params, dtype=dtype)
+        if n_envs is not None and n_envs != params.n:
+            raise ValueError(f"BatchedRig: n_envs = {n_envs} but {params.n} parameter sets were given")
+        self.params = p = params
+        self.n = n = p.n
+        self.dtype = dtype = p.dtype
+        self.physics_dt = h = p.physics_dt
+        m = p.motor
+        self.k_t = forces.true_torque_constant(p)  # N m/A, true (scalar when shared)
+        self._k_t_env = p.per_env(self.k_t)
+        self._spring_offset = p.spring.c * forces.true_neutral(p)  # c phi_n, N m
+        J = np.asarray(p.hull.J_hull, float) + np.asarray(p.hull.lambda66, float)
+        args = (np.asarray(p.spring.c, float), J, np.asarray(m.J_flywheel, float), np.asarray(self.k_t, float),
+                np.asarray(m.R, float), np.asarray(m.L, float))
+        # (kind, out, in, n) in float64, then cast; one column when the physics is shared.
+        table = np.stack([substep_matrix(h, kind, *args) for kind in range(4)])
+        self._G_table = table.astype(dtype)
+        self._shared = table.shape[-1] == 1  # one map for the whole batch
+        self._terms = [[j for j in range(len(STATE)) if np.any(table[:, i, j] != 0)] for i in range(N_OUT)]
+        self._G_env = None  # (5, 8, n) per-environment map for mixed kinds / parameters
+        self._kind_env = None
+        if seed is not None and not np.isscalar(seed) and not isinstance(seed, np.random.SeedSequence):
+            rng = [np.random.default_rng(s) for s in seed]
+        else:
+            rng = np.random.default_rng(seed)
+        self.sensors = BatchedSensors(p, rng)
+        self._X = np.zeros((len(STATE), n), dtype=dtype)  # the state block (rows: STATE)
+        self._Xn = np.zeros_like(self._X)  # the next one (double buffer)
+        self.water_rate = np.zeros(n, dtype=dtype)
+        self.t = np.zeros(n)  # s, float64 always (phase timing)
+        self.brake = np.zeros(n, dtype=bool)
+        self._tmp = np.zeros(n, dtype=dtype)
+        self.reset()
+
+    # --- the state, by name -----------------------------------------------------------
+    phi = property(lambda self: self._X[PHI], doc="rad, hull angle")
+    w = property(lambda self: self._X[W], doc="rad/s, hull rate")
+    psi = property(lambda self: self._X[PSI], doc="rad, flywheel angle relative to the hull")
+    omega = property(lambda self: self._X[OMEGA], doc="rad/s, flywheel rate relative to the hull")
+    i = property(lambda self: self._X[I], doc="A, motor current")
+    u = property(lambda self: self._X[U], doc="V, terminal voltage held over the last sample")
+
+    @property
+    def dt(self) -> float:
+        """Sample period, s."""
+        return self.params.sample_dt
+
+    def _envs(self, envs) -> np.ndarray | None:
+        if envs is None:
+            return None
+        envs = np.asarray(envs)
+        if envs.dtype == bool:
+            envs = np.nonzero(envs)[0]
+        return envs.astype(np.int64).reshape(-1)
+
+    # --- protocol-like API over the batch ---------------------------------------------
+    def reset(self, phi0=0.0, psi0=0.0, omega0=0.0, brake=True, envs=None) -> BatchedReading:
+        """Reset environments ``envs`` (all by default) as :meth:`MujocoRig.reset` does."""
+        idx = self._envs(envs)
+        sel = slice(None) if idx is None else idx
+        X = self._X
+        X[PHI, sel] = phi0
+        X[PSI, sel] = psi0
+        X[W, sel] = 0.0
+        X[OMEGA, sel] = omega0
+        X[I, sel] = 0.0
+        X[U, sel] = self._k_t_env[sel] * X[OMEGA, sel]  # open circuit shows the back-EMF
+        self.water_rate[sel] = 0.0
+        self.t[sel] = 0.0
+        self.sensors.reset(idx)
+        self.brake[sel] = False
+        self.set_brake(brake, envs=idx)
+        return self.read(envs=idx)
+
+    def set_brake(self, on, envs=None) -> None:
+        """Engage (hold where it stands) or release the hull brake of ``envs`` (all by default).
+
+        Engaging stops the hull at once; the flywheel keeps its absolute rate
+        ``w + Omega`` through that instant (the brake's impulse acts on the hull only).
+        """
+        idx = self._envs(envs)
+        sel = slice(None) if idx is None else idx
+        on = np.broadcast_to(np.asarray(on, dtype=bool), self.brake[sel].shape)
+        engaging = on & ~self.brake[sel]
+        if np.any(engaging):
+            where = np.arange(self.n)[sel][engaging]
+            self._X[OMEGA, where] += self._X[W, where]
+            self._X[W, where] = 0.0
+        self.brake[sel] = on
+
+    def read(self, envs=None) -> BatchedReading:
+        """Sensor readings of ``envs`` (all by default); advances their noise and delay line."""
+        idx = self._envs(envs)
+        X = self._X
+        if idx is None:
+            return self.sensors.read(self.t, X[PHI], X[PSI], X[U], X[I], self.brake)
+        return self.sensors.read(self.t[idx], X[PHI, idx], X[PSI, idx], X[U, idx], X[I, idx],
+                                 self.brake[idx], envs=idx)
+
+    def step(self, mode, value=0.0) -> BatchedReading:
+        """Advance one sample period under per-environment commands; returns the readings."""
+        self.physics_step(mode, value)
+        return self.read()
+
+    # --- physics ------------------------------------------------------------------------
+    def physics_step(self, mode, value=0.0) -> None:
+        """Advance every environment one sample period (no sensor reading).
+
+        ``mode``: ``"passive"``/``"current"``/``"voltage"`` or codes 0/1/2, scalar or per
+        environment; ``value``: A (current mode) or V (voltage mode), scalar or array.
+        """
+        p = self.params
+        code = mode_codes(mode, self.n)
+        X = self._X
+        driven = code != PASSIVE  # bool, or array of bools
+        if np.any(driven):
+            self._set_terminal_voltage(code, np.asarray(value, dtype=self.dtype))
+        if not np.all(driven):
+            X[I, ~driven if not np.isscalar(driven) else slice(None)] = 0.0
+        kind = 2 * self.brake + driven
+        one_kind = np.isscalar(kind) or bool(np.all(kind == kind[0]))
+        G = None
+        if one_kind and self._shared:
+            G = self._G_table[int(kind if np.isscalar(kind) else kind[0]), :, :, 0]
+        else:
+            self._select_maps(np.broadcast_to(kind, (self.n,)))
+        h = self.physics_dt
+        for _ in range(p.physics_substeps):
+            X = self._X
+            if not np.all(driven):  # open circuit: the terminals show the back-EMF
+                if np.isscalar(driven):
+                    np.multiply(self.k_t, X[OMEGA], out=X[U])
+                else:
+                    np.copyto(X[U], self.k_t * X[OMEGA], where=~driven)
+            q_hull = forces.hull_extra_torque(X[PHI], X[W], self.water_rate, p)
+            np.add(q_hull, self._spring_offset, out=X[F1])
+            X[F2] = forces.flywheel_friction_torque(X[OMEGA], p)
+            if p.effects.fluid_memory is not None:
+                self.water_rate += h * forces.water_rate_derivative(X[W], self.water_rate, p)
+            Xn = self._Xn
+            if G is not None:
+                np.matmul(G, X, out=Xn[:N_OUT])
+            else:
+                self._apply_maps(X, Xn)
+            Xn[U] = X[U]
+            self._X, self._Xn = Xn, X
+            self.t += h
+
+    def _set_terminal_voltage(self, code, value) -> None:
+        """The drive's voltage for the coming sample (motor.terminal_voltage), into row U."""
+        m = self.params.motor
+        X = self._X
+        kw = dict(R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max, i_max=m.i_max, sample_dt=self.dt)
+        if np.isscalar(code):
+            X[U] = terminal_voltage(_Command(mode=MODES[code], value=value), X[I], X[OMEGA], **kw)
+            return
+        for c in (CURRENT, VOLTAGE):
+            mask = code == c
+            if np.any(mask):
+                u = terminal_voltage(_Command(mode=MODES[c], value=value), X[I], X[OMEGA], **kw)
+                np.copyto(X[U], np.broadcast_to(u, (self.n,)), where=mask, casting="unsafe")
+
+    def _select_maps(self, kind: np.ndarray) -> None:
+        """Per-environment maps for this sample's kinds (rebuilt only when kinds change)."""
+        if self._kind_env is not None and np.array_equal(kind, self._kind_env):
+            return
+        table = self._G_table  # (4, 5, 8, n or 1)
+        cols = np.arange(self.n) if table.shape[-1] == self.n else np.zeros(self.n, dtype=np.int64)
+        self._G_env = np.ascontiguousarray(np.moveaxis(table[kind, :, :, cols], 0, -1))
+        self._kind_env = kind.copy()
+
+    def _apply_maps(self, X: np.ndarray, Xn: np.ndarray) -> None:
+        """``Xn[:5] = G_env x`` environment by environment (multiply-adds over the batch)."""
+        G, tmp = self._G_env, self._tmp
+        for i in range(N_OUT):
+            out = Xn[i]
+            first = True
+            for j in self._terms[i]:
+                if first:
+                    np.multiply(G[i, j], X[j], out=out)
+                    first = False
+                else:
+                    np.multiply(G[i, j], X[j], out=tmp)
+                    np.add(out, tmp, out=out)
+
+    # --- bookkeeping ----------------------------------------------------------------------
+    def state_nbytes(self) -> int:
+        """Bytes of the per-environment state and work arrays (maps included)."""
+        arrays = [self._X, self._Xn, self.water_rate, self.t, self.brake, self._tmp, self._k_t_env]
+        total = sum(a.nbytes for a in arrays) + self._G_table.nbytes
+        if self._G_env is not None:
+            total += self._G_env.nbytes + self._kind_env.nbytes
+        if self.sensors.delay_samples is not None:
+            total += self.sensors._hist.nbytes + self.sensors._pos.nbytes + self.sensors._count.nbytes
+        return total
+
+    def nbytes_per_env(self) -> float:
+        """State + work + parameter bytes per environment."""
+        return (self.state_nbytes() + self.params.nbytes()) / self.n
+
+    def true_state(self, k: int = 0) -> dict:
+        """Simulator truth of environment ``k`` (scoring and tests only)."""
+        rig = self.params.rigs[k]
+        X = self._X
+        phi, w, omega = float(X[PHI, k]), float(X[W, k]), float(X[OMEGA, k])
+        energy = float(forces.kinetic_energy(w, omega, rig) + forces.potential_energy(phi, rig))
+        return {"t": float(self.t[k]), "phi": phi, "w": w, "psi": float(X[PSI, k]), "omega": omega,
+                "i": float(X[I, k]), "u": float(X[U, k]), "water_rate": float(self.water_rate[k]),
+                "energy": energy}

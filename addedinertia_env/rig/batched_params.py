@@ -1,0 +1,150 @@
+"""Rig parameters for a batch of environments: one array per parameter (struct of arrays).
+
+:class:`BatchedParams` mirrors :class:`~addedinertia_env.rig.params.RigParams` field by
+field (``p.hull.b1``, ``p.motor.k_t``, ``p.effects.fluid_memory.tau``...), except that
+each number is a numpy array with one entry per environment. Because the attribute paths
+are the same, the functions of :mod:`.forces` and :mod:`.motor` run unchanged on a batch
+(numpy broadcasting): the batched rig and the MuJoCo rig share one source of truth.
+
+Domain randomisation in a batch is simply a list of different :class:`RigParams`.
+
+A physical parameter that is the same in every environment is stored as a scalar of the
+batch's dtype (cheaper arithmetic); :attr:`BatchedParams.uniform` says whether all of the
+physics (hull, spring, motor, effects) is shared, which lets the rig use one propagator
+matrix for the whole batch. Sensor parameters are always arrays.
+
+An effect that is on in some environments and off in others is stored with a *neutral*
+value in the environments where it is off (a value for which the effect's force is
+exactly zero: no bearing torque, ``k3 = 0``, zero offset, water memory with ``beta = 0``,
+``k_t`` ratio 1, zero delay). An effect off everywhere is ``None``, as in
+:class:`~addedinertia_env.rig.effects.Effects`, so it costs nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from types import SimpleNamespace
+from typing import Sequence
+
+import numpy as np
+
+from .effects import EFFECT_NAMES
+from .params import RigParams
+
+# Per effect: field -> value at which the effect does nothing.
+NEUTRAL_EFFECT_VALUES: dict[str, dict[str, float]] = {
+    "bearing_coulomb": {"torque": 0.0},
+    "fluid_memory": {"tau": 1.0, "beta": 0.0},  # water_rate starts at 0 and stays 0
+    "spring_stiffening": {"k3": 0.0},
+    "neutral_offset": {"offset": 0.0},
+    "sensor_delay": {"delay": 0.0},
+    "torque_constant": {"ratio": 1.0},
+}
+
+_GROUPS = ("hull", "spring", "motor", "sensors")
+# Parameters that must be equal across a batch (they set the common clock).
+_COMMON = ("sample_rate",)
+
+
+def _numeric_fields(obj) -> list[str]:
+    return [f.name for f in dataclasses.fields(obj) if isinstance(getattr(obj, f.name), (int, float))
+            and not isinstance(getattr(obj, f.name), bool)]
+
+
+class BatchedParams:
+    """Per-environment parameter arrays, attribute-compatible with :class:`RigParams`.
+
+    Build with :meth:`stack` (a list of rigs) or :meth:`repeat` (one rig, ``n`` times).
+    ``dtype`` is the float type of the physical parameters (float64 by default); encoder
+    counts stay integer.
+    """
+
+    def __init__(self, rigs: Sequence[RigParams], dtype=np.float64):
+        rigs = list(rigs)
+        if not rigs:
+            raise ValueError("BatchedParams: expected at least one RigParams, got an empty list")
+        for r in rigs:
+            if not isinstance(r, RigParams):
+                raise TypeError(f"BatchedParams: expected RigParams, got {type(r).__name__}")
+        self.rigs = tuple(rigs)
+        self.dtype = np.dtype(dtype)
+        first = rigs[0]
+        for name in ("physics_substeps",):
+            values = {getattr(r, name) for r in rigs}
+            if len(values) > 1:
+                raise ValueError(f"BatchedParams: {name} differs across the batch ({sorted(values)}); "
+                                 "all environments of one batch share the clock")
+        values = {r.sensors.sample_rate for r in rigs}
+        if len(values) > 1:
+            raise ValueError(f"BatchedParams: sensors.sample_rate differs across the batch ({sorted(values)}); "
+                             "all environments of one batch share the clock")
+        self.n = len(rigs)
+        self.physics_substeps = int(first.physics_substeps)
+        self.sample_rate = float(first.sensors.sample_rate)
+        self.uniform = True
+        for group in _GROUPS:
+            ns = SimpleNamespace()
+            proto = getattr(first, group)
+            for name in _numeric_fields(proto):
+                column = [getattr(getattr(r, group), name) for r in rigs]
+                if name in ("phi_counts", "psi_counts"):
+                    setattr(ns, name, np.asarray(column, dtype=np.int64))
+                elif name in _COMMON:
+                    setattr(ns, name, float(column[0]))
+                else:
+                    setattr(ns, name, self._column(column, shared_ok=group != "sensors"))
+            setattr(self, group, ns)
+        self.brake_torque = np.asarray([r.brake_torque for r in rigs], dtype=self.dtype)
+        self.effects = SimpleNamespace()
+        for effect in EFFECT_NAMES:
+            present = [getattr(r.effects, effect) for r in rigs]
+            if all(e is None for e in present):
+                setattr(self.effects, effect, None)
+                continue
+            neutral = NEUTRAL_EFFECT_VALUES[effect]
+            ns = SimpleNamespace(**{k: self._column([v if e is None else getattr(e, k) for e in present])
+                                    for k, v in neutral.items()})
+            setattr(self.effects, effect, ns)
+
+    def _column(self, values: list, shared_ok: bool = True):
+        """A dtype scalar if all values are equal (and sharing is allowed), else an array."""
+        if shared_ok and all(v == values[0] for v in values):
+            return self.dtype.type(values[0])
+        if shared_ok:
+            self.uniform = False
+        return np.asarray(values, dtype=self.dtype)
+
+    def per_env(self, value) -> np.ndarray:
+        """``value`` (a scalar or per-environment array) as an array of length ``n``."""
+        return np.broadcast_to(np.asarray(value, dtype=self.dtype), (self.n,)).copy()
+
+    @classmethod
+    def stack(cls, rigs: Sequence[RigParams], dtype=np.float64) -> "BatchedParams":
+        return cls(rigs, dtype=dtype)
+
+    @classmethod
+    def repeat(cls, rig: RigParams, n: int, dtype=np.float64) -> "BatchedParams":
+        if n < 1:
+            raise ValueError(f"BatchedParams.repeat: n = {n}; expected at least 1 environment")
+        return cls([rig] * n, dtype=dtype)
+
+    # Derived quantities with the same names as RigParams ---------------------------------
+    @property
+    def physics_dt(self) -> float:
+        """Physics step, s (common to the batch)."""
+        return 1.0 / self.sample_rate / self.physics_substeps
+
+    @property
+    def sample_dt(self) -> float:
+        return 1.0 / self.sample_rate
+
+    def nbytes(self) -> int:
+        """Bytes held by the per-environment parameter arrays."""
+        total = self.brake_torque.nbytes
+        for group in _GROUPS:
+            total += sum(np.asarray(v).nbytes for v in vars(getattr(self, group)).values())
+        for effect in EFFECT_NAMES:
+            ns = getattr(self.effects, effect)
+            if ns is not None:
+                total += sum(np.asarray(v).nbytes for v in vars(ns).values())
+        return total

@@ -1,0 +1,119 @@
+"""One tuning procedure for every classical controller, and the tuned gains they load.
+
+Procedure (docs/CONTROLLERS.md): a seeded random search over the controller's
+``KNOBS`` (log-uniform or uniform in each documented range). Candidate 0 is the
+controller's hand-set ``DEFAULTS``; every candidate is scored on the same scenarios of
+the suite's *tuning* split (never the test split), and the score is the median
+``|lambda66 error|`` with a failed identification counted as 100 %. Every controller
+gets the same budget: the same number of candidates times the same scenarios (ILC runs
+its learning cycles inside each scenario, as in the benchmark; only the scored last
+cycle differs from the others). The winner is written to ``configs/controllers/tuned.yaml``
+with the command that produced it; controllers read it by default.
+
+Command: ``addedinertia bench tune --suite standard-v0 --controller NAME``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+TUNED_PATH = Path(__file__).resolve().parents[1] / "configs" / "controllers" / "tuned.yaml"
+
+
+def load_tuned(name: str, path: Path | None = None) -> dict[str, Any]:
+    """Tuned parameters of controller ``name`` (empty when none were stored)."""
+    path = path or TUNED_PATH
+    if not path.exists():
+        return {}
+    data = yaml.safe_load(path.read_text()) or {}
+    entry = data.get(name) or {}
+    return dict(entry.get("params") or {})
+
+
+def resolve_params(name: str | None, defaults: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """``defaults`` < tuned values of ``name`` (if given) < ``overrides``; unknown keys refused."""
+    unknown = sorted(set(overrides) - set(defaults))
+    if unknown:
+        raise TypeError(f"unknown controller parameter(s) {unknown}; allowed: {sorted(defaults)}")
+    tuned = load_tuned(name) if name else {}
+    stale = sorted(set(tuned) - set(defaults))
+    if stale:
+        raise TypeError(f"{TUNED_PATH}: {name}: unknown parameter(s) {stale}; allowed: {sorted(defaults)}; "
+                        f"re-run `addedinertia bench tune --controller {name}`")
+    return {**defaults, **tuned, **overrides}
+
+
+def sample_candidates(knobs: dict[str, tuple[float, float, str]], n: int, seed: int) -> list[dict[str, float]]:
+    """``n`` candidates: ``{}`` (the defaults) then ``n - 1`` random draws over ``knobs``."""
+    rng = np.random.default_rng(seed)
+    out: list[dict[str, float]] = [{}]
+    for _ in range(n - 1):
+        cand = {}
+        for key, (lo, hi, scale) in sorted(knobs.items()):
+            if scale == "log":
+                cand[key] = float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+            else:
+                cand[key] = float(rng.uniform(lo, hi))
+        out.append(cand)
+    return out
+
+
+def score(abs_errors: list[float | None]) -> float:
+    """Median ``|lambda66 error|``; a failure (None or not finite) counts as 1.0 (100 %)."""
+    vals = [1.0 if (e is None or not math.isfinite(e)) else min(abs(e), 1.0) for e in abs_errors]
+    return float(np.median(vals)) if vals else math.inf
+
+
+def tune(controller: str, suite: str = "standard-v0", candidates: int = 8, scenarios: int = 8,
+         seed: int = 0, jobs: int = 2, progress: bool = True) -> dict[str, Any]:
+    """Random search (see module doc); returns ``{"params", "score", "trials"}``."""
+    from addedinertia_env.bench.runner import run_tasks  # noqa: PLC0415 - bench depends on agents
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
+
+    from .registry import CLASSICAL, _load  # noqa: PLC0415
+
+    if controller not in CLASSICAL:
+        raise ValueError(f"tuning is for the classical controllers {sorted(CLASSICAL)}, not {controller!r}")
+    cls = _load(CLASSICAL[controller])
+    knobs = getattr(cls, "KNOBS", {})
+    if not knobs:
+        raise ValueError(f"controller {controller!r} has no KNOBS to tune")
+    s = load_suite(suite)
+    scen = s.scenarios("tuning")[:scenarios]
+    cands = sample_candidates(knobs, candidates, seed)
+    defaults = {k: v for k, v in cls.DEFAULTS.items() if k in knobs}
+    tasks = [s.task(sc, controller, {**defaults, **cand}, tuned=False) for cand in cands for sc in scen]
+    rows = run_tasks(tasks, jobs=jobs, progress=progress, desc=f"tune {controller}")
+    trials = []
+    for k, cand in enumerate(cands):
+        chunk = rows[k * len(scen):(k + 1) * len(scen)]
+        full = {**defaults, **cand}
+        trials.append({"params": full, "score": score([r["abs_rel_error"] for r in chunk]),
+                       "median_energy_J": float(np.median([r["energy_J"] for r in chunk]))})
+    best = min(trials, key=lambda t: (t["score"], t["median_energy_J"]))
+    return {"params": best["params"], "score": best["score"], "trials": trials,
+            "budget": {"candidates": candidates, "scenarios": len(scen), "episodes": len(tasks)}}
+
+
+def write_tuned(name: str, result: dict[str, Any], command: str, path: Path | None = None) -> Path:
+    """Store ``result['params']`` for ``name`` in the tuned-gains YAML (atomic write)."""
+    path = path or TUNED_PATH
+    data = (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
+    data[name] = {"params": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in result["params"].items()},
+                  "tuning_score_median_abs_error": round(float(result["score"]), 6),
+                  "budget": result.get("budget", {}), "command": command}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    header = ("# Tuned controller gains, written by `addedinertia bench tune` (agents/tuning.py).\n"
+              "# Each entry: the parameters, the tuning-split score, the budget and the command.\n")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        f.write(header + yaml.safe_dump(data, sort_keys=True))
+    os.replace(tmp, path)
+    return path

@@ -1,0 +1,442 @@
+"""BenchRig: a bench (real or emulated) behind the rig protocol of ``rig/interface.py``.
+
+``Experiment`` and ``run_experiment`` drive it unchanged. Every command goes through the
+:class:`~hw_adapter.safety.SafetyEnvelope` and every sample is checked by it; a failed
+check, a board fault, link silence beyond the watchdog time or lost frames beyond the
+budget send the bench to the safe state (drive passive = zero current, brake requested,
+DISARM) and raise :class:`~hw_adapter.safety.SafetyTrip`. A :class:`Watchdog` thread
+does the same if the control loop stalls while the bench is driven.
+
+Protocol choices (docs/PROTOCOL.md):
+
+* ``reset(phi0)`` sends RESET and waits for the SAMPLE flagged RESET_DONE: the emulator
+  places the hull at once; a real board with a twist actuator moves it; without one an
+  operator twists the rod and sets the brake (the host waits up to ``reset_timeout_s``,
+  sending HEARTBEATs). The sample times of the run start at 0 at that SAMPLE. RESET
+  disarms the board; ``reset`` re-arms it if it was armed.
+* ``set_brake(on)`` changes the brake request carried by every COMMAND. On a
+  free-running board it is sent at once (the hull may be moving); in lock-step it goes
+  with the next step, which is the same instant of board time.
+* ``step(cmd)`` sends one COMMAND and returns the next SAMPLE. On a free-running board,
+  samples that queued while the host was busy are skipped to the newest and counted as
+  overruns.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+from addedinertia_env.rig.motor import MotorCommand
+from addedinertia_env.rig.sensors import Reading
+
+from . import messages as m
+from .framing import ClockUnwrapper
+from .lab import LabConfig, rig_block
+from .link import Link, LinkError
+from .safety import SafetyEnvelope, SafetyLimits, SafetyTrip
+from .watchdog import Watchdog
+
+PASSIVE = MotorCommand("passive", 0.0)
+REALTIME_WATCHDOG_S = 0.020  # s: link silence that trips a free-running (real) bench
+LOCKSTEP_WATCHDOG_S = 0.250  # s: a lock-stepped emulator does not move while it waits
+HELLO_TRIES = 5
+STOP_REASONS = {"angle": 1, "rate": 2, "flywheel_rate": 3, "current": 4, "voltage": 5, "board_fault": 6, "brake": 7,
+                "link": 8, "sensor": 9, "watchdog": 10, "operator": 11}
+
+
+@dataclass
+class SentCommand:
+    host_s: float  # s, host perf_counter
+    mode: str
+    value: float
+    brake: bool
+
+
+@dataclass
+class LoopTiming:
+    """Host-side timing of the control loop (perf_counter seconds)."""
+
+    intervals: list[float] = field(default_factory=list)  # between successive samples of the loop
+    compute_s: list[float] = field(default_factory=list)  # sample received -> next command sent
+    skipped_samples: int = 0  # stale samples dropped to catch up (free-running board)
+    overruns: int = 0  # loop iterations longer than one sample period, + skipped samples
+    lockstep_retries: int = 0
+
+
+class BenchRig:
+    """See the module docstring; ``source`` is ``"emulator"`` or ``"bench"`` from the board's CAPS."""
+
+    def __init__(self, url: str, lab: LabConfig, watchdog_s: float | None = None, reset_timeout_s: float = 120.0,
+                 limit_overrides: dict[str, float] | None = None,
+                 on_sample: Callable[[Reading, MotorCommand | None], None] | None = None):
+        self.url = url
+        self.lab = lab
+        self.reset_timeout_s = reset_timeout_s
+        self.limit_overrides = limit_overrides or {}
+        self.on_sample = on_sample
+        self._watchdog_s = watchdog_s
+        self.link = Link(url)
+        self.caps: m.Caps | None = None
+        self.source = "bench"
+        self.sent: list[SentCommand] = []
+        self.timing = LoopTiming()
+        self.trip: SafetyTrip | None = None
+        self.trip_wall: float | None = None  # perf_counter when the trip was detected
+        self.safe_command_wall: float | None = None  # perf_counter when the safe state was sent
+        self.last_sample: m.Sample | None = None
+        self.armed = False
+        self.brake_request = True
+        self._trip_lock = threading.Lock()
+        self._clock = ClockUnwrapper()
+        self._t0_us = 0
+        self._psi_total = 0
+        self._psi_last: int | None = None
+        self._last_cmd_seq = 0
+        self._last_sample_seq = 0
+        self._last_sample_wall: float | None = None
+        self._last_board_us: int | None = None
+        self._mismatch_since: float | None = None
+        self._last_logged_t = -math.inf
+        self.watchdog: Watchdog | None = None
+        self.envelope: SafetyEnvelope | None = None
+        self.limits: SafetyLimits | None = None
+
+    # --- connection ---------------------------------------------------------------------
+    def connect(self) -> m.Caps:
+        """HELLO -> CAPS; builds the rig block, the limits and the watchdog."""
+        for _ in range(HELLO_TRIES):
+            self.link.send(m.Hello())
+            deadline = time.perf_counter() + 0.5
+            while (left := deadline - time.perf_counter()) > 0:
+                got = self.link.recv(left)
+                if got is not None and isinstance(got[1], m.Caps):
+                    self.caps = got[1]
+                    break
+            if self.caps is not None:
+                break
+        if self.caps is None:
+            raise LinkError(f"bench {self.url!r} did not answer HELLO with CAPS ({HELLO_TRIES} tries of 0.5 s); "
+                            "is the board powered and is this its port?")
+        self.source = "emulator" if self.caps.flags & m.CAP_EMULATOR else "bench"
+        self.known_block = rig_block(self.lab, self.caps)
+        self.limits = self.lab.safety_limits(self.caps, **self.limit_overrides)
+        self.envelope = SafetyEnvelope(self.limits, self.lab.constants["phi_neutral"])
+        if self._watchdog_s is None:
+            self._watchdog_s = LOCKSTEP_WATCHDOG_S if self.lockstep else REALTIME_WATCHDOG_S
+        if self.watchdog is None:
+            self.watchdog = Watchdog(self._watchdog_s, self._watchdog_expired)
+        return self.caps
+
+    @property
+    def lockstep(self) -> bool:
+        return bool(self.caps and self.caps.flags & m.CAP_LOCKSTEP)
+
+    @property
+    def watchdog_s(self) -> float:
+        return float(self._watchdog_s or REALTIME_WATCHDOG_S)
+
+    def close(self) -> None:
+        if self.watchdog is not None:
+            self.watchdog.close()
+        self.link.close()
+
+    # --- the rig protocol ---------------------------------------------------------------
+    @property
+    def dt(self) -> float:
+        return self.caps.sample_period_us * 1e-6
+
+    @property
+    def known(self) -> dict:
+        return self.known_block
+
+    def truth(self) -> None:
+        return None  # a bench has no truth, the emulator's stays in its own process
+
+    def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
+        self._raise_if_tripped()
+        was_armed = self.armed
+        self.armed = False
+        self.watchdog.arm(False)
+        self.link.send(m.Reset(phi0, psi0, omega0, brake))
+        deadline = time.perf_counter() + self.reset_timeout_s
+        next_beat = time.perf_counter() + 0.5
+        while True:
+            now = time.perf_counter()
+            if now > deadline:
+                raise self._trip_now("link", f"no RESET_DONE within {self.reset_timeout_s} s of RESET")
+            if now > next_beat:
+                self.link.send(m.Empty(m.HEARTBEAT))
+                next_beat = now + 0.5
+            got = self._recv(min(0.1, deadline - now))
+            if got is None:
+                continue
+            frame, msg = got
+            if isinstance(msg, m.Sample) and msg.status & m.ST_RESET_DONE:
+                break
+        self.brake_request = brake
+        self.last_sample = msg
+        self._last_sample_wall = None
+        self._clock_reset(frame, msg)
+        reading = self._reading(frame, msg)
+        self.envelope.forget_motion()
+        self._check(reading, msg)
+        if self.on_sample is not None:
+            self.on_sample(reading, None)
+        if was_armed:
+            self.arm()
+        return reading
+
+    def set_brake(self, on: bool) -> None:
+        self.brake_request = bool(on)
+        if not self.lockstep and self.armed:
+            last = self.sent[-1] if self.sent else SentCommand(0.0, "passive", 0.0, True)
+            self._send_command(MotorCommand(last.mode, last.value))
+
+    def step(self, cmd: MotorCommand) -> Reading:
+        self._raise_if_tripped()
+        if not self.armed:
+            raise self._trip_now("operator", "step() on a disarmed bench; call arm() after connect()")
+        if self._last_sample_wall is not None:
+            busy = time.perf_counter() - self._last_sample_wall
+            self.timing.compute_s.append(busy)
+            if busy > self.dt:
+                self.timing.overruns += 1
+        sent = self._send_command(self.envelope.clamp(cmd))
+        return self._next_sample(sent)
+
+    # --- arming -------------------------------------------------------------------------
+    def query(self) -> tuple[m.Sample, Reading]:
+        """The board's present state without a step (QUERY -> SAMPLE)."""
+        for _ in range(3):
+            self.link.send(m.Empty(m.QUERY))
+            deadline = time.perf_counter() + 0.5
+            while (left := deadline - time.perf_counter()) > 0:
+                got = self._recv(left)
+                if got is not None and isinstance(got[1], m.Sample):
+                    frame, msg = got
+                    if self._last_board_us is None:
+                        self._clock_reset(frame, msg)
+                    return msg, self._reading(frame, msg, advance_psi=False)
+        raise self._trip_now("link", "the board did not answer QUERY")
+
+    def arm(self) -> None:
+        self.link.send(m.Empty(m.ARM))
+        deadline = time.perf_counter() + 1.0
+        while (left := deadline - time.perf_counter()) > 0:
+            got = self._recv(left)
+            if got is None:
+                break
+            frame, msg = got
+            if isinstance(msg, m.Fault):
+                raise self._trip_now("board_fault", f"the board refused ARM: faults {m.fault_names(msg.faults)}")
+            if isinstance(msg, m.Sample) and msg.status & m.ST_ARMED:
+                self.armed = True
+                self.last_sample = None if not self.lockstep else msg  # free-running: samples skipped below
+                self._last_sample_seq = frame.seq
+                self.link.drain()
+                self._last_sample_wall = None
+                return
+        raise self._trip_now("link", "the board did not confirm ARM within 1 s")
+
+    def disarm(self, reason: int = 0) -> None:
+        self.watchdog.arm(False)
+        self.armed = False
+        try:
+            self._send_command(PASSIVE, brake=True, safe=True)
+            self.link.send(m.Empty(m.DISARM, reason))
+        except LinkError:
+            pass
+
+    # --- safe stop ----------------------------------------------------------------------
+    def _trip_now(self, kind: str, message: str) -> SafetyTrip:
+        """Send the safe state (once) and return the trip to raise."""
+        with self._trip_lock:
+            if self.trip is None:
+                self.trip = SafetyTrip(kind, message)
+                self.trip_wall = time.perf_counter()
+                self._send_safe(STOP_REASONS.get(kind, 99))
+        return self.trip
+
+    def _watchdog_expired(self, why: str) -> None:
+        self._trip_now("watchdog", why)
+
+    def _send_safe(self, reason: int) -> None:
+        if self.watchdog is not None:
+            self.watchdog.arm(False)
+        self.armed = False
+        self.brake_request = True
+        try:
+            self._send_command(PASSIVE, brake=True, safe=True)
+            self.link.send(m.Empty(m.DISARM, reason))
+            self.safe_command_wall = time.perf_counter()
+        except LinkError:
+            pass  # the board's own watchdog and link-loss rule take over; confirm_safe reconnects
+
+    def _raise_if_tripped(self) -> None:
+        if self.trip is not None:
+            raise self.trip
+
+    def confirm_safe(self, timeout_s: float = 1.0, needed: int = 3) -> dict:
+        """After a stop: read the board (reconnecting if the link broke) until it shows the
+        safe state ``needed`` times in a row: disarmed, brake requested, |current| small."""
+        deadline = time.perf_counter() + timeout_s
+        good = 0
+        last: m.Sample | None = None
+        reconnects = 0
+        while time.perf_counter() < deadline and good < needed:
+            try:
+                if self.link.closed:
+                    reconnects += 1
+                    self.link = Link(self.url, open_timeout_s=0.5)
+                    self.link.send(m.Hello())
+                self._send_command(PASSIVE, brake=True, safe=True)
+                got = self._recv(0.05, check_trip=False)
+            except LinkError:
+                time.sleep(0.05)
+                continue
+            if got is None or not isinstance(got[1], m.Sample):
+                continue
+            frame, last = got
+            reading = self._reading(frame, last, advance_psi=True, update_clock=True)
+            if self.on_sample is not None and reading.t > self._last_logged_t:
+                self.on_sample(reading, PASSIVE)
+                self._last_logged_t = reading.t
+            safe = (not last.status & m.ST_ARMED and last.status & m.ST_BRAKE_REQUESTED
+                    and abs(last.current) <= max(0.05 * self.caps.i_max, 0.2))
+            good = good + 1 if safe else 0
+        state = {"confirmed": good >= needed, "reconnects": reconnects}
+        if last is not None:
+            state.update({"armed": bool(last.status & m.ST_ARMED), "brake_requested": bool(last.status & m.ST_BRAKE_REQUESTED),
+                          "brake_engaged": bool(last.brake), "current_A": float(last.current),
+                          "board_faults": m.fault_names(last.faults)})
+        return state
+
+    # --- internals ----------------------------------------------------------------------
+    def _send_command(self, cmd: MotorCommand, brake: bool | None = None, safe: bool = False) -> int:
+        """Send one COMMAND. Unless it is the safe state sent by a trip, it is refused
+        once the envelope has tripped: nothing but the safe state follows a trip."""
+        brake = self.brake_request if brake is None else brake
+        if safe:
+            seq = self.link.send(m.Command(cmd.mode, float(cmd.value), brake, self._last_sample_seq))
+        else:
+            with self._trip_lock:
+                if self.trip is not None:
+                    raise self.trip
+                seq = self.link.send(m.Command(cmd.mode, float(cmd.value), brake, self._last_sample_seq))
+        self.sent.append(SentCommand(time.perf_counter(), cmd.mode, float(cmd.value), brake))
+        self._last_cmd_seq = seq
+        if self.watchdog is not None and self.armed:
+            self.watchdog.arm(not (cmd.mode == "passive" and brake))
+        return seq
+
+    def _recv(self, timeout_s: float, check_trip: bool = True):
+        try:
+            got = self.link.recv(timeout_s)
+        except LinkError as e:
+            if check_trip:
+                raise self._trip_now("link", str(e)) from None
+            raise
+        if got is not None and isinstance(got[1], m.Fault) and check_trip and self.armed:
+            f = got[1]
+            raise self._trip_now("board_fault", f"board fault {m.fault_names(f.code)} (detail {f.detail:g}); "
+                                                f"latched {m.fault_names(f.faults)}")
+        return got
+
+    def _next_sample(self, sent_seq: int) -> Reading:
+        lim = self.limits
+        start = time.perf_counter()
+        deadline = start + self.watchdog_s
+        retry_at = start + self.watchdog_s / 4 if self.lockstep else math.inf
+        got = None
+        while got is None:
+            self._raise_if_tripped()
+            now = time.perf_counter()
+            if now >= deadline:
+                raise self._trip_now("link", f"no sample for {1e3 * (now - start):.1f} ms "
+                                             f"(watchdog {1e3 * self.watchdog_s:.0f} ms)")
+            if now >= retry_at:  # lock-step: the answer was lost; ask again (counts against the budget)
+                self.timing.lockstep_retries += 1
+                last = self.sent[-1]
+                sent_seq = self._send_command(MotorCommand(last.mode, last.value))
+                retry_at = now + self.watchdog_s / 4
+            got = self._recv(min(deadline, retry_at) - now)
+            if got is not None and not isinstance(got[1], m.Sample):
+                got = None
+        # Catch up: keep the newest sample already waiting (a free-running board kept going).
+        skipped = 0
+        while True:
+            more = self._recv(0.0)
+            if more is None:
+                break
+            if isinstance(more[1], m.Sample):
+                got = more
+                skipped += 1
+        self.timing.skipped_samples += skipped
+        self.timing.overruns += skipped
+        frame, msg = got
+        now = time.perf_counter()
+        if self._last_sample_wall is not None:
+            self.timing.intervals.append(now - self._last_sample_wall)
+        self._last_sample_wall = now
+        self._last_sample_seq = frame.seq
+        errors = self.link.errors + self.timing.lockstep_retries
+        if errors > lim.link_error_budget:
+            raise self._trip_now("link", f"{errors} frames lost or corrupted (budget {lim.link_error_budget}): "
+                                         f"{self.link.parser.stats.bad_crc} bad CRC, {self.link.stats.seq_gaps} "
+                                         f"missing, {self.timing.lockstep_retries} lock-step retries")
+        if self.last_sample is not None:
+            missing = (msg.step - self.last_sample.step - 1) & 0xFFFF
+            if missing > lim.max_missed_in_row + skipped:
+                raise self._trip_now("link", f"{missing} samples missing in a row (limit {lim.max_missed_in_row})")
+        reading = self._reading(frame, msg)
+        self._check(reading, msg)
+        self.last_sample = msg
+        self.watchdog.kick()
+        if self.on_sample is not None:
+            last = self.sent[-1]
+            self.on_sample(reading, MotorCommand(last.mode, last.value))
+            self._last_logged_t = reading.t
+        return reading
+
+    def _check(self, r: Reading, msg: m.Sample) -> None:
+        if msg.faults and self.armed:
+            raise self._trip_now("board_fault", f"board reports faults {m.fault_names(msg.faults)} at t={r.t:.4f} s")
+        try:
+            self.envelope.check(r.t, r.phi, r.psi, r.i, r.u)
+        except SafetyTrip as e:
+            raise self._trip_now(e.kind, str(e)) from None
+        if r.brake != self.brake_request:
+            if self._mismatch_since is None:
+                self._mismatch_since = r.t
+            allowed = self.caps.brake_response_ms * 1e-3 + 2 * self.dt
+            if r.t - self._mismatch_since > allowed:
+                raise self._trip_now("brake", f"brake {'released' if r.brake else 'engaged'}-sensed while "
+                                              f"{'engaged' if self.brake_request else 'released'} was requested "
+                                              f"for {1e3 * (r.t - self._mismatch_since):.0f} ms "
+                                              f"(allowed {1e3 * allowed:.0f} ms) at t={r.t:.4f} s")
+        else:
+            self._mismatch_since = None
+
+    def _clock_reset(self, frame, msg: m.Sample) -> None:
+        self._t0_us = self._clock(frame.time_us)
+        self._last_board_us = self._t0_us
+        self._psi_last = msg.psi_count
+        self._psi_total = msg.psi_count
+
+    def _reading(self, frame, msg: m.Sample, advance_psi: bool = True, update_clock: bool = True) -> Reading:
+        board_us = self._clock(frame.time_us) if update_clock else self._last_board_us
+        self._last_board_us = board_us
+        psi_total = self._psi_total
+        if self._psi_last is not None:
+            psi_total += ((msg.psi_count - self._psi_last + 2**31) % 2**32) - 2**31
+        if advance_psi:
+            self._psi_total, self._psi_last = psi_total, msg.psi_count
+        caps = self.caps
+        return Reading(t=(board_us - self._t0_us) * 1e-6,
+                       phi=msg.phi_count * 2 * math.pi / caps.phi_counts,
+                       psi=psi_total * 2 * math.pi / caps.psi_counts,
+                       u=float(msg.voltage), i=float(msg.current), brake=bool(msg.brake))

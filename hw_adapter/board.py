@@ -1,0 +1,245 @@
+"""The emulated bench board: the simulated rig behind the protocol's board-side rules.
+
+:class:`Board` has no I/O. It takes decoded messages and returns the messages to send
+back; :class:`~hw_adapter.emulator.EmulatorServer` moves bytes. It implements what
+docs/PROTOCOL.md section 5 asks of real firmware: latched faults, the board watchdog,
+brake supervision, the safe state (drive passive, brake on) and its own limits, so the
+host's safety code is tested against a board that behaves like the real one should.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+from addedinertia_env.rig.motor import MotorCommand
+from addedinertia_env.rig.mujoco_rig import MujocoRig
+from addedinertia_env.rig.params import RigParams
+from addedinertia_env.rig.sensors import Reading
+
+from . import messages as m
+from .faults import FaultLog, FaultPlan
+
+PASSIVE = MotorCommand("passive", 0.0)
+WIRE_COUNTS = 2**24  # counts per turn on the wire when the simulated encoder is exact (counts = 0)
+FIRMWARE_VERSION = 1
+
+
+@dataclass(frozen=True)
+class BoardLimits:
+    """The board's own protection, independent of the host (docs/PROTOCOL.md section 5)."""
+
+    watchdog_ms: int = 50  # ms without a COMMAND while armed and driving -> safe state
+    brake_response_ms: int = 20  # ms the brake may take to follow a request
+    overcurrent_factor: float = 1.25  # measured |i| above this x i_max -> fault
+    angle_limit: float = 0.8  # rad from the calibrated neutral: the hull's end switches
+
+
+@dataclass(frozen=True)
+class ReceivedCommand:
+    board_t: float  # s after RESET
+    mode: str
+    value: float
+    brake: bool
+    armed: bool
+
+
+class Board:
+    """State machine of the board around one :class:`MujocoRig`."""
+
+    def __init__(self, params: RigParams, seed: int = 0, faults: FaultPlan | None = None, lockstep: bool = True,
+                 limits: BoardLimits | None = None, board_id: str = "emulator"):
+        self.params = params
+        self.rig = MujocoRig(params, seed=seed)
+        self.faults_plan = faults or FaultPlan()
+        self.lockstep = lockstep
+        self.limits = limits or BoardLimits()
+        self.board_id = board_id
+        s = params.sensors
+        self.period_us = int(round(1e6 / s.sample_rate))
+        self.phi_counts = s.phi_counts or WIRE_COUNTS
+        self.psi_counts = s.psi_counts or WIRE_COUNTS
+        self.armed = False
+        self.fault_bits = 0
+        self.cmd = PASSIVE
+        self.brake_request = True
+        self.cmd_seq = 0
+        self.step_count = 0
+        self.clock_base_us = 0
+        self.last_reading = Reading(t=0.0, phi=0.0, psi=0.0, u=0.0, i=0.0, brake=True)
+        self.last_command_wall = time.monotonic()
+        self._mismatch_since: float | None = None  # board t when brake and request first differed
+        self._glitch_done = False
+        self._stuck_logged = False
+        self.log = FaultLog()
+        self.commands: list[ReceivedCommand] = []
+        self.outbox: list = []  # FAULT messages raised outside handle() (watchdog, link)
+
+    # --- clocks -------------------------------------------------------------------------
+    @property
+    def board_t(self) -> float:
+        """Seconds since the last RESET (the fault schedule's clock)."""
+        return self.rig.time
+
+    @property
+    def time_us(self) -> int:
+        """The board clock, monotonic across RESETs, us."""
+        return self.clock_base_us + int(round(self.rig.time * 1e6))
+
+    def caps(self) -> m.Caps:
+        mo = self.params.motor
+        flags = m.CAP_EMULATOR | m.CAP_TWIST_ACTUATOR | (m.CAP_LOCKSTEP if self.lockstep else 0)
+        return m.Caps(FIRMWARE_VERSION, flags, self.period_us, self.phi_counts, self.psi_counts, mo.i_max, mo.u_max,
+                      self.limits.watchdog_ms, self.limits.brake_response_ms, self.board_id)
+
+    # --- messages -----------------------------------------------------------------------
+    def handle(self, msg, seq: int = 0) -> list:
+        """Answer one message from the host (``seq``: its frame's sequence number)."""
+        t = msg.type
+        if t == m.HELLO:
+            return [self.caps()]
+        if t == m.QUERY:
+            return [self.sample(self.last_reading)]
+        if t == m.HEARTBEAT:
+            return [m.Empty(m.HEARTBEAT, msg.reason)]
+        if t == m.RESET:
+            return [self._reset(msg)]
+        if t == m.ARM:
+            return self._arm()
+        if t == m.DISARM:
+            self.go_safe(m.F_HOST_STOP if msg.reason else 0, float(msg.reason))
+            return self._flush() + [self.sample(self.last_reading)]
+        if t == m.COMMAND:
+            return self._command(msg, seq)
+        return []  # CAPS, SAMPLE, FAULT from a host: ignored
+
+    def _reset(self, msg: m.Reset) -> m.Sample:
+        self.clock_base_us = self.time_us + self.period_us  # the board clock never goes back
+        self.armed = False
+        self.fault_bits = 0
+        self.cmd = PASSIVE
+        self.brake_request = msg.brake
+        self.cmd_seq = 0
+        self.step_count = 0
+        self._mismatch_since = None
+        self.last_reading = self.rig.reset(phi0=msg.phi0, psi0=msg.psi0, omega0=msg.omega0, brake=msg.brake)
+        return self.sample(self.last_reading, extra_status=m.ST_RESET_DONE)
+
+    def _arm(self) -> list:
+        if self.fault_bits:
+            return [m.Fault(self.fault_bits & -self.fault_bits, self.fault_bits, math.nan), self.sample(self.last_reading)]
+        if not self.rig.brake:
+            return [m.Fault(m.F_BRAKE, self.fault_bits, math.nan), self.sample(self.last_reading)]
+        self.armed = True
+        self.last_command_wall = time.monotonic()
+        return [self.sample(self.last_reading)]
+
+    def _command(self, msg: m.Command, seq: int) -> list:
+        self.commands.append(ReceivedCommand(self.board_t, msg.mode, msg.value, msg.brake, self.armed))
+        self.last_command_wall = time.monotonic()
+        if self.armed:
+            limit = self.params.motor.i_max if msg.mode == "current" else self.params.motor.u_max
+            self.cmd = MotorCommand(msg.mode, max(-limit, min(limit, msg.value)) if msg.mode != "passive" else 0.0)
+            self.brake_request = msg.brake
+            self.cmd_seq = seq
+        if self.lockstep:
+            return self._flush() + [self.tick()] + self._flush()
+        return []
+
+    # --- the sample period --------------------------------------------------------------
+    def tick(self) -> m.Sample:
+        """One sample period under the latched command (safe state when disarmed)."""
+        cmd = self.cmd if self.armed else PASSIVE
+        request = self.brake_request if self.armed else True
+        stuck = self.faults_plan.active("stuck_brake", self.board_t) > 0
+        if request != self.rig.brake:
+            if stuck:
+                if not self._stuck_logged:
+                    self._stuck_logged = True
+                    self.log.add("fault_onset", time.monotonic(), self.board_t, fault="stuck_brake")
+            else:
+                self.rig.set_brake(request)
+        r = self.rig.step(cmd)
+        self.step_count += 1
+        self._supervise(r, request)
+        phi_offset = 0.0
+        glitch = self.faults_plan.active("glitch", self.board_t)
+        if glitch and not self._glitch_done:
+            self._glitch_done = True
+            phi_offset = glitch
+            self.log.add("fault_onset", time.monotonic(), self.board_t, fault="glitch")
+        self.last_reading = r
+        self._log_safe()
+        return self.sample(r, phi_offset=phi_offset)
+
+    def _supervise(self, r: Reading, request: bool) -> None:
+        lim, p = self.limits, self.params
+        if request != r.brake:
+            if self._mismatch_since is None:
+                self._mismatch_since = r.t
+            elif r.t - self._mismatch_since > lim.brake_response_ms * 1e-3 and not self.fault_bits & m.F_BRAKE:
+                self.go_safe(m.F_BRAKE, r.t - self._mismatch_since)
+        else:
+            self._mismatch_since = None
+        if abs(r.i) > lim.overcurrent_factor * p.motor.i_max:
+            self.go_safe(m.F_OVERCURRENT, r.i)
+        if abs(r.phi - p.spring.phi_neutral) > lim.angle_limit and not self.fault_bits & m.F_ANGLE_LIMIT:
+            self.go_safe(m.F_ANGLE_LIMIT, r.phi)
+
+    def check_watchdog(self, now: float) -> None:
+        """Free-running board: no COMMAND for ``watchdog_ms`` while driving -> safe state."""
+        if self.armed and not self.commanding_safe and now - self.last_command_wall > self.limits.watchdog_ms * 1e-3:
+            self.go_safe(m.F_WATCHDOG, (now - self.last_command_wall) * 1e3)
+
+    @property
+    def commanding_safe(self) -> bool:
+        """The latched command is already the safe state (drive passive, brake requested)."""
+        return self.cmd.mode == "passive" and self.brake_request
+
+    def go_safe(self, bit: int = 0, detail: float = math.nan) -> None:
+        """Drive passive and brake on now; latch ``bit`` and queue a FAULT message."""
+        self.armed = False
+        self.cmd = PASSIVE
+        self.brake_request = True
+        if not (self.faults_plan.active("stuck_brake", self.board_t) > 0):
+            self.rig.set_brake(True)
+        if bit and not self.fault_bits & bit:
+            self.fault_bits |= bit
+            self.outbox.append(m.Fault(bit, self.fault_bits, float(detail)))
+            self.log.add("board_fault", time.monotonic(), self.board_t, fault=m.FAULT_NAMES.get(bit, str(bit)))
+        self._log_safe()
+
+    def link_lost(self) -> None:
+        """The connection dropped: safe state, latched LINK fault if it was armed."""
+        self.go_safe(m.F_LINK if self.armed else 0)
+
+    def _log_safe(self) -> None:
+        if self.log.first("fault_onset") is not None and self.log.first("safe") is None and self.is_safe:
+            self.log.add("safe", time.monotonic(), self.board_t)
+
+    @property
+    def is_safe(self) -> bool:
+        """Disarmed, drive passive, brake requested and (unless stuck) engaged."""
+        stuck = self.faults_plan.active("stuck_brake", self.board_t) > 0
+        return not self.armed and self.cmd.mode == "passive" and self.brake_request and (self.rig.brake or stuck)
+
+    def _flush(self) -> list:
+        out, self.outbox = self.outbox, []
+        return out
+
+    def pending(self) -> list:
+        return self._flush()
+
+    # --- encoding -----------------------------------------------------------------------
+    def sample(self, r: Reading, extra_status: int = 0, phi_offset: float = 0.0) -> m.Sample:
+        status = extra_status
+        status |= m.ST_ARMED if self.armed else 0
+        status |= m.ST_BRAKE_REQUESTED if (self.brake_request or not self.armed) else 0
+        status |= m.ST_DRIVE_ENABLED if (self.armed and self.cmd.mode != "passive") else 0
+        phi_count = int(round((r.phi + phi_offset) / (2 * math.pi) * self.phi_counts))
+        psi_count = int(round(r.psi / (2 * math.pi) * self.psi_counts))
+        psi_wrapped = (psi_count + 2**31) % 2**32 - 2**31  # a free-running i32 counter
+        phi_count = max(-2**31, min(2**31 - 1, phi_count))
+        return m.Sample(phi_count, psi_wrapped, float(r.i), float(r.u), bool(r.brake), status, self.fault_bits,
+                        self.cmd_seq, self.step_count)

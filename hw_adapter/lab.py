@@ -1,0 +1,136 @@
+"""What the lab knows about its bench: the half of the run record's ``rig`` block that the
+board cannot tell (inertias, stiffness, motor constants from calibration), plus the
+safety limits and the experiment plan for this bench.
+
+The board's half (encoder counts, sample rate, current and voltage limits) comes from
+its CAPS message at connection time; :func:`rig_block` joins the two.
+
+A lab file is YAML (example: ``hw_adapter/labs/example.yaml``)::
+
+    name: tank-1
+    J_hull: 5.8            # kg m^2, hull + rod + frame + stator, test in air
+    J_flywheel: 0.1        # kg m^2
+    c_torsion: 43.4        # N m/rad, static calibration
+    phi_neutral: 0.0       # rad, encoder frame
+    k_t: 0.25              # N m/A
+    R: 0.5                 # ohm
+    L: 0.0005              # H
+    motor_friction: {viscous: 0.0001, coulomb: 0.002}
+    limits: {phi_max: 0.35, rate_max: 1.0}     # optional, SafetyLimits fields
+    experiment: {alpha: 0.1, hold_s: 2.0}      # optional, ExperimentPlan fields
+
+For the emulator, a rig preset name (``wigley-2m``) may stand in for a lab file: its
+experimenter-known constants (``RigParams.known()``, never the truth) are used.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from addedinertia_env.rig.presets import ConfigError, load_preset, plan_from_preset, rig_from_mapping
+
+from .messages import CAP_EMULATOR, Caps
+from .safety import SafetyLimits
+
+MECHANICAL_KEYS = ("J_hull", "J_flywheel", "c_torsion", "phi_neutral", "k_t", "R", "L")
+POSITIVE_KEYS = ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L")
+LAB_KEYS = {"name", *MECHANICAL_KEYS, "motor_friction", "limits", "experiment"}
+
+
+@dataclass(frozen=True)
+class LabConfig:
+    name: str
+    constants: dict[str, Any]  # MECHANICAL_KEYS + motor_friction, SI
+    limits: dict[str, float] = field(default_factory=dict)  # SafetyLimits overrides
+    experiment: dict[str, Any] = field(default_factory=dict)  # ExperimentPlan overrides
+    source: str = ""
+
+    def safety_limits(self, caps: Caps | None = None, **overrides: float) -> SafetyLimits:
+        """The lab's limits, never looser than the board's own current and voltage limits."""
+        values = {**self.limits, **{k: v for k, v in overrides.items() if v is not None}}
+        if caps is not None:
+            values["i_max"] = min(values.get("i_max", caps.i_max), caps.i_max)
+            values["u_max"] = min(values.get("u_max", caps.u_max), caps.u_max)
+        try:
+            return SafetyLimits(**values)
+        except (TypeError, ValueError) as e:
+            raise ConfigError(f"{self.source or self.name}: limits: {e}") from None
+
+    def plan(self, **overrides: Any):
+        return plan_from_preset({"experiment": self.experiment, "_path": self.source or self.name}, **overrides)
+
+
+def load_lab(name_or_path: str) -> LabConfig:
+    """A lab file (``.yaml``) or, for the emulator, a rig preset's known constants."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") and path.exists():
+        try:
+            data = yaml.safe_load(path.read_text())
+        except yaml.YAMLError as e:
+            raise ConfigError(f"{path}: not valid YAML ({e})") from None
+        return lab_from_mapping(data, str(path))
+    preset = load_preset(name_or_path)  # raises ConfigError naming the known presets
+    known = rig_from_mapping(preset).known()
+    constants = {k: known[k] for k in MECHANICAL_KEYS}
+    constants["motor_friction"] = dict(known["motor_friction"])
+    return LabConfig(name=str(preset.get("name", name_or_path)), constants=constants,
+                     experiment=dict(preset.get("experiment") or {}), source=preset["_path"])
+
+
+def lab_from_mapping(data: Any, where: str) -> LabConfig:
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: expected a mapping with keys {sorted(LAB_KEYS)}")
+    unknown = sorted(set(data) - LAB_KEYS)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(LAB_KEYS)}")
+    constants: dict[str, Any] = {}
+    for key in MECHANICAL_KEYS:
+        if key not in data:
+            raise ConfigError(f"{where}: missing key {key!r} (SI units; see hw_adapter/labs/example.yaml)")
+        v = data[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ConfigError(f"{where}: {key} = {v!r}: expected a finite number (SI units)")
+        if key in POSITIVE_KEYS and v <= 0:
+            raise ConfigError(f"{where}: {key} = {v!r}: expected a number > 0 (SI units)")
+        constants[key] = float(v)
+    friction = data.get("motor_friction", {"viscous": 0.0, "coulomb": 0.0})
+    if not isinstance(friction, dict) or set(friction) - {"viscous", "coulomb"}:
+        raise ConfigError(f"{where}: motor_friction = {friction!r}: expected a mapping with 'viscous' and 'coulomb'")
+    for k, v in friction.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise ConfigError(f"{where}: motor_friction.{k} = {v!r}: expected a finite number >= 0")
+    constants["motor_friction"] = {k: float(v) for k, v in friction.items()}
+    limits = data.get("limits") or {}
+    allowed = {f.name for f in dataclasses.fields(SafetyLimits)}
+    if not isinstance(limits, dict) or set(limits) - allowed:
+        raise ConfigError(f"{where}: limits = {limits!r}: allowed keys are {sorted(allowed)}")
+    experiment = data.get("experiment") or {}
+    if not isinstance(experiment, dict):
+        raise ConfigError(f"{where}: experiment = {experiment!r}: expected a mapping of ExperimentPlan fields")
+    lab = LabConfig(name=str(data.get("name", Path(where).stem)), constants=constants, limits=dict(limits),
+                    experiment=dict(experiment), source=where)
+    lab.safety_limits()  # validate now, with the file named
+    lab.plan()
+    return lab
+
+
+def rig_block(lab: LabConfig, caps: Caps) -> dict[str, Any]:
+    """The run record's ``rig`` block: the lab's constants joined with the board's CAPS."""
+    return {
+        **{k: lab.constants[k] for k in MECHANICAL_KEYS},
+        "i_max": caps.i_max,
+        "u_max": caps.u_max,
+        "motor_friction": dict(lab.constants["motor_friction"]),
+        "encoder_counts": {"phi": caps.phi_counts, "psi": caps.psi_counts},
+        "sample_rate": caps.sample_rate,
+        "board": {"id": caps.board_id, "firmware": caps.firmware_version,
+                  "emulator": bool(caps.flags & CAP_EMULATOR), "watchdog_ms": caps.watchdog_ms,
+                  "brake_response_ms": caps.brake_response_ms},
+        "lab": lab.name,
+    }

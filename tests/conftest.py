@@ -1,0 +1,72 @@
+"""Shared fixtures: simulated run records, made once per test session.
+
+One simulated reverse-symmetric experiment costs about 1.5 s of CPU, so the records
+that several test files read are built here, session-scoped, and shared:
+
+* ``oracle_record(name)``: noise-free sensors, the ideal tracking controller
+  (:class:`~addedinertia_env.experiment.oracle.OracleController`), preset ``name``;
+* ``realistic_record``: the wigley-2m preset as it stands (realistic sensors, physics.md
+  section 7) with the default controller ``feedforward-pd``;
+* ``realistic_record_path``: that record written to a session folder (CSV + JSON).
+
+Tests that change a record must copy it first (:func:`copy_record`).
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+
+from addedinertia_env.experiment.oracle import OracleController
+from addedinertia_env.experiment.runner import run_experiment
+from addedinertia_env.record import RunRecord, write_record
+from addedinertia_env.rig.mujoco_rig import MujocoRig
+from addedinertia_env.rig.params import RigParams, SensorParams
+from addedinertia_env.rig.presets import load_preset, plan_from_preset, rig_from_mapping
+from addedinertia_env.simulate import simulate_run
+
+REALISTIC_SEED = 1
+
+
+def copy_record(record: RunRecord) -> RunRecord:
+    """A deep copy, so that a test may change samples or metadata freely."""
+    return RunRecord(samples={k: v.copy() for k, v in record.samples.items()}, meta=copy.deepcopy(record.meta),
+                     path=record.path, gaps=list(record.gaps))
+
+
+def preset_rig(name: str, ideal_sensors: bool = False) -> tuple[RigParams, object]:
+    """The preset's rig (optionally with ideal sensors) and its experiment plan."""
+    data = load_preset(name)
+    rig = rig_from_mapping(data, sensors=SensorParams.ideal() if ideal_sensors else None)
+    return rig, plan_from_preset(data)
+
+
+@pytest.fixture(scope="session")
+def oracle_record():
+    """``oracle_record(name)``: ideal sensors + ideal tracking on preset ``name`` (cached)."""
+    cache: dict[str, tuple[RunRecord, RigParams]] = {}
+
+    def make(name: str) -> tuple[RunRecord, RigParams]:
+        if name not in cache:
+            params, plan = preset_rig(name, ideal_sensors=True)
+            rig = MujocoRig(params, seed=0)
+            cache[name] = (run_experiment(rig, OracleController(rig), plan, run_id=f"oracle-{name}"), params)
+        return cache[name]
+
+    return make
+
+
+@pytest.fixture(scope="session")
+def realistic_record() -> tuple[RunRecord, RigParams]:
+    """wigley-2m with realistic sensors and the default controller, seed 1."""
+    params, plan = preset_rig("wigley-2m")
+    return simulate_run(params, "feedforward-pd", plan, seed=REALISTIC_SEED, run_id="realistic"), params
+
+
+@pytest.fixture(scope="session")
+def realistic_record_path(realistic_record, tmp_path_factory) -> Path:
+    """The realistic record written as ``run-0000.csv`` + ``.json`` (read-only by convention)."""
+    record, _ = realistic_record
+    return write_record(copy_record(record), tmp_path_factory.mktemp("realistic") / "run-0000.csv")
