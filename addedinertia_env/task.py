@@ -240,8 +240,13 @@ class ReverseStrokeTask:
             "accuracy": 0.0,
         }
 
-    def accuracy_term(self, rel_error: float) -> float:
-        """Terminal term from the episode's relative lambda66 error (nan: the estimate
-        failed, charged as the cap)."""
-        units = ACCURACY_CAP if not math.isfinite(rel_error) else min(abs(rel_error) / ACCURACY_UNIT, ACCURACY_CAP)
+    def accuracy_term(self, rel_error: float, failed: bool = False) -> float:
+        """Terminal term from the episode's relative lambda66 error. A failed estimate
+        costs the cap; an unknown error (nan: no true lambda66, a real bench) costs 0."""
+        if failed:
+            units = ACCURACY_CAP
+        elif not math.isfinite(rel_error):
+            return 0.0
+        else:
+            units = min(abs(rel_error) / ACCURACY_UNIT, ACCURACY_CAP)
         return -self.weights.accuracy * units

@@ -10,7 +10,8 @@ normalisation is inside). Its metadata (``addedinertia.*``) says how to drive th
 - ``residual_base`` / ``residual_scale``: if set, the network is a correction on top of
   a classical controller, recreated here from its name and reset with the same
   :class:`~agents.base.ControllerContext` (sensor data only); the action is
-  ``clip(base(obs) + scale * network, -1, 1)``, the base evaluated every sample.
+  ``clip(base(obs) + scale * network, -1, 1)``, the base evaluated every sample, with
+  the parameters it had in training (``residual_base_params``, pinned).
 
 Training cost (``train_env_steps``, ``train_cpu_minutes``) is read from the metadata so
 the benchmark can put it in the leaderboard row.
@@ -65,12 +66,23 @@ class OnnxPolicy:
         self.train_cpu_minutes = _optional_float(self.metadata.get("train_cpu_minutes"))
         self.name = f"onnx:{self.path.name}"
         self.base = None
+        self.residual_base_params = json.loads(self.metadata.get("residual_base_params", "{}") or "{}")
         if self.residual_base:
-            from .registry import make_controller  # noqa: PLC0415
-
-            self.base = make_controller(self.residual_base)
+            self.base = self._make_base()
         self._calls = 0
         self._held = np.zeros(1, dtype=np.float32)
+
+    def _make_base(self):
+        """The base controller with the parameters it was trained with (never re-read from tuned.yaml)."""
+        from .registry import make_controller  # noqa: PLC0415
+
+        if not self.residual_base_params:
+            return make_controller(self.residual_base)
+        try:
+            return make_controller(self.residual_base, tuned=False, **self.residual_base_params)
+        except TypeError as e:
+            raise OnnxPolicyError(f"{self.path}: base controller {self.residual_base!r} no longer takes the "
+                                  f"parameters it was trained with ({e}); retrain the policy") from None
 
     def reset(self, context: Any = None) -> None:
         """Start of an episode: restart the hold counter; reset the base controller with ``context``."""

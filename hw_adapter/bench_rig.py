@@ -45,7 +45,8 @@ REALTIME_WATCHDOG_S = 0.020  # s: link silence that trips a free-running (real) 
 LOCKSTEP_WATCHDOG_S = 0.250  # s: a lock-stepped emulator does not move while it waits
 HELLO_TRIES = 5
 STOP_REASONS = {"angle": 1, "rate": 2, "flywheel_rate": 3, "current": 4, "voltage": 5, "board_fault": 6, "brake": 7,
-                "link": 8, "sensor": 9, "watchdog": 10, "operator": 11}
+                "link": 8, "sensor": 9, "watchdog": 10, "operator": 11, "arming": 12, "experiment": 13,
+                "controller": 14}  # DISARM reason codes (docs/PROTOCOL.md)
 
 
 @dataclass
@@ -167,7 +168,7 @@ class BenchRig:
         while True:
             now = time.perf_counter()
             if now > deadline:
-                raise self._trip_now("link", f"no RESET_DONE within {self.reset_timeout_s} s of RESET")
+                raise self.stop("link", f"no RESET_DONE within {self.reset_timeout_s} s of RESET")
             if now > next_beat:
                 self.link.send(m.Empty(m.HEARTBEAT))
                 next_beat = now + 0.5
@@ -199,7 +200,7 @@ class BenchRig:
     def step(self, cmd: MotorCommand) -> Reading:
         self._raise_if_tripped()
         if not self.armed:
-            raise self._trip_now("operator", "step() on a disarmed bench; call arm() after connect()")
+            raise self.stop("operator", "step() on a disarmed bench; call arm() after connect()")
         if self._last_sample_wall is not None:
             busy = time.perf_counter() - self._last_sample_wall
             self.timing.compute_s.append(busy)
@@ -221,7 +222,7 @@ class BenchRig:
                     if self._last_board_us is None:
                         self._clock_reset(frame, msg)
                     return msg, self._reading(frame, msg, advance_psi=False)
-        raise self._trip_now("link", "the board did not answer QUERY")
+        raise self.stop("link", "the board did not answer QUERY")
 
     def arm(self) -> None:
         self.link.send(m.Empty(m.ARM))
@@ -232,7 +233,7 @@ class BenchRig:
                 break
             frame, msg = got
             if isinstance(msg, m.Fault):
-                raise self._trip_now("board_fault", f"the board refused ARM: faults {m.fault_names(msg.faults)}")
+                raise self.stop("board_fault", f"the board refused ARM: faults {m.fault_names(msg.faults)}")
             if isinstance(msg, m.Sample) and msg.status & m.ST_ARMED:
                 self.armed = True
                 self.last_sample = None if not self.lockstep else msg  # free-running: samples skipped below
@@ -240,7 +241,7 @@ class BenchRig:
                 self.link.drain()
                 self._last_sample_wall = None
                 return
-        raise self._trip_now("link", "the board did not confirm ARM within 1 s")
+        raise self.stop("link", "the board did not confirm ARM within 1 s")
 
     def disarm(self, reason: int = 0) -> None:
         self.watchdog.arm(False)
@@ -252,7 +253,7 @@ class BenchRig:
             pass
 
     # --- safe stop ----------------------------------------------------------------------
-    def _trip_now(self, kind: str, message: str) -> SafetyTrip:
+    def stop(self, kind: str, message: str) -> SafetyTrip:
         """Send the safe state (once) and return the trip to raise."""
         with self._trip_lock:
             if self.trip is None:
@@ -262,7 +263,7 @@ class BenchRig:
         return self.trip
 
     def _watchdog_expired(self, why: str) -> None:
-        self._trip_now("watchdog", why)
+        self.stop("watchdog", why)
 
     def _send_safe(self, reason: int) -> None:
         if self.watchdog is not None:
@@ -338,11 +339,11 @@ class BenchRig:
             got = self.link.recv(timeout_s)
         except LinkError as e:
             if check_trip:
-                raise self._trip_now("link", str(e)) from None
+                raise self.stop("link", str(e)) from None
             raise
         if got is not None and isinstance(got[1], m.Fault) and check_trip and self.armed:
             f = got[1]
-            raise self._trip_now("board_fault", f"board fault {m.fault_names(f.code)} (detail {f.detail:g}); "
+            raise self.stop("board_fault", f"board fault {m.fault_names(f.code)} (detail {f.detail:g}); "
                                                 f"latched {m.fault_names(f.faults)}")
         return got
 
@@ -356,7 +357,7 @@ class BenchRig:
             self._raise_if_tripped()
             now = time.perf_counter()
             if now >= deadline:
-                raise self._trip_now("link", f"no sample for {1e3 * (now - start):.1f} ms "
+                raise self.stop("link", f"no sample for {1e3 * (now - start):.1f} ms "
                                              f"(watchdog {1e3 * self.watchdog_s:.0f} ms)")
             if now >= retry_at:  # lock-step: the answer was lost; ask again (counts against the budget)
                 self.timing.lockstep_retries += 1
@@ -385,13 +386,13 @@ class BenchRig:
         self._last_sample_seq = frame.seq
         errors = self.link.errors + self.timing.lockstep_retries
         if errors > lim.link_error_budget:
-            raise self._trip_now("link", f"{errors} frames lost or corrupted (budget {lim.link_error_budget}): "
+            raise self.stop("link", f"{errors} frames lost or corrupted (budget {lim.link_error_budget}): "
                                          f"{self.link.parser.stats.bad_crc} bad CRC, {self.link.stats.seq_gaps} "
                                          f"missing, {self.timing.lockstep_retries} lock-step retries")
         if self.last_sample is not None:
             missing = (msg.step - self.last_sample.step - 1) & 0xFFFF
             if missing > lim.max_missed_in_row + skipped:
-                raise self._trip_now("link", f"{missing} samples missing in a row (limit {lim.max_missed_in_row})")
+                raise self.stop("link", f"{missing} samples missing in a row (limit {lim.max_missed_in_row})")
         reading = self._reading(frame, msg)
         self._check(reading, msg)
         self.last_sample = msg
@@ -404,17 +405,17 @@ class BenchRig:
 
     def _check(self, r: Reading, msg: m.Sample) -> None:
         if msg.faults and self.armed:
-            raise self._trip_now("board_fault", f"board reports faults {m.fault_names(msg.faults)} at t={r.t:.4f} s")
+            raise self.stop("board_fault", f"board reports faults {m.fault_names(msg.faults)} at t={r.t:.4f} s")
         try:
             self.envelope.check(r.t, r.phi, r.psi, r.i, r.u)
         except SafetyTrip as e:
-            raise self._trip_now(e.kind, str(e)) from None
+            raise self.stop(e.kind, str(e)) from None
         if r.brake != self.brake_request:
             if self._mismatch_since is None:
                 self._mismatch_since = r.t
             allowed = self.caps.brake_response_ms * 1e-3 + 2 * self.dt
             if r.t - self._mismatch_since > allowed:
-                raise self._trip_now("brake", f"brake {'released' if r.brake else 'engaged'}-sensed while "
+                raise self.stop("brake", f"brake sensed {'engaged' if r.brake else 'released'} while "
                                               f"{'engaged' if self.brake_request else 'released'} was requested "
                                               f"for {1e3 * (r.t - self._mismatch_since):.0f} ms "
                                               f"(allowed {1e3 * allowed:.0f} ms) at t={r.t:.4f} s")

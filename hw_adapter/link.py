@@ -19,6 +19,7 @@ from .framing import ClockUnwrapper, Frame, FrameParser, encode_frame, seq_gap
 from .messages import Message, MessageError, decode
 
 DEFAULT_BAUDRATE = 2_000_000  # real serial ports; ignored by socket:// and loop://
+MAX_LATE_READS = 64  # non-blocking reads allowed after a recv's deadline (draining what already arrived)
 
 
 class LinkError(RuntimeError):
@@ -74,7 +75,7 @@ class Link:
     def recv(self, timeout_s: float) -> tuple[Frame, Message] | None:
         """The next valid message, or ``None`` if none arrives within ``timeout_s``."""
         deadline = time.perf_counter() + timeout_s
-        polled = False
+        late_reads = 0
         while True:
             while self._pending:
                 frame = self._pending.popleft()
@@ -90,13 +91,12 @@ class Link:
                 return frame, msg
             left = deadline - time.perf_counter()
             if left <= 0:
-                if polled:
-                    return None
-                left = 0.0  # timeout 0: one non-blocking look at the port
-            polled = True
-            data = self._read(self.parser.wanted(), left)
-            if not data and left == 0.0:
-                return None
+                late_reads += 1
+                if late_reads > MAX_LATE_READS:
+                    return None  # a stream of garbage must not hold the caller past its deadline
+            data = self._read(self.parser.wanted(), max(0.0, left))
+            if not data and left <= 0:
+                return None  # past the deadline and nothing more waiting
             self._pending.extend(self.parser.feed(data))
 
     def _read(self, n: int, timeout_s: float) -> bytes:

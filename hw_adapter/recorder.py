@@ -12,15 +12,32 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import tempfile
 import time
 from pathlib import Path
 from typing import Any, Callable
 
-from addedinertia_env.record import FORMAT, _atomic_write_text
+from addedinertia_env.record import FORMAT
 from addedinertia_env.rig.motor import MotorCommand
 from addedinertia_env.rig.sensors import Reading
 
 COLUMNS = ("t", "phase", "phi", "psi", "u", "i", "i_cmd", "u_cmd", "brake")
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    """Temporary file in the same folder, then ``os.replace``: whole or not at all."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
 
 
 def json_safe(x: Any) -> Any:

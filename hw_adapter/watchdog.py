@@ -7,7 +7,8 @@ sends the safe state (zero current, brake, DISARM) even when the loop is stuck i
 controller, a blocked read or a pause. It is paused whenever the last command already
 was the safe state, because then there is nothing to stop.
 
-Worst-case time from the last sample to the safe command: ``timeout_s + poll_s``.
+Worst-case time from the last sample to the safe command: ``timeout_s + poll_s``, with
+``poll_s = timeout_s / 10`` by default (22 ms for the 20 ms watchdog).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ class Watchdog:
         if not timeout_s > 0:
             raise ValueError(f"watchdog timeout {timeout_s!r} s: expected > 0")
         self.timeout_s = float(timeout_s)
-        self.poll_s = poll_s if poll_s is not None else min(0.002, self.timeout_s / 10)
+        self.poll_s = poll_s if poll_s is not None else self.timeout_s / 10
         self.on_expire = on_expire
         self.expired = False
         self.expired_at: float | None = None  # perf_counter time it fired

@@ -9,7 +9,8 @@ that several test files read are built here, session-scoped, and shared:
   section 7) with the default controller ``feedforward-pd``;
 * ``realistic_record_path``: that record written to a session folder (CSV + JSON).
 
-Tests that change a record must copy it first (:func:`copy_record`).
+Tests that change a record must copy it first (the ``clone`` fixture is
+:func:`copy_record`).
 """
 
 from __future__ import annotations
@@ -41,6 +42,12 @@ def preset_rig(name: str, ideal_sensors: bool = False) -> tuple[RigParams, objec
     data = load_preset(name)
     rig = rig_from_mapping(data, sensors=SensorParams.ideal() if ideal_sensors else None)
     return rig, plan_from_preset(data)
+
+
+@pytest.fixture(scope="session")
+def clone():
+    """:func:`copy_record`, for tests that change a shared record."""
+    return copy_record
 
 
 @pytest.fixture(scope="session")

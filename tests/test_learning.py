@@ -70,7 +70,8 @@ def test_resume_continues_steps_and_cost(tmp_path):
     before = json.loads((tmp_path / "first" / "checkpoints" / "model_cost_256_steps.json").read_text())
     assert before["env_steps"] == 256
     card = train(toy_config("ppo", 1024, checkpoint_freq=256), seed=0, out=tmp_path / "resumed", resume=ckpt)
-    assert card["cost"]["env_steps"] == 1024
+    rollout = cfg.hyperparams["n_steps"] * cfg.n_envs  # PPO always finishes its last rollout
+    assert 1024 <= card["cost"]["env_steps"] < 1024 + rollout
     assert card["cost"]["env_steps_before_resume"] == 256
     assert card["cost"]["cpu_s"] > before["cpu_s"] and card["cost"]["wall_s"] > before["wall_s"]
     assert (tmp_path / "resumed" / "vecnormalize.pkl").exists()

@@ -105,6 +105,10 @@ def summarise(rows: list[dict], n_boot: int = 2000, seed: int = 0) -> list[dict[
             "median_energy_J": float(np.median(energy)) if energy else math.nan,
             "median_tracking_rms_rad": float(np.median(track)) if track else math.nan,
             "median_wall_s": float(np.median([r["wall_s"] for r in rs])),
+            # learned policies only (rows carry what OnnxPolicy read from its card); None for classical ones
+            "train_env_steps": next((r["train_env_steps"] for r in rs if r.get("train_env_steps") is not None), None),
+            "train_cpu_minutes": next((r["train_cpu_minutes"] for r in rs if r.get("train_cpu_minutes") is not None),
+                                      None),
             "suites": sorted({str(r["suite"]) for r in rs}), "splits": sorted({str(r.get("split", "?")) for r in rs}),
             "version": ",".join(sorted({str(r["version"]) for r in rs})),
             "commit": ",".join(sorted({str(r.get("commit", "unknown")) for r in rs})),
@@ -120,14 +124,24 @@ def _pct(x: float) -> str:
 
 
 COLUMNS = ("rank", "controller", "median |error|", "95 % CI of median", "IQM |error|", "failures", "median energy",
-           "median tracking RMS", "episodes", "version", "commit")
+           "median tracking RMS", "episodes", "training cost", "version", "commit")
 
 
 def _cells(e: dict) -> list[str]:
     lo, hi = e["ci95_median"]
     return [str(e["rank"]), e["controller"], _pct(e["median_abs_error"]), f"{_pct(lo)} .. {_pct(hi)}",
             _pct(e["iqm_abs_error"]), f"{100 * e['failure_rate']:.0f} %", f"{e['median_energy_J']:.2f} J",
-            f"{1e3 * e['median_tracking_rms_rad']:.3f} mrad", str(e["episodes"]), e["version"], e["commit"]]
+            f"{1e3 * e['median_tracking_rms_rad']:.3f} mrad", str(e["episodes"]), _training_cost(e), e["version"],
+            e["commit"]]
+
+
+def _training_cost(e: dict) -> str:
+    """Environment steps and CPU minutes that trained a learned policy; '-' for classical controllers."""
+    steps, minutes = e.get("train_env_steps"), e.get("train_cpu_minutes")
+    if steps is None and minutes is None:
+        return "-"
+    parts = [f"{steps} env steps" if steps is not None else "", f"{minutes:.1f} CPU min" if minutes is not None else ""]
+    return ", ".join(p for p in parts if p)
 
 
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,

@@ -108,6 +108,9 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
     }
     try:
         controller = make_controller(task.controller, **task.controller_kwargs)
+        for key in ("train_env_steps", "train_cpu_minutes"):  # learned policies: training cost (OnnxPolicy)
+            if getattr(controller, key, None) is not None:
+                row[key] = getattr(controller, key)
         cycles = max(1, int(getattr(controller, "BENCH_CYCLES", 1)))
         row["cycles"] = cycles
         probe = _TrackingProbe(controller)

@@ -64,6 +64,17 @@ def non_negative_float(text: str) -> float:
     return v
 
 
+def non_negative_int(text: str) -> int:
+    """A seed: numpy's SeedSequence takes whole numbers >= 0 only."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer >= 0")
+    return v
+
+
 def positive_int(text: str) -> int:
     try:
         v = int(text)

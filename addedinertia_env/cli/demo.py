@@ -10,7 +10,7 @@ from ..plots import plot_run
 from ..record import write_record
 from ..rig.presets import load_preset, plan_from_preset, rig_from_mapping
 from ..simulate import simulate_run
-from .common import emit_json, info
+from .common import emit_json, info, non_negative_int
 
 
 def register(sub) -> None:
@@ -18,7 +18,7 @@ def register(sub) -> None:
     p.add_argument("--out", default="out/demo")
     p.add_argument("--rig", default="wigley-2m")
     p.add_argument("--controller", default="feedforward-pd")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 

@@ -7,14 +7,14 @@ from pathlib import Path
 from ..rig.effects import DIAGNOSIS_WORDS
 from ..rig.presets import SENSOR_QUALITY, load_preset, plan_from_preset, rig_from_mapping, sensors_for_quality
 from ..simulate import OTHER_KINDS, effects_from_name, simulate_to_dir
-from .common import BadInput, emit_json, info, non_negative_float, positive_int
+from .common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
 
 
 def register(sub) -> None:
     p = sub.add_parser("simulate", help="simulate experiments and write run records")
     p.add_argument("--rig", default="wigley-2m", help="rig preset name or YAML path")
     p.add_argument("--controller", default="feedforward-pd", help="controller name (see docs/CONTROLLERS.md)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--hold", type=non_negative_float, default=None, help="brake hold at the reversal, s")
     p.add_argument("--alpha", type=float, default=None, help="twist before release, rad")
     p.add_argument("--cycles", type=positive_int, default=1, help="repeated experiments (one record each)")

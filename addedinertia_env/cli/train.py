@@ -23,6 +23,7 @@ def register(sub) -> None:
                    help="learn a correction on top of the config's base controller (default feedforward-pd)")
     p.add_argument("--resume", default=None, metavar="CHECKPOINT", help="model_<N>_steps.zip or model.zip to go on from")
     p.add_argument("--out", default="out/train", help="output folder (model.zip, vecnormalize.pkl, card, tb/)")
+    p.add_argument("--device", default="cpu", help="torch device: cpu (default), cuda or auto; nothing needs a GPU")
     p.add_argument("--verbose", action="store_true", help="stable-baselines3 progress on stderr")
     p.add_argument("--json", action="store_true", help="print the training card as one JSON object")
     p.set_defaults(func=run)
@@ -45,7 +46,7 @@ def run(args) -> int:
     info(f"training {cfg.algo} on {cfg.env_id} for {cfg.n_timesteps} steps with {cfg.n_envs} env(s), seed {args.seed}"
          f"{' (residual on ' + cfg.residual['base'] + ')' if cfg.residual['enabled'] else ''} -> {args.out}")
     card = train(cfg, seed=args.seed, out=args.out, resume=args.resume, command=command,
-                 verbose=1 if args.verbose else 0)
+                 verbose=1 if args.verbose else 0, device=args.device)
     cost = card["cost"]
     info(f"done: {cost['env_steps']} env steps, {cost['wall_s']:.0f} s wall, {cost['cpu_minutes']:.1f} CPU min; "
          f"final eval mean reward {card['final_eval']['mean_reward']:.2f}; wrote {args.out}/model.zip")

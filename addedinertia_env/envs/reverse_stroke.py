@@ -232,7 +232,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         terminated = exp.done
         if terminated:
             self._summary = self._score()
-            terms["accuracy"] = task.accuracy_term(self._summary["rel_error"])
+            terms["accuracy"] = task.accuracy_term(self._summary["rel_error"], failed=self._summary["failed"])
             info.update(self._summary)
         info["reward_terms"] = terms
         reward = float(sum(terms.values()))

@@ -39,8 +39,8 @@ class ForcedPlan:
 
     alpha: float = 0.06  # rad, twist for the initial half swing (also the target drive amplitude scale)
     calibrate_s: float = 0.5  # s, braked, passive: current-offset calibration
-    ratios: tuple[float, ...] = (0.7, 0.8, 1.25, 1.4)  # drive frequency / natural-frequency guess
-    periods: int = 3  # full drive periods per frequency
+    ratios: tuple[float, ...] = (0.75, 0.85, 1.2, 1.35)  # drive frequency / natural-frequency guess
+    periods: int = 2  # full drive periods per frequency
     current_fraction: float = 0.6  # largest drive amplitude as a share of i_max
     tail_s: float = 0.2  # s, passive idle at the end
     max_free_s: float = 30.0  # s, give up if the initial half swing never stops

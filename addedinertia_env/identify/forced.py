@@ -15,7 +15,7 @@ acceleration.
 Signals: the current offset is calibrated where the motor is passive (before the first
 driven segment; the true current is 0 there) and removed. Angle, rate, acceleration,
 current and flywheel rate all go through the *same* centred Savitzky-Golay filter
-(quintic, a sixth of a drive period wide), so the filtered signals obey the same linear
+(quintic, a sixth of a drive period wide, at most 401 samples), so the filtered signals obey the same linear
 equation; the zero-rate instants are located on the filtered rate and every term is
 interpolated there. Instants within half a filter window of a segment's ends are left
 out (the filter straddles the switch of frequency there).
@@ -42,6 +42,9 @@ from .common import IdentificationError, Result, pooled_interval
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
 FILTER_PERIOD_FRACTION = 1.0 / 6.0  # Savitzky-Golay window, as a share of the drive period
 FILTER_ORDER = 5
+# scipy's Savitzky-Golay coefficients lose precision for long windows at order 5 (at
+# 1000 samples the second derivative is wrong by orders of magnitude): cap the window.
+FILTER_MAX_SAMPLES = 401
 
 
 @dataclass
@@ -133,7 +136,7 @@ def _instants(rec: RunRecord) -> list[Instant]:
     for k, s in enumerate(segments):
         sel = np.nonzero((t > float(s["t_start"])) & (t <= float(s["t_end"])))[0]
         period = 2.0 * math.pi / float(s["omega"])
-        n = max(FILTER_ORDER + 2, int(round(FILTER_PERIOD_FRACTION * period / dt)) | 1)
+        n = max(FILTER_ORDER + 2, min(int(round(FILTER_PERIOD_FRACTION * period / dt)), FILTER_MAX_SAMPLES) | 1)
         if len(sel) < 3 * n:
             continue
         ph, ps, cur = phi[sel], psi[sel], i[sel] - i_offset

@@ -42,7 +42,7 @@ ALGOS: dict[str, tuple[str, str]] = {
 BLOCK_KEYS = {"policy", "n_timesteps", "n_envs", "vec_env", "normalize", "env_kwargs", "residual", "eval",
               "checkpoint_freq", "hyperparams"}
 NORMALIZE_KEYS = {"norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma"}
-RESIDUAL_KEYS = {"enabled", "base", "scale"}
+RESIDUAL_KEYS = {"enabled", "base", "scale", "base_params"}
 EVAL_KEYS = {"seed", "n_episodes", "freq"}
 ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU"}
 

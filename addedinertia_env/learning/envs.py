@@ -10,6 +10,11 @@ that runs at every sample of the rig (1 kHz) from the same observation::
 :class:`agents.onnx_policy.OnnxPolicy` holds it on the benchmark, so training and
 deployment see one controller. The base controller gets ``reset(context)`` with the
 environment's :class:`~agents.base.ControllerContext` (sensor data only) every episode.
+
+The base controller's parameters are pinned when the wrapper is built (``base_params``,
+default: its tuned values at that moment, ``configs/controllers/tuned.yaml``) and go
+into the training card and the ONNX metadata: a later re-tune of the classical
+controller must not change the base under a trained correction.
 """
 
 from __future__ import annotations
@@ -31,19 +36,19 @@ class ResidualWrapper(gym.Wrapper):
     ``controller_context()`` on ``env.unwrapped`` after ``reset``.
     """
 
-    def __init__(self, env: gym.Env, base: str = "feedforward-pd", scale: float = 0.2, action_repeat: int = 10):
+    def __init__(self, env: gym.Env, base: str = "feedforward-pd", scale: float = 0.2, action_repeat: int = 10,
+                 base_params: dict[str, Any] | None = None):
         super().__init__(env)
         if action_repeat < 1:
             raise ValueError(f"action_repeat = {action_repeat!r}; expected an integer >= 1 (samples per action)")
         self.base_name, self.scale, self.action_repeat = base, float(scale), int(action_repeat)
+        self.base_params = dict(base_params) if base_params is not None else pinned_base_params(base)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self._obs: np.ndarray | None = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        from agents import make_controller  # noqa: PLC0415 - agents imports this package
-
         obs, info = self.env.reset(seed=seed, options=options)
-        self.base = make_controller(self.base_name)
+        self.base = make_base(self.base_name, self.base_params)
         self.base.reset(self.env.unwrapped.controller_context())
         self._obs = obs
         return obs, info
@@ -62,6 +67,25 @@ class ResidualWrapper(gym.Wrapper):
         return obs, total, terminated, truncated, info
 
 
+def pinned_base_params(base: str) -> dict[str, Any]:
+    """The parameters ``base`` would run with now (tuned values included), to pin them."""
+    from agents import make_controller  # noqa: PLC0415 - agents imports this package
+
+    return {k: (v.item() if hasattr(v, "item") else v) for k, v in getattr(make_controller(base), "params", {}).items()}
+
+
+def make_base(base: str, params: dict[str, Any] | None):
+    """Controller ``base`` with exactly ``params`` (no tuned file read); ``None``: as registered."""
+    from agents import make_controller  # noqa: PLC0415
+
+    if not params:
+        return make_controller(base)
+    try:
+        return make_controller(base, tuned=False, **params)
+    except TypeError as e:
+        raise ValueError(f"residual base {base!r} cannot be built with pinned parameters {params} ({e})") from None
+
+
 def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None, residual: dict[str, Any] | None = None) -> gym.Env:
     """One environment; with ``residual`` enabled, the env steps single samples under the wrapper."""
     import addedinertia_env  # noqa: F401, PLC0415 - registers the Gymnasium ids
@@ -72,7 +96,8 @@ def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None, residual: di
     if residual and residual.get("enabled"):
         repeat = int(kwargs.pop("action_repeat", 1))
         env = gym.make(env_id, action_repeat=1, **kwargs)
-        return ResidualWrapper(env, base=residual["base"], scale=residual["scale"], action_repeat=repeat)
+        return ResidualWrapper(env, base=residual["base"], scale=residual["scale"], action_repeat=repeat,
+                               base_params=residual.get("base_params"))
     return gym.make(env_id, **kwargs)
 
 

@@ -151,6 +151,7 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
         "action_repeat": str(int(train_card.get("action_repeat", 1))),
         "residual_base": residual.get("base", "") if residual else "",
         "residual_scale": str(float(residual.get("scale", 0.0))) if residual else "0",
+        "residual_base_params": json.dumps(residual.get("base_params") or {}) if residual else "{}",
         "obs_fields": json.dumps(train_card.get("observation_fields") or list(OBSERVATION_FIELDS)),
         "train_env_steps": str(cost.get("env_steps", "")),
         "train_cpu_minutes": str(cost.get("cpu_minutes", "")),

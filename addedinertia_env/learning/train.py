@@ -29,7 +29,7 @@ from ..rig.presets import ConfigError
 from ..task import OBSERVATION_FIELDS
 from .callbacks import CostCheckpointCallback, SeededEvalCallback, TrainingClock, write_json_atomic
 from .config import TrainConfig
-from .envs import effective_action_repeat, make_vec
+from .envs import effective_action_repeat, make_vec, pinned_base_params
 
 OFF_POLICY = {"sac", "td3"}
 
@@ -65,7 +65,7 @@ def resume_files(checkpoint: str | Path) -> dict[str, Path | None]:
 
 
 def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | None = None,
-          command: str = "", verbose: int = 0) -> dict[str, Any]:
+          command: str = "", verbose: int = 0, device: str = "cpu") -> dict[str, Any]:
     """Train per ``cfg``; returns the training card (also written to ``out/training_card.json``)."""
     import torch  # noqa: PLC0415
     from stable_baselines3.common.utils import set_random_seed  # noqa: PLC0415
@@ -76,6 +76,8 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
     out.mkdir(parents=True, exist_ok=True)
     set_random_seed(seed)
     clock = TrainingClock()
+    if cfg.residual.get("enabled") and not cfg.residual.get("base_params"):
+        cfg.residual["base_params"] = pinned_base_params(cfg.residual["base"])  # one base for the whole run
     venv = make_vec(cfg.env_id, cfg.env_kwargs, cfg.residual, cfg.n_envs, seed, cfg.vec_env)
     clock.watch(venv)
     algo_cls = cfg.algo_class
@@ -84,7 +86,7 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
         files = resume_files(resume)
         venv = VecNormalize.load(str(files["vecnormalize"]), venv)
         venv.training = True
-        model = algo_cls.load(str(resume), env=venv, tensorboard_log=tb, device="cpu")
+        model = algo_cls.load(str(resume), env=venv, tensorboard_log=tb, device=device)
         if files["replay_buffer"] is not None and cfg.algo in OFF_POLICY:
             model.load_replay_buffer(str(files["replay_buffer"]))
         if files["cost"] is not None:
@@ -93,7 +95,7 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
             clock.offset_wall_s, clock.offset_cpu_s = float(cost["wall_s"]), float(cost["cpu_s"])
     else:
         venv = _normalizer(venv, cfg, training=True)
-        model = algo_cls(cfg.policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu",
+        model = algo_cls(cfg.policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, device=device,
                          **cfg.model_kwargs())
     done_before = int(model.num_timesteps)
     remaining = cfg.n_timesteps - done_before
@@ -133,7 +135,7 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
         "command": command,
         "resumed_from": str(resume) if resume else None,
         "cost": {**cost, "cpu_minutes": round(cost["cpu_s"] / 60.0, 2), "env_steps_before_resume": done_before},
-        "machine": machine(),
+        "machine": {**machine(), "device": str(model.device)},
         "final_eval": final,
         "best_eval_mean_reward": (float(evaluator.best_mean_reward) if np.isfinite(evaluator.best_mean_reward)
                                   else None),  # None: no periodic evaluation ran

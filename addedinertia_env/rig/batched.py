@@ -187,9 +187,25 @@ class BatchedRig:
             params = BatchedParams.stack(params, dtype=dtype)
         if n_envs is not None and n_envs != params.n:
             raise ValueError(f"BatchedRig: n_envs = {n_envs} but {params.n} parameter sets were given")
-        self.params = p = params
-        self.n = n = p.n
-        self.dtype = dtype = p.dtype
+        self.n = n = params.n
+        self.dtype = dtype = params.dtype
+        if seed is not None and not np.isscalar(seed) and not isinstance(seed, (np.random.SeedSequence,
+                                                                               np.random.Generator)):
+            rng = [np.random.default_rng(s) for s in seed]  # a Generator passes through unchanged
+        else:
+            rng = np.random.default_rng(seed)
+        self._build(params, rng)
+        self._X = np.zeros((len(STATE), n), dtype=dtype)  # the state block (rows: STATE)
+        self._Xn = np.zeros_like(self._X)  # the next one (double buffer)
+        self.water_rate = np.zeros(n, dtype=dtype)
+        self.t = np.zeros(n)  # s, float64 always (phase timing)
+        self.brake = np.zeros(n, dtype=bool)
+        self._tmp = np.zeros(n, dtype=dtype)
+        self.reset()
+
+    def _build(self, p: BatchedParams, rng) -> None:
+        """Everything that follows from the parameters: true constants, step maps, sensors."""
+        self.params = p
         self.physics_dt = h = p.physics_dt
         m = p.motor
         self.k_t = forces.true_torque_constant(p)  # N m/A, true (scalar when shared)
@@ -200,23 +216,39 @@ class BatchedRig:
                 np.asarray(m.R, float), np.asarray(m.L, float))
         # (kind, out, in, n) in float64, then cast; one column when the physics is shared.
         table = np.stack([substep_matrix(h, kind, *args) for kind in range(4)])
-        self._G_table = table.astype(dtype)
+        self._G_table = table.astype(self.dtype)
         self._shared = table.shape[-1] == 1  # one map for the whole batch
         self._terms = [[j for j in range(len(STATE)) if np.any(table[:, i, j] != 0)] for i in range(N_OUT)]
         self._G_env = None  # (5, 8, n) per-environment map for mixed kinds / parameters
         self._kind_env = None
-        if seed is not None and not np.isscalar(seed) and not isinstance(seed, np.random.SeedSequence):
-            rng = [np.random.default_rng(s) for s in seed]
-        else:
-            rng = np.random.default_rng(seed)
         self.sensors = BatchedSensors(p, rng)
-        self._X = np.zeros((len(STATE), n), dtype=dtype)  # the state block (rows: STATE)
-        self._Xn = np.zeros_like(self._X)  # the next one (double buffer)
-        self.water_rate = np.zeros(n, dtype=dtype)
-        self.t = np.zeros(n)  # s, float64 always (phase timing)
-        self.brake = np.zeros(n, dtype=bool)
-        self._tmp = np.zeros(n, dtype=dtype)
-        self.reset()
+
+    def set_env_params(self, k: int, rig: RigParams, rng: np.random.Generator | None = None) -> None:
+        """Give environment ``k`` new parameters (a new episode's rig), keeping every state.
+
+        ``rng``: its new noise Generator (only for a batch with per-environment Generators).
+        """
+        old = self.sensors
+        rigs = list(self.params.rigs)
+        rigs[k] = rig
+        if old.rngs is not None:
+            rngs = list(old.rngs)
+            if rng is not None:
+                rngs[k] = rng
+        else:
+            rngs = old.rng
+        histories = [old.history(e) for e in range(self.n)]
+        self._build(BatchedParams.stack(rigs, dtype=self.dtype), rngs)
+        for e, entries in enumerate(histories):
+            self.sensors.set_history(e, entries)
+
+    def copy_env(self, k: int, source: "BatchedRig", j: int = 0) -> None:
+        """Environment ``k`` takes the state of ``source``'s environment ``j`` (same parameters)."""
+        self._X[:, k] = source._X[:, j]
+        self.water_rate[k] = source.water_rate[j]
+        self.t[k] = source.t[j]
+        self.brake[k] = source.brake[j]
+        self.sensors.set_history(k, source.sensors.history(j))
 
     # --- the state, by name -----------------------------------------------------------
     phi = property(lambda self: self._X[PHI], doc="rad, hull angle")

@@ -80,6 +80,30 @@ class BatchedSensors:
             self._count[sel] = 0
             self._pos[sel] = 0
 
+    def rngs_or_rng(self, k: int) -> np.random.Generator:
+        """The Generator that draws environment ``k``'s noise."""
+        return self.rng if self.rngs is None else self.rngs[k]
+
+    def history(self, k: int) -> list[tuple[float, float]]:
+        """Environment ``k``'s delay line, oldest first: ``[(u, i), ...]`` (empty without delay)."""
+        if self.delay_samples is None:
+            return []
+        size = self._hist.shape[1]
+        count, pos = int(self._count[k]), int(self._pos[k])
+        return [(float(self._hist[0, (pos - count + m) % size, k]), float(self._hist[1, (pos - count + m) % size, k]))
+                for m in range(count)]
+
+    def set_history(self, k: int, entries: list[tuple[float, float]]) -> None:
+        """Replace environment ``k``'s delay line (the newest entries that fit are kept)."""
+        if self.delay_samples is None:
+            return
+        size = self._hist.shape[1]
+        entries = entries[-size:]
+        for m, (u, i) in enumerate(entries):
+            self._hist[0, m, k], self._hist[1, m, k] = u, i
+        self._count[k] = len(entries)
+        self._pos[k] = len(entries) % size
+
     def _noise(self, envs: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         n = self.p.n if envs is None else len(envs)
         if self.rngs is None:

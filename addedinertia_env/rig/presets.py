@@ -183,8 +183,9 @@ def plan_from_preset(data: dict[str, Any], **overrides: Any):
     allowed = {f.name for f in dataclasses.fields(ExperimentPlan)}
     _only_keys(exp, allowed, f"{data.get('_path', 'rig')}: experiment")
     exp.update({k: v for k, v in overrides.items() if v is not None})
+    numeric = {f.name for f in dataclasses.fields(ExperimentPlan) if f.type in ("float", float)}
     for key, value in exp.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if key in numeric and (isinstance(value, bool) or not isinstance(value, (int, float))):
             raise ConfigError(f"{data.get('_path', 'rig')}: experiment.{key} = {value!r}: expected a number (SI units)")
     try:
         return ExperimentPlan(**exp)

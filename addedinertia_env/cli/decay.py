@@ -1,0 +1,45 @@
+"""``addedinertia decay AMPLITUDES.csv [--processing FILE] [--plot PNG] [--json]``: damping law of a free decay."""
+
+from __future__ import annotations
+
+from .common import BadInput, emit_json, info
+
+
+def register(sub) -> None:
+    p = sub.add_parser("decay", help="damping laws from successive free-decay amplitudes (docs/TEXTBOOK_DECAY.md)",
+                       description="Fit candidate damping laws to a series of successive half-swing amplitudes "
+                                   "(columns 'swing', 'theta_deg') and reproduce the textbook's nu (6.17, 6.18).")
+    p.add_argument("amplitudes", metavar="AMPLITUDES.csv")
+    p.add_argument("--processing", metavar="FILE", default=None,
+                   help="the textbook's processing table (default: STEM_processing.csv beside the input, if any)")
+    p.add_argument("--plot", metavar="PNG", default=None, help="write a figure of the fits")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..decay import DecayInputError, analyse, plot  # noqa: PLC0415
+
+    try:
+        result = analyse(args.amplitudes, args.processing)
+    except DecayInputError as e:
+        raise BadInput(str(e)) from None
+    if args.plot:
+        result["plot"] = str(plot(result, args.plot))
+        info(f"figure written to {result['plot']}")
+    pr = result["textbook"].get("printed")
+    lines = [f"law: {result['law']} (lowest BIC of {len(result['models'])} laws fitted to "
+             f"{result['n_amplitudes']} amplitudes)"]
+    for m in result["models"]:
+        ps = ", ".join(f"{k} = {v:.4g} +- {m['stderr'][k]:.2g}" for k, v in m["params"].items())
+        lines.append(f"  {m['law']:17s} chi2/dof {m['chi2'] / max(m['dof'], 1):6.2f}  BIC {m['bic']:7.2f}  {ps}")
+    if pr:
+        lines.append(f"textbook nu (6.17) reproduced to {pr['check_nu_6_17']['max_abs_diff']:.2g}, "
+                     f"(6.18) to {pr['check_nu_6_18']['max_abs_diff']:.2g}")
+    if args.json:
+        for line in lines:
+            info(line)
+        emit_json(result)
+    else:
+        print("\n".join(lines))
+    return 0

@@ -1,0 +1,82 @@
+"""``addedinertia deploy``: one experiment on a bench (real or emulated) through ``hw_adapter``.
+
+Exit status: 0 complete (or a clean dry run), 1 complete but lambda66 not identified,
+2 bad input, 3 aborted in the safe state (fault, trip, failed arming check; the partial
+record is kept, ``experiment.status`` says why), 4 the bench did not answer.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .common import BadInput, emit_json, info, non_negative_float
+
+
+def register(sub) -> None:
+    p = sub.add_parser("deploy", help="run one experiment on a bench (real or emulated)",
+                       description="One reverse-symmetric experiment on a bench through the safety envelope, "
+                                   "record written as it goes, lambda66 identified at the end (docs/BENCH.md).")
+    p.add_argument("--bench", required=True, help="pyserial URL: /dev/ttyUSB0, socket://127.0.0.1:5555, loop://")
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--controller", help="classical controller name (pd, feedforward-pd, pid, lqr, ilc, mpc) "
+                                          "or module:factory")
+    who.add_argument("--policy", help="exported ONNX policy file")
+    p.add_argument("--lab", default="wigley-2m",
+                   help="lab file (.yaml, see hw_adapter/labs/example.yaml) or, for the emulator, a rig preset name")
+    p.add_argument("--out", default="out/deploy", help="folder for the run record")
+    p.add_argument("--run-id", default="deploy", help="stem of the record's file names")
+    p.add_argument("--hold", type=non_negative_float, default=None, help="brake hold at the reversal, s")
+    p.add_argument("--alpha", type=float, default=None, help="twist before release, rad")
+    p.add_argument("--warmup", type=non_negative_float, default=0.2, help="passive braked warm-up, s")
+    p.add_argument("--watchdog-ms", type=float, default=None,
+                   help="link silence that stops the run, ms (default 20; 250 against a lock-step emulator)")
+    p.add_argument("--reset-timeout", type=non_negative_float, default=120.0,
+                   help="how long to wait for the hull to be placed at the twist angle, s")
+    p.add_argument("--dry-run", action="store_true", help="connect, arming checks, warm-up at zero current; no motion")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from agents.registry import UnknownController, make_controller  # noqa: PLC0415
+    from hw_adapter.deploy import DeployOptions, deploy  # noqa: PLC0415
+    from hw_adapter.lab import load_lab  # noqa: PLC0415
+
+    if args.policy is not None:
+        policy = Path(args.policy)
+        if not policy.is_file():
+            raise BadInput(f"--policy {args.policy}: no such file (expected an exported .onnx policy)")
+        name = f"onnx:{policy}"
+    else:
+        name = args.controller
+    if args.watchdog_ms is not None and not 0 < args.watchdog_ms <= 1000:
+        raise BadInput(f"--watchdog-ms {args.watchdog_ms}: expected 0 < ms <= 1000")
+    lab = load_lab(args.lab)
+    try:
+        lab.plan(hold_s=args.hold, alpha=args.alpha)
+    except ValueError as e:
+        raise BadInput(str(e)) from None
+    try:
+        controller = make_controller(name)
+    except UnknownController as e:
+        raise BadInput(f"--controller/--policy: {e}") from None
+    opts = DeployOptions(bench=args.bench, controller=name, lab=lab, out=Path(args.out), run_id=args.run_id,
+                         dry_run=args.dry_run, warmup_s=args.warmup,
+                         watchdog_s=None if args.watchdog_ms is None else args.watchdog_ms * 1e-3,
+                         hold_s=args.hold, alpha=args.alpha, reset_timeout_s=args.reset_timeout)
+    summary, status = deploy(opts, controller)
+    if args.json:
+        emit_json(summary)
+    else:
+        print(f"status {summary['status']} (exit {status}); safe stop {'confirmed' if summary['safe_stop'] else 'NOT confirmed'}")
+        if summary.get("lambda66") is not None:
+            lo, hi = summary["ci95"]
+            print(f"lambda66 {summary['lambda66']:.4f} kg m^2 (95 % interval {lo:.4f} .. {hi:.4f})")
+        if summary.get("loop_jitter_p99_ms") is not None:
+            print(f"loop jitter p50 {summary['loop_jitter_p50_ms']:.3f} ms, p99 {summary['loop_jitter_p99_ms']:.3f} ms, "
+                  f"{summary['overruns']} overruns")
+    if summary.get("record"):
+        info(f"record {summary['record']} (+ .json)")
+    if status != 0:
+        info(f"addedinertia deploy: {summary['status']}")
+    return status

@@ -1,0 +1,58 @@
+"""``addedinertia perf``: simulation throughput, MuJoCo single rig against the batched rig."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .common import BadInput, emit_json, info, positive_int
+
+
+def register(sub) -> None:
+    p = sub.add_parser("perf", help="measure simulation throughput (single MuJoCo rig vs batched rig)")
+    p.add_argument("--max-envs", type=positive_int, default=16384,
+                   help="largest batch; the sweep is 1, 4, 16, ... up to it (default 16384)")
+    p.add_argument("--seconds", type=float, default=0.3, help="wall time of one measurement, s (default 0.3)")
+    p.add_argument("--repeats", type=positive_int, default=5, help="repeats per measurement; the best counts")
+    p.add_argument("--vector", action="store_true",
+                   help="also measure the vector environments (gym.make_vec sync vs batched)")
+    p.add_argument("--out", default=None, help="write the report to this Markdown file (e.g. docs/PERFORMANCE.md)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..perf import plot_time_vs_n, render_markdown, run_perf  # noqa: PLC0415
+
+    if not (0 < args.seconds <= 60):
+        raise BadInput(f"--seconds {args.seconds!r}: expected a time in (0, 60] s")
+    sizes = [1]
+    while sizes[-1] * 4 <= args.max_envs:
+        sizes.append(sizes[-1] * 4)
+    if sizes[-1] != args.max_envs:
+        sizes.append(args.max_envs)
+    result = run_perf(tuple(sizes), seconds=args.seconds, repeats=args.repeats, progress=info)
+    if args.vector:
+        from ..envs.batched_vector import measure_vector_envs  # noqa: PLC0415
+
+        result["vector_env"] = measure_vector_envs(progress=info)
+    info(f"single MuJoCo env: {result['single_env_steps_per_s']:,.0f} steps/s; batched n={result['n_envs']}: "
+         f"{result['batched_physics_steps_per_s']:,.0f} steps/s; ratio {result['ratio_batched_to_single']:,.0f}x")
+    if args.out:
+        out = Path(args.out)
+        if not out.parent.is_dir():
+            raise BadInput(f"--out {args.out!r}: folder {str(out.parent)!r} does not exist")
+        fig_dir = out.parent / "figures"
+        fig_dir.mkdir(exist_ok=True)
+        fig = fig_dir / "perf_time_vs_n.png"
+        plot_time_vs_n(result, str(fig))
+        command = "addedinertia perf " + " ".join(
+            [f"--max-envs {args.max_envs}"] + (["--vector"] if args.vector else []) + [f"--out {args.out}"])
+        text = render_markdown(result, command, os.path.relpath(fig, out.parent))
+        tmp = out.with_suffix(out.suffix + ".tmp")
+        tmp.write_text(text)
+        os.replace(tmp, out)
+        info(f"wrote {out} and {fig}")
+    if args.json:
+        emit_json(result)
+    return 0

@@ -1,0 +1,102 @@
+"""Reference returns of the environment: what a learned controller should beat.
+
+``python -m addedinertia_env.envs.baselines [--episodes 5] [--seed 0]`` runs the same
+randomised episodes (env seeds ``seed .. seed + episodes - 1``, default options) under:
+``zero`` (no current), ``random`` (uniform actions), ``feedforward-pd`` at 1 kHz
+(``action_repeat`` 1) and at 100 Hz (``action_repeat`` 10, the controller's own
+``dt`` set to 10 ms through ``controller_context``), and prints one JSON object with,
+per policy, the mean return, the mean of each reward term, the mean and the largest
+``abs(rel_error)``, the failed estimates and the mean energy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+from .reverse_stroke import ReverseStrokeEnv
+
+Policy = Callable[[ReverseStrokeEnv, np.ndarray], np.ndarray]
+
+
+def _zero(env: ReverseStrokeEnv, obs: np.ndarray) -> np.ndarray:
+    return np.zeros(1, np.float32)
+
+
+def _random(env: ReverseStrokeEnv, obs: np.ndarray) -> np.ndarray:
+    return env.action_space.sample()
+
+
+def _controller(name: str) -> Policy:
+    from agents import make_controller  # noqa: PLC0415 - agents imports this package
+
+    state: dict[str, Any] = {}
+
+    def policy(env: ReverseStrokeEnv, obs: np.ndarray) -> np.ndarray:
+        if state.get("episode") is not env.experiment:  # a new episode: a fresh controller
+            state["episode"] = env.experiment
+            state["controller"] = make_controller(name)
+            state["controller"].reset(env.controller_context())
+        return state["controller"].predict(obs, deterministic=True)[0]
+
+    return policy
+
+
+POLICIES: dict[str, tuple[Callable[[], Policy], int]] = {
+    "zero": (lambda: _zero, 10),
+    "random": (lambda: _random, 10),
+    "feedforward-pd@1kHz": (lambda: _controller("feedforward-pd"), 1),
+    "feedforward-pd@100Hz": (lambda: _controller("feedforward-pd"), 10),
+}
+
+
+def evaluate(policy: Policy, action_repeat: int, seeds: list[int]) -> dict[str, Any]:
+    env = ReverseStrokeEnv(action_repeat=action_repeat)
+    returns, errors, failed, energy = [], [], 0, []
+    terms: dict[str, list[float]] = {}
+    for seed in seeds:
+        obs, _ = env.reset(seed=seed)
+        env.action_space.seed(seed)
+        total, sums = 0.0, {}
+        while True:
+            obs, reward, terminated, truncated, info = env.step(policy(env, obs))
+            total += reward
+            for k, v in info["reward_terms"].items():
+                sums[k] = sums.get(k, 0.0) + v
+            if terminated or truncated:
+                break
+        returns.append(total)
+        for k, v in sums.items():
+            terms.setdefault(k, []).append(v)
+        failed += bool(info["failed"])
+        if math.isfinite(info["rel_error"]):
+            errors.append(abs(info["rel_error"]))
+        energy.append(info["energy_J"])
+    return {"action_repeat": action_repeat, "mean_return": float(np.mean(returns)),
+            "mean_terms": {k: float(np.mean(v)) for k, v in terms.items()},
+            "mean_abs_rel_error": float(np.mean(errors)) if errors else math.nan,
+            "max_abs_rel_error": float(np.max(errors)) if errors else math.nan,
+            "failed": failed, "mean_energy_J": float(np.mean(energy))}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--episodes", type=int, default=5)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--policies", nargs="+", default=list(POLICIES), choices=list(POLICIES))
+    args = ap.parse_args(argv)
+    seeds = list(range(args.seed, args.seed + args.episodes))
+    out = {"episodes": args.episodes, "seeds": seeds}
+    for name in args.policies:
+        make, repeat = POLICIES[name]
+        out[name] = evaluate(make(), repeat, seeds)
+    print(json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,247 @@
+"""One reverse-symmetric experiment on a bench: what ``addedinertia deploy`` does.
+
+Sequence (docs/BENCH.md): connect (HELLO -> CAPS) -> arming checks -> ARM -> warm-up
+(drive passive, brake on, sensors and loop timing watched) -> [``dry_run``: DISARM, stop
+here] -> record opened -> :class:`~addedinertia_env.experiment.protocol.Experiment` with
+the controller, every command through the safety envelope -> DISARM -> safe state
+confirmed -> record finalised -> lambda66 identified with the energy method.
+
+A trip of the envelope, a board fault, a link fault or an error in the controller
+stops the run in the safe state; the record is kept with ``experiment.status =
+"aborted: <reason>"`` and the exit status is :data:`EXIT_ABORTED`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from addedinertia_env.experiment.protocol import Experiment, ExperimentError
+from addedinertia_env.experiment.runner import controller_context
+from addedinertia_env.identify import IdentificationError, identify
+from addedinertia_env.record import read_record
+from addedinertia_env.rig.motor import MotorCommand
+from addedinertia_env.task import ReverseStrokeTask
+
+from . import messages as m
+from .bench_rig import BenchRig
+from .lab import LabConfig
+from .link import LinkError
+from .recorder import IncrementalRecord
+from .safety import SafetyTrip
+
+EXIT_OK = 0
+EXIT_IDENTIFY_FAILED = 1  # the run completed but lambda66 could not be identified
+EXIT_ABORTED = 3  # stopped in the safe state: fault, trip, failed arming check
+EXIT_NO_BENCH = 4  # the bench did not answer; nothing was moved
+PASSIVE = MotorCommand("passive", 0.0)
+
+
+@dataclass(frozen=True)
+class DeployOptions:
+    bench: str  # pyserial URL: /dev/ttyUSB0, socket://127.0.0.1:5555, loop://
+    controller: str  # a registry name: feedforward-pd, pid, ..., onnx:PATH
+    lab: LabConfig
+    out: Path = Path("out/deploy")
+    run_id: str = "deploy"
+    dry_run: bool = False
+    warmup_s: float = 0.2  # s of passive, braked samples before the experiment
+    watchdog_s: float | None = None  # None: 20 ms on a free-running board, 250 ms lock-step
+    hold_s: float | None = None
+    alpha: float | None = None
+    reset_timeout_s: float = 120.0
+    rtt_pings: int = 20
+
+
+def loop_stats(intervals: list[float], dt: float, lockstep: bool) -> dict[str, float | None]:
+    """Control-loop period and jitter in ms. Jitter is ``|period - nominal|``; the nominal
+    is the sample period on a free-running board and the median period in lock-step."""
+    if len(intervals) < 2:
+        return {"loop_period_p50_ms": None, "loop_jitter_p50_ms": None, "loop_jitter_p99_ms": None,
+                "loop_jitter_max_ms": None, "loop_samples": len(intervals)}
+    x = np.asarray(intervals)
+    nominal = float(np.median(x)) if lockstep else dt
+    dev = np.abs(x - nominal)
+    return {"loop_period_p50_ms": 1e3 * float(np.median(x)), "loop_jitter_p50_ms": 1e3 * float(np.percentile(dev, 50)),
+            "loop_jitter_p99_ms": 1e3 * float(np.percentile(dev, 99)), "loop_jitter_max_ms": 1e3 * float(dev.max()),
+            "loop_samples": int(x.size)}
+
+
+def arm_checks(rig: BenchRig, plan, pings: int) -> list[dict[str, Any]]:
+    """Checks before anything moves; each ``{"check", "ok", "detail"}``."""
+    caps, lim = rig.caps, rig.limits
+    checks = []
+
+    def add(name: str, ok: bool, detail: str) -> None:
+        checks.append({"check": name, "ok": bool(ok), "detail": detail})
+
+    add("sample_rate", 100.0 <= caps.sample_rate <= 20_000.0, f"{caps.sample_rate:g} Hz (expected 100..20000)")
+    add("twist_inside_envelope", abs(plan.alpha) <= 0.8 * lim.phi_max,
+        f"|alpha| = {abs(plan.alpha):g} rad, angle limit {lim.phi_max:g} rad (alpha must be <= 80 % of it)")
+    add("board_watchdog", 0 < caps.watchdog_ms <= 200, f"{caps.watchdog_ms} ms (expected 1..200)")
+    sample, reading = rig.query()
+    add("no_latched_faults", sample.faults == 0, f"board faults {m.fault_names(sample.faults) or 'none'}")
+    add("brake_engaged", sample.brake, "brake sensed engaged" if sample.brake else "brake sensed released")
+    add("current_near_zero", abs(sample.current) <= max(0.2, 0.05 * caps.i_max), f"{sample.current:+.3f} A")
+    phi_rel = reading.phi - float(rig.known["phi_neutral"])
+    add("angle_inside_envelope", abs(phi_rel) <= lim.phi_max, f"{phi_rel:+.4f} rad from neutral")
+    rtts = []
+    for k in range(pings):
+        t0 = time.perf_counter()
+        rig.link.send(m.Empty(m.HEARTBEAT, 1000 + k))
+        deadline = t0 + 0.5
+        while (left := deadline - time.perf_counter()) > 0:
+            got = rig.link.recv(left)
+            if got is not None and isinstance(got[1], m.Empty) and got[1].type == m.HEARTBEAT \
+                    and got[1].reason == 1000 + k:
+                rtts.append(time.perf_counter() - t0)
+                break
+    if pings:
+        rtt_p99 = float(np.percentile(rtts, 99)) if rtts else math.inf
+        add("link_round_trip", len(rtts) == pings and rtt_p99 < rig.watchdog_s / 2,
+            f"{len(rtts)}/{pings} echoes, p99 {1e3 * rtt_p99:.2f} ms (must be < half the watchdog, "
+            f"{1e3 * rig.watchdog_s / 2:.1f} ms)")
+    return checks
+
+
+def warm_up(rig: BenchRig, seconds: float) -> dict[str, Any]:
+    """Passive, braked samples: the loop runs at its rate and the sensors are checked."""
+    n = max(3, int(round(seconds / rig.dt)))
+    currents, phis = [], []
+    for _ in range(n):
+        r = rig.step(PASSIVE)
+        currents.append(r.i)
+        phis.append(r.phi)
+    i = np.asarray(currents)
+    phi = np.asarray(phis)
+    stats = {"samples": n, "current_mean_A": float(i.mean()), "current_std_A": float(i.std()),
+             "phi_span_rad": float(phi.max() - phi.min())}
+    problems = []
+    if abs(stats["current_mean_A"]) > max(0.2, 0.05 * rig.caps.i_max):
+        problems.append(f"current offset {stats['current_mean_A']:+.3f} A with the drive passive")
+    if stats["phi_span_rad"] > 0.01:
+        problems.append(f"hull moved {stats['phi_span_rad']:.4f} rad while braked")
+    if problems:
+        raise rig.stop("sensor", "warm-up: " + "; ".join(problems))
+    return stats
+
+
+def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
+    """Run one experiment on ``opts.bench``; returns (summary, exit status)."""
+    t_start = time.perf_counter()
+    plan = opts.lab.plan(hold_s=opts.hold_s, alpha=opts.alpha)
+    summary: dict[str, Any] = {"bench": opts.bench, "controller": opts.controller, "dry_run": opts.dry_run,
+                               "lambda66": None, "ci95": None, "record": None, "safe_stop": False}
+    try:
+        rig = BenchRig(opts.bench, opts.lab, watchdog_s=opts.watchdog_s, reset_timeout_s=opts.reset_timeout_s)
+        rig.connect()
+    except LinkError as e:
+        summary.update(status=f"aborted: link: {e}", exit_status=EXIT_NO_BENCH)
+        return summary, EXIT_NO_BENCH
+    summary.update(source=rig.source, watchdog_ms=1e3 * rig.watchdog_s, limits=asdict(rig.limits))
+    recorder: IncrementalRecord | None = None
+    exp: Experiment | None = None
+    status = "complete"
+    try:
+        checks = arm_checks(rig, plan, opts.rtt_pings)
+        summary["arm_checks"] = checks
+        failed = [c for c in checks if not c["ok"]]
+        if failed:
+            raise rig.stop("arming", "arming check failed: " + "; ".join(f"{c['check']} ({c['detail']})"
+                                                                             for c in failed))
+        rig.arm()
+        summary["warmup"] = warm_up(rig, opts.warmup_s)
+        if opts.dry_run:
+            status = "dry-run"
+        else:
+            recorder = IncrementalRecord(opts.out, opts.run_id)
+            exp = Experiment(rig, plan)
+            recorder.phase = lambda: exp.phase
+            recorder.start({"source": rig.source, "rig": rig.known,
+                            "experiment": {"kind": "reverse-symmetric", **asdict(plan), "controller": opts.controller,
+                                           "bench": opts.bench}})
+            rig.on_sample = recorder.append
+            _run(exp, rig, controller)
+    except SafetyTrip as trip:
+        status = f"aborted: {trip.reason}"
+    except ExperimentError as e:
+        status = f"aborted: {rig.stop('experiment', str(e)).reason}"
+    except LinkError as e:
+        status = f"aborted: {rig.stop('link', str(e)).reason}"
+    except KeyboardInterrupt:
+        status = f"aborted: {rig.stop('operator', 'interrupted by the operator').reason}"
+    except Exception as e:  # a controller that raises must still leave the bench safe
+        status = f"aborted: {rig.stop('controller', f'{type(e).__name__}: {e}').reason}"
+    finally:
+        if rig.trip is None:
+            rig.disarm()
+    summary["safe_state"] = rig.confirm_safe()
+    summary["safe_stop"] = bool(summary["safe_state"]["confirmed"])
+    rig.close()
+    summary.update(_timing(rig))
+    summary["status"] = status
+    if recorder is not None:
+        meta = exp.record(opts.run_id).meta
+        meta["experiment"]["controller"] = opts.controller
+        meta["experiment"]["bench"] = opts.bench
+        meta["deploy"] = {k: summary.get(k) for k in ("safe_stop", "safe_state", "watchdog_ms", "limits",
+                                                      "arm_checks", "warmup")}
+        meta["deploy"].update(_timing(rig), trip=_trip_info(rig))
+        summary["record"] = str(recorder.finish(meta, status))
+    summary["trip"] = _trip_info(rig)
+    exit_status = EXIT_OK
+    if status.startswith("aborted"):
+        exit_status = EXIT_ABORTED
+    elif status == "complete":
+        try:
+            result = identify([read_record(summary["record"])], "energy")
+            summary.update(lambda66=result.lambda66, ci95=list(result.ci95), n_intervals=result.n_intervals)
+        except IdentificationError as e:
+            summary["identify_error"] = str(e)
+            exit_status = EXIT_IDENTIFY_FAILED
+    summary["wall_s"] = time.perf_counter() - t_start
+    summary["exit_status"] = exit_status
+    return summary, exit_status
+
+
+def _run(exp: Experiment, rig: BenchRig, controller: Any) -> None:
+    """The loop of ``run_experiment``, on the bench."""
+    exp.start()
+    task = ReverseStrokeTask(i_max=float(exp.known["i_max"]))
+    if hasattr(controller, "reset"):
+        controller.reset(controller_context(exp))
+    while exp.needs_control:
+        action, _ = controller.predict(task.observe(exp), deterministic=True)
+        exp.step(task.command(action))
+    rig.disarm()
+
+
+def _timing(rig: BenchRig) -> dict[str, Any]:
+    t = rig.timing
+    out = loop_stats(t.intervals, rig.dt if rig.caps else 0.0, rig.lockstep)
+    compute = np.asarray(t.compute_s) if t.compute_s else np.zeros(1)
+    sent_current = [abs(c.value) for c in rig.sent if c.mode == "current"]
+    sent_voltage = [abs(c.value) for c in rig.sent if c.mode == "voltage"]
+    out.update(overruns=t.overruns, skipped_samples=t.skipped_samples, lockstep_retries=t.lockstep_retries,
+               host_compute_p99_ms=1e3 * float(np.percentile(compute, 99)),
+               commands_sent=len(rig.sent), commands_clamped=rig.envelope.clamped if rig.envelope else 0,
+               max_abs_current_sent_A=max(sent_current, default=0.0),
+               max_abs_voltage_sent_V=max(sent_voltage, default=0.0),
+               link_errors={"bad_crc": rig.link.parser.stats.bad_crc, "seq_gaps": rig.link.stats.seq_gaps,
+                            "bad_messages": rig.link.stats.bad_messages,
+                            "skipped_bytes": rig.link.parser.stats.skipped_bytes})
+    return out
+
+
+def _trip_info(rig: BenchRig) -> dict[str, Any] | None:
+    if rig.trip is None:
+        return None
+    info = {"kind": rig.trip.kind, "message": str(rig.trip)}
+    if rig.safe_command_wall is not None and rig.trip_wall is not None:
+        info["detect_to_safe_command_ms"] = 1e3 * (rig.safe_command_wall - rig.trip_wall)
+    return info
