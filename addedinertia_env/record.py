@@ -144,7 +144,8 @@ def write_record(record: RunRecord, csv_path: str | os.PathLike) -> Path:
     cols = list(record.samples)
     missing = [c for c in REQUIRED_COLUMNS if c not in cols]
     if missing:
-        raise RecordError(f"{csv_path}: cannot write a record without columns {missing}; expected at least {list(REQUIRED_COLUMNS)}")
+        raise RecordError(f"{csv_path}: cannot write a record without columns {missing}; "
+                          f"expected at least {list(REQUIRED_COLUMNS)}")
     n = len(record.samples["t"])
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -183,7 +184,8 @@ def read_record(path: str | os.PathLike) -> RunRecord:
     else:
         raise RecordError(f"{path}: expected a run record's .csv (or .json) file")
     if not csv_path.exists() and not json_path.exists():
-        raise RecordError(f"{path}: no such file; expected a run record {csv_path.name} with {json_path.name} beside it")
+        raise RecordError(f"{path}: no such file; "
+                          f"expected a run record {csv_path.name} with {json_path.name} beside it")
     if not json_path.exists():
         raise RecordError(f"{csv_path}: no matching metadata file {json_path.name} beside it; "
                           "expected a CSV and a JSON file with the same stem")
@@ -237,7 +239,8 @@ def _read_meta(json_path: Path) -> dict[str, Any]:
                           "expected an object with 'viscous' and 'coulomb'")
     for key, value in friction.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise RecordError(f"{json_path}: key 'rig.motor_friction.{key}' is {value!r}; expected a finite number >= 0")
+            raise RecordError(f"{json_path}: key 'rig.motor_friction.{key}' is {value!r}; "
+                              "expected a finite number >= 0")
     exp = meta["experiment"]
     if not isinstance(exp, dict):
         raise RecordError(f"{json_path}: key 'experiment' must be an object, got {exp!r}; "

@@ -348,7 +348,6 @@ class BenchRig:
         return got
 
     def _next_sample(self, sent_seq: int) -> Reading:
-        lim = self.limits
         start = time.perf_counter()
         deadline = start + self.watchdog_s
         retry_at = start + self.watchdog_s / 4 if self.lockstep else math.inf
@@ -367,36 +366,42 @@ class BenchRig:
             got = self._recv(min(deadline, retry_at) - now)
             if got is not None and not isinstance(got[1], m.Sample):
                 got = None
-        # Catch up: keep the newest sample already waiting (a free-running board kept going).
+        # Every sample that arrived is checked by the envelope and recorded, in order; the
+        # controller gets the newest (a free-running board kept going while the host was busy).
+        reading = self._accept(*got)
         skipped = 0
         while True:
             more = self._recv(0.0)
             if more is None:
                 break
             if isinstance(more[1], m.Sample):
-                got = more
                 skipped += 1
+                reading = self._accept(*more)
         self.timing.skipped_samples += skipped
         self.timing.overruns += skipped
-        frame, msg = got
         now = time.perf_counter()
         if self._last_sample_wall is not None:
             self.timing.intervals.append(now - self._last_sample_wall)
         self._last_sample_wall = now
+        self.watchdog.kick()
+        return reading
+
+    def _accept(self, frame, msg: m.Sample) -> Reading:
+        """Budget, continuity and envelope checks of one sample; then it is recorded."""
+        lim = self.limits
         self._last_sample_seq = frame.seq
         errors = self.link.errors + self.timing.lockstep_retries
         if errors > lim.link_error_budget:
             raise self.stop("link", f"{errors} frames lost or corrupted (budget {lim.link_error_budget}): "
-                                         f"{self.link.parser.stats.bad_crc} bad CRC, {self.link.stats.seq_gaps} "
-                                         f"missing, {self.timing.lockstep_retries} lock-step retries")
+                                    f"{self.link.parser.stats.bad_crc} bad CRC, {self.link.stats.seq_gaps} "
+                                    f"missing, {self.timing.lockstep_retries} lock-step retries")
         if self.last_sample is not None:
             missing = (msg.step - self.last_sample.step - 1) & 0xFFFF
-            if missing > lim.max_missed_in_row + skipped:
+            if missing > lim.max_missed_in_row:
                 raise self.stop("link", f"{missing} samples missing in a row (limit {lim.max_missed_in_row})")
         reading = self._reading(frame, msg)
         self._check(reading, msg)
         self.last_sample = msg
-        self.watchdog.kick()
         if self.on_sample is not None:
             last = self.sent[-1]
             self.on_sample(reading, MotorCommand(last.mode, last.value))

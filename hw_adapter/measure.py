@@ -19,6 +19,7 @@ import argparse
 import json
 import os
 import platform
+import subprocess
 import tempfile
 import time
 from pathlib import Path
@@ -29,7 +30,7 @@ from .deploy import DeployOptions, deploy
 from .lab import load_lab
 from .loopback import spawn_bench_server
 
-FAULTS = {"drop": "drop=1.0@{at}", "corrupt": "corrupt=1.0@{at}", "latency": "latency=100@{at}",
+FAULTS = {"drop": "drop=1.0@{at}", "corrupt": "corrupt=1.0@{at}", "latency": "latency=300@{at}",
           "disconnect": "disconnect@{at}", "glitch": "glitch=0.2@{at}", "stuck_brake": "stuck_brake@{at}"}
 
 
@@ -46,16 +47,17 @@ def cpu_model() -> str:
 def one_run(name: str, faults: str, args, work: Path) -> dict:
     events = work / f"{name}.events.jsonl"
     extra = ["--faults", faults] if faults else []
-    proc, url = spawn_bench_server("--realtime", "--rig", args.rig, "--once",
+    proc, url = spawn_bench_server("--realtime", "--rig", args.rig,
                                    "--board-watchdog-ms", str(args.board_watchdog_ms), *extra, events=events)
     try:
         opts = DeployOptions(bench=url, controller="feedforward-pd", lab=load_lab(args.rig), out=work / name,
                              hold_s=args.hold, watchdog_s=args.watchdog_ms * 1e-3)
         summary, status = deploy(opts, make_controller("feedforward-pd"))
     finally:
+        proc.terminate()  # the server writes its event log as it stops
         try:
             proc.wait(timeout=10)
-        except Exception:  # noqa: BLE001
+        except subprocess.TimeoutExpired:
             proc.kill()
     log = [json.loads(line) for line in events.read_text().splitlines()] if events.exists() else []
     onset = next((e for e in log if e["event"] == "fault_onset"), None)

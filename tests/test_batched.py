@@ -201,3 +201,42 @@ def test_experiment_on_the_single_view_gives_the_mujoco_estimate():
     est_b = identify([rec_b], "energy").lambda66
     assert abs(est_b - est_mj) < 1e-6 * est_mj, (est_b, est_mj)
     assert abs(est_mj - p.hull.lambda66) < 0.05 * p.hull.lambda66  # a real estimate, not a degenerate one
+
+
+def test_batched_vector_env_matches_single_envs_through_an_autoreset():
+    """Same seeds and actions: the batched vector env gives the single envs' observations,
+    rewards and episode ends (the rigs differ only by rounding, so encoder counts rarely flip)."""
+    import gymnasium as gym
+
+    from addedinertia_env.envs.batched_vector import BatchedReverseStrokeVectorEnv, vector_env
+    from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv
+
+    kw = dict(hold_s=0.2, fixed={"period_s": 2.0})
+    venv = vector_env(2, **kw)
+    assert isinstance(venv, BatchedReverseStrokeVectorEnv) and isinstance(venv, gym.vector.VectorEnv)
+    singles = [ReverseStrokeEnv(**kw) for _ in range(2)]
+    assert venv.single_observation_space == singles[0].observation_space
+    assert venv.single_action_space == singles[0].action_space
+    obs, _ = venv.reset(seed=11)
+    np.testing.assert_allclose(obs, np.array([e.reset(seed=11 + k)[0] for k, e in enumerate(singles)]), atol=1e-6)
+    rng = np.random.default_rng(0)
+    ended, resets = [False, False], 0
+    for _ in range(1300):
+        a = rng.uniform(-0.3, 0.3, size=(2, 1)).astype(np.float32)
+        o, r, term, trunc, info = venv.step(a)
+        for k, env in enumerate(singles):
+            if ended[k]:
+                so, sr, st = env.reset()[0], 0.0, False
+                resets += 1
+            else:
+                so, sr, st, _, sinfo = env.step(a[k])
+                if st:
+                    assert info["_lambda66_est"][k]
+                    assert abs(info["lambda66_est"][k] - sinfo["lambda66_est"]) < 1e-4 * sinfo["lambda66_est"]
+            ended[k] = st
+            assert term[k] == st
+            np.testing.assert_allclose(o[k], so, atol=0.02)  # one encoder count of tracking_error is 0.01
+            assert r[k] == pytest.approx(sr, rel=1e-3, abs=5e-5)  # an encoder count in the tracking term
+    assert resets >= 1, "the run must pass through an autoreset"
+    with pytest.raises(ValueError, match="action_repeat"):
+        BatchedReverseStrokeVectorEnv(2, action_repeat=2)

@@ -245,7 +245,8 @@ def _decay_centres(phi: np.ndarray) -> np.ndarray:
 def test_neutral_offset_shifts_the_decay_centre():
     offset = 0.01
     plain = _decay_centres(simulate(ideal_rig(), 6.5)["read_phi"])
-    shifted = _decay_centres(simulate(ideal_rig(effects=Effects(neutral_offset=NeutralOffset(offset))), 6.5)["read_phi"])
+    offset_rig = ideal_rig(effects=Effects(neutral_offset=NeutralOffset(offset)))
+    shifted = _decay_centres(simulate(offset_rig, 6.5)["read_phi"])
     # The three-extreme centre removes a decrement that changes linearly; the quadratic
     # damping's curvature leaves < 1 mrad. The offset (10 mrad) moves the centre by itself.
     assert len(plain) >= 1 and len(shifted) >= 1

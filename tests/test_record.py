@@ -101,7 +101,8 @@ def test_missing_required_column(record_path, column):
 @pytest.mark.parametrize("value", ["abc", "", "1,5", "nan", "NaN", "inf", "-inf"])
 def test_non_numeric_or_non_finite_value(record_path, column, value):
     line = set_cell(record_path, 17, column, value)
-    refused(record_path, str(record_path), f"line {line}", f"column '{column}'", repr(value), "expected a finite number")
+    refused(record_path, str(record_path), f"line {line}", f"column '{column}'", repr(value),
+            "expected a finite number")
 
 
 @pytest.mark.parametrize("delta", [0.0, -5e-4, -1.0])

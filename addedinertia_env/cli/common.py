@@ -20,7 +20,8 @@ class BadInput(ValueError):
     """Any user-facing input problem not covered by a more specific error."""
 
 
-BAD_INPUT = (RecordError, ConfigError, IdentificationError, BadInput, ExperimentError, FileNotFoundError)
+# OSError covers missing files and output folders that cannot be written (permissions, a file in the way).
+BAD_INPUT = (RecordError, ConfigError, IdentificationError, BadInput, ExperimentError, OSError)
 
 
 def fail(error: BaseException) -> int:

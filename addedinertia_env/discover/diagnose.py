@@ -32,7 +32,11 @@ from .prepare import Prepared, prepare
 
 @dataclass(frozen=True)
 class Thresholds:
-    """Decision thresholds (calibrated on seeds 100-104, which the detection table does not use)."""
+    """Decision thresholds, fixed before the detection table was run (docs/DISCOVERY.md).
+
+    Set from physics and convention, then checked on one dataset per effect at seed 100
+    (which the detection table, seeds 0-9, does not use); not tuned on the table.
+    """
 
     min_delta_bic: float = 10.0  # "very strong" evidence on the Kass-Raftery scale, with n_eff
     min_heldout_gain: float = 0.10  # held-out RMS must drop by at least 10 %
@@ -43,7 +47,7 @@ class Thresholds:
     # Smallest fitted size called an effect: clear of the rig's known imperfections
     # (current gain error 0.5 %, half-sample hold lag 0.5 ms, physics.md sections 7, 8).
     min_size: dict = field(default_factory=lambda: {
-        "torque": 0.01,  # N m (about 1/5 of rotor friction x 5; 1 % of the peak spring torque at 0.05 rad)
+        "torque": 0.01,  # N m (a third of the smallest realistic 0.03; 0.5 % of the spring torque at 0.05 rad)
         "beta": 0.03,  # -
         "k3": 1.0,  # 1/rad^2 (1 % stiffening at 0.1 rad)
         "offset": 1.0e-3,  # rad

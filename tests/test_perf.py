@@ -1,0 +1,50 @@
+"""``addedinertia perf``: the command runs and reports the contract's fields (no speed asserted:
+speed is measured by the command and recorded in docs/PERFORMANCE.md)."""
+
+from __future__ import annotations
+
+import json
+
+from addedinertia_env.cli import main
+from addedinertia_env.perf import measure_batched, render_markdown
+
+
+def test_perf_json_has_the_contract_fields(capsys, tmp_path):
+    out = tmp_path / "PERF.md"
+    assert main(["perf", "--max-envs", "16", "--seconds", "0.01", "--repeats", "1", "--json", "--out", str(out)]) == 0
+    result = json.loads(capsys.readouterr().out)
+    for key in ("single_env_steps_per_s", "batched_physics_steps_per_s", "n_envs"):
+        assert key in result
+    assert result["n_envs"] == 16
+    assert [r["n_envs"] for r in result["sweep"]] == [1, 4, 16]
+    assert all(r["steps_per_s"] > 0 and r["time_per_step_us"] > 0 for r in result["sweep"])
+    assert result["single_env_steps_per_s"] > 0
+    assert result["ratio_batched_to_single"] == result["batched_physics_steps_per_s"] / result["single_env_steps_per_s"]
+    assert result["memory"]["bytes_per_env_arrays"] > 0
+    assert result["machine"]["nproc"] >= 1 and result["machine"]["cpu"]
+    text = out.read_text()
+    assert "addedinertia perf" in text and result["machine"]["cpu"] in text and "GPU" in text
+    assert (tmp_path / "figures" / "perf_time_vs_n.png").stat().st_size > 1000
+
+
+def test_perf_refuses_bad_input(capsys):
+    assert main(["perf", "--seconds", "-1"]) == 2
+    assert "--seconds" in capsys.readouterr().err
+
+
+def test_batched_measurement_counts_n_steps_per_call():
+    row = measure_batched(8, seconds=0.01, repeats=1)
+    assert row["n_envs"] == 8
+    assert abs(row["steps_per_s"] * row["time_per_step_us"] * 1e-6 - 8) < 1e-9
+    assert "GPU" in render_markdown({**_fake(row)}, "addedinertia perf", None)
+
+
+def _fake(row):
+    machine = {"cpu": "x", "nproc": 2, "python": "3", "numpy": "2", "mujoco": "3", "load_avg_1_5_15": [0, 0, 0],
+               "load_avg_at_end": [0, 0, 0]}
+    single = {"steps_per_s": 1.0, "time_per_step_us": 1.0}
+    return {"machine": machine, "date": "d", "repeats": 1, "seconds_per_measurement": 0.01,
+            "single_env_steps_per_s": 1.0, "batched_physics_steps_per_s": row["steps_per_s"], "n_envs": 8,
+            "ratio_batched_to_single": row["steps_per_s"], "float32": row, "with_sensors": row,
+            "memory": {"bytes_per_env_arrays": 1.0, "bytes_per_env_tracemalloc_peak": 1.0},
+            "single_env": {"before_sweep": single, "after_sweep": single}, "sweep": [row]}
