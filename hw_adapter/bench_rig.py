@@ -42,7 +42,8 @@ from .watchdog import Watchdog
 
 PASSIVE = MotorCommand("passive", 0.0)
 REALTIME_WATCHDOG_S = 0.020  # s: link silence that trips a free-running (real) bench
-LOCKSTEP_WATCHDOG_S = 0.250  # s: a lock-stepped emulator does not move while it waits
+LOCKSTEP_WATCHDOG_S = 1.0  # s: a lock-stepped emulator does not move while it waits; only a dead one is caught
+LOCKSTEP_RETRY_S = 0.1  # s: a lock-step answer this late is asked for again (counts against the link budget)
 HELLO_TRIES = 5
 STOP_REASONS = {"angle": 1, "rate": 2, "flywheel_rate": 3, "current": 4, "voltage": 5, "board_fault": 6, "brake": 7,
                 "link": 8, "sensor": 9, "watchdog": 10, "operator": 11, "arming": 12, "experiment": 13,
@@ -350,7 +351,8 @@ class BenchRig:
     def _next_sample(self, sent_seq: int) -> Reading:
         start = time.perf_counter()
         deadline = start + self.watchdog_s
-        retry_at = start + self.watchdog_s / 4 if self.lockstep else math.inf
+        retry_s = min(self.watchdog_s / 4, LOCKSTEP_RETRY_S)
+        retry_at = start + retry_s if self.lockstep else math.inf
         got = None
         while got is None:
             self._raise_if_tripped()
@@ -362,7 +364,7 @@ class BenchRig:
                 self.timing.lockstep_retries += 1
                 last = self.sent[-1]
                 sent_seq = self._send_command(MotorCommand(last.mode, last.value))
-                retry_at = now + self.watchdog_s / 4
+                retry_at = now + retry_s
             got = self._recv(min(deadline, retry_at) - now)
             if got is not None and not isinstance(got[1], m.Sample):
                 got = None

@@ -51,7 +51,7 @@ class DeployOptions:
     run_id: str = "deploy"
     dry_run: bool = False
     warmup_s: float = 0.2  # s of passive, braked samples before the experiment
-    watchdog_s: float | None = None  # None: 20 ms on a free-running board, 250 ms lock-step
+    watchdog_s: float | None = None  # None: 20 ms on a free-running board, 1 s lock-step
     hold_s: float | None = None
     alpha: float | None = None
     reset_timeout_s: float = 120.0
@@ -180,7 +180,7 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
     finally:
         if rig.trip is None:
             rig.disarm()
-    summary["safe_state"] = rig.confirm_safe()
+    summary["safe_state"] = rig.confirm_safe(timeout_s=1.0 + 2 * rig.watchdog_s)
     summary["safe_stop"] = bool(summary["safe_state"]["confirmed"])
     rig.close()
     summary.update(_timing(rig))

@@ -89,8 +89,8 @@ class EmulatorServer:
             try:
                 self._serve(conn)
             finally:
+                self.board.link_lost()  # safe before the host can see the link drop
                 conn.close()
-                self.board.link_lost()
                 self.write_events()
             if once:
                 break

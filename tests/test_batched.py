@@ -235,8 +235,11 @@ def test_batched_vector_env_matches_single_envs_through_an_autoreset():
                     assert abs(info["lambda66_est"][k] - sinfo["lambda66_est"]) < 1e-4 * sinfo["lambda66_est"]
             ended[k] = st
             assert term[k] == st
-            np.testing.assert_allclose(o[k], so, atol=0.02)  # one encoder count of tracking_error is 0.01
-            assert r[k] == pytest.approx(sr, rel=1e-3, abs=5e-5)  # an encoder count in the tracking term
+            # one hull-encoder count is 0.01 in tracking_error and up to ~0.05 in rate_error
+            np.testing.assert_allclose(o[k], so, atol=0.1)
+            # an encoder count in the tracking term; at the end, the accuracy term (-1 per % of
+            # lambda66 error) carries the 1e-5 relative difference of the two engines' estimates
+            assert r[k] == pytest.approx(sr, rel=1e-3, abs=1e-3 if st else 5e-5)
     assert resets >= 1, "the run must pass through an autoreset"
     with pytest.raises(ValueError, match="action_repeat"):
         BatchedReverseStrokeVectorEnv(2, action_repeat=2)

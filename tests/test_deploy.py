@@ -100,7 +100,7 @@ def test_dry_run_arms_and_warms_up_without_motion(capsys):
 FAULTS = {
     "drop": ("drop=0.5@0.3", {"link"}),
     "corrupt": ("corrupt=0.5@0.3", {"link"}),
-    "latency": ("latency=400@0.3", {"link", "watchdog"}),
+    "latency": ("latency=1500@0.3", {"link", "watchdog"}),  # beyond the 1 s lock-step watchdog
     "disconnect": ("disconnect@0.3", {"link"}),
     "glitch": ("glitch=0.2@0.3", {"rate"}),
     "stuck_brake": ("stuck_brake@0.05", {"brake", "board_fault"}),
@@ -162,7 +162,7 @@ def test_envelope_clamps_to_the_lab_limit_and_a_crashing_controller_stops_safely
                                  CommandsTooMuchThenCrashes())
     finally:
         server.stop()
-    assert status == EXIT_ABORTED and summary["trip"]["kind"] == "controller"
+    assert status == EXIT_ABORTED and summary["trip"]["kind"] == "controller", summary["status"]
     assert "controller bug" in summary["status"]
     currents = [c.value for c in server.board.commands if c.mode == "current"]
     assert len(currents) == 30 and max(currents) == pytest.approx(4.0)  # asked 15 A, got 4 A

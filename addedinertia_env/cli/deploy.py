@@ -29,7 +29,7 @@ def register(sub) -> None:
     p.add_argument("--alpha", type=float, default=None, help="twist before release, rad")
     p.add_argument("--warmup", type=non_negative_float, default=0.2, help="passive braked warm-up, s")
     p.add_argument("--watchdog-ms", type=float, default=None,
-                   help="link silence that stops the run, ms (default 20; 250 against a lock-step emulator)")
+                   help="link silence that stops the run, ms (default 20; 1000 against a lock-step emulator)")
     p.add_argument("--reset-timeout", type=non_negative_float, default=120.0,
                    help="how long to wait for the hull to be placed at the twist angle, s")
     p.add_argument("--dry-run", action="store_true", help="connect, arming checks, warm-up at zero current; no motion")

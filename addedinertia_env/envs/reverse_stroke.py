@@ -173,7 +173,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         self.experiment: Experiment | None = None
         self.task: ReverseStrokeTask | None = None
         self._renderer: RigRenderer | None = None
-        self._episode_config = self.config
+        self.episode_config = self.config  # the config with this episode's reset options
 
     # --- Gymnasium API ----------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -181,7 +181,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         cfg = self.config.with_options(options)
         drawn = int(self.np_random.integers(0, 2**63 - 1))  # always drawn: the stream stays aligned
         scenario_seed = cfg.scenario_seed if cfg.scenario_seed is not None else drawn
-        self._episode_config = cfg
+        self.episode_config = cfg
         self.scenario = cfg.scenario(scenario_seed, self._default_ranges)
         self.rig = self.rig_factory(self.scenario)
         self.experiment = Experiment(self.rig, self.scenario.plan)
@@ -191,7 +191,6 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         self._tracking_sq = 0.0
         self._tracking_n = 0
         self._limit_samples = 0
-        self._samples = 0
         self._summary: dict[str, Any] | None = None
         if self._renderer is not None:  # a new model: a new renderer at the next render()
             self._renderer.close()
@@ -221,7 +220,6 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
                 self._tracking_n += 1
             at_limit = task.at_limit(cmd, reading)
             self._limit_samples += at_limit
-            self._samples += 1
             energy += exp.electric_energy - before
             tracking += 0.0 if e is None else e * e
             limits += at_limit
