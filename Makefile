@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: demo test test-slow test-all bench leaderboard accuracy-table perf clean detection-table
+.PHONY: demo test test-slow test-all bench leaderboard policy accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -33,7 +33,10 @@ test-all: $(STAMP)
 BENCH_SUITE ?= standard-v0
 BENCH_CONTROLLERS ?= pd feedforward-pd pid lqr ilc mpc
 BENCH_JOBS ?= 2
-BENCH_ROWS = $(foreach c,$(BENCH_CONTROLLERS),out/bench/$(BENCH_SUITE)-$(c).jsonl)
+# Learned policies (docs/LEARNING.md), run as onnx:PATH on the same suite, split and seeds.
+LEARNED_POLICIES ?= agents/policies/reverse_stroke.onnx
+BENCH_ROWS = $(foreach c,$(BENCH_CONTROLLERS),out/bench/$(BENCH_SUITE)-$(c).jsonl) \
+	$(foreach p,$(LEARNED_POLICIES),out/bench/$(BENCH_SUITE)-onnx-$(basename $(notdir $(p))).jsonl)
 
 bench: $(STAMP)
 	$(BIN)/addedinertia bench run --suite smoke --controller feedforward-pd --out out/bench/smoke-feedforward-pd.jsonl
@@ -43,10 +46,19 @@ leaderboard: $(STAMP)
 	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller $$c --jobs $(BENCH_JOBS) \
 	    --out out/bench/$(BENCH_SUITE)-$$c.jsonl || exit 1; \
 	done
+	for p in $(LEARNED_POLICIES); do \
+	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller onnx:$$p --jobs $(BENCH_JOBS) \
+	    --out out/bench/$(BENCH_SUITE)-onnx-$$(basename $$p .onnx).jsonl || exit 1; \
+	done
 	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format md --out docs/LEADERBOARD.md \
 	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
 	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format html --out out/bench/leaderboard.html \
 	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
+
+# Retrain and re-export the shipped policy (docs/LEARNING.md; about 20 min on 2 shared cores).
+policy: $(STAMP)
+	$(BIN)/addedinertia train --algo ppo --residual --timesteps 40000 --seed 1 --out out/train/ppo-residual
+	$(BIN)/addedinertia export out/train/ppo-residual --onnx agents/policies/reverse_stroke.onnx
 
 accuracy-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.experiment.accuracy_table --hulls 24 --out docs/ACCURACY.md

@@ -6,7 +6,8 @@ For each run an emulator is started as its own process (``addedinertia bench-ser
 --realtime``: free-running at the sample rate on the wall clock), and one experiment is
 deployed on it in this process with ``feedforward-pd``:
 
-* ``nominal``: no fault; gives the loop period and jitter (p50, p99) and overruns;
+* ``nominal``: no fault; gives the loop period and jitter (p50, p99) and overruns
+  (``--fast``: the same against the lock-step emulator: throughput, not real time);
 * one run per fault, injected ``--at`` seconds after RESET: the time from the fault's
   onset (first affected frame or sample, logged by the emulator) to the board's safe
   state (disarmed, drive passive, brake requested), both on the emulator's monotonic
@@ -47,11 +48,11 @@ def cpu_model() -> str:
 def one_run(name: str, faults: str, args, work: Path) -> dict:
     events = work / f"{name}.events.jsonl"
     extra = ["--faults", faults] if faults else []
-    proc, url = spawn_bench_server("--realtime", "--rig", args.rig,
+    proc, url = spawn_bench_server("--fast" if args.fast else "--realtime", "--rig", args.rig,
                                    "--board-watchdog-ms", str(args.board_watchdog_ms), *extra, events=events)
     try:
         opts = DeployOptions(bench=url, controller="feedforward-pd", lab=load_lab(args.rig), out=work / name,
-                             hold_s=args.hold, watchdog_s=args.watchdog_ms * 1e-3)
+                             hold_s=args.hold, watchdog_s=None if args.watchdog_ms is None else args.watchdog_ms * 1e-3)
         summary, status = deploy(opts, make_controller("feedforward-pd"))
     finally:
         proc.terminate()  # the server writes its event log as it stops
@@ -79,7 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rig", default="wigley-2m")
     p.add_argument("--hold", type=float, default=0.3, help="brake hold, s")
     p.add_argument("--at", type=float, default=1.0, help="fault onset after RESET, s (in the free stroke)")
-    p.add_argument("--watchdog-ms", type=float, default=20.0, help="host watchdog (link silence), ms")
+    p.add_argument("--watchdog-ms", type=float, default=None,
+                   help="host watchdog (link silence), ms (default: deploy's, 20 ms free-running, 1 s lock-step)")
+    p.add_argument("--fast", action="store_true", help="lock-step emulator instead of the free-running one")
     p.add_argument("--board-watchdog-ms", type=int, default=50)
     p.add_argument("--only", nargs="*", default=None, help="runs to do (nominal and fault names)")
     p.add_argument("--out", default="out/bench-figures.json")

@@ -205,7 +205,11 @@ def test_experiment_on_the_single_view_gives_the_mujoco_estimate():
 
 def test_batched_vector_env_matches_single_envs_through_an_autoreset():
     """Same seeds and actions: the batched vector env gives the single envs' observations,
-    rewards and episode ends (the rigs differ only by rounding, so encoder counts rarely flip)."""
+    rewards, episode ends and estimates. The single envs run on the batched single view, so
+    any difference would come from the vector env's machinery (moving slots in and out of
+    the batch with their noise streams, brake and phases; autoreset), not from the engines
+    (MuJoCo against batched is tested above: a brake set at a stop that is not quite at rest
+    lets the two engines differ by ~1e-5 rad, enough to flip encoder counts)."""
     import gymnasium as gym
 
     from addedinertia_env.envs.batched_vector import BatchedReverseStrokeVectorEnv, vector_env
@@ -214,13 +218,14 @@ def test_batched_vector_env_matches_single_envs_through_an_autoreset():
     kw = dict(hold_s=0.2, fixed={"period_s": 2.0})
     venv = vector_env(2, **kw)
     assert isinstance(venv, BatchedReverseStrokeVectorEnv) and isinstance(venv, gym.vector.VectorEnv)
-    singles = [ReverseStrokeEnv(**kw) for _ in range(2)]
+    singles = [ReverseStrokeEnv(rig_factory=lambda s: BatchedSingleRig(s.rig, seed=s.sensor_seed), **kw)
+               for _ in range(2)]
     assert venv.single_observation_space == singles[0].observation_space
     assert venv.single_action_space == singles[0].action_space
     obs, _ = venv.reset(seed=11)
     np.testing.assert_allclose(obs, np.array([e.reset(seed=11 + k)[0] for k, e in enumerate(singles)]), atol=1e-6)
     rng = np.random.default_rng(0)
-    ended, resets = [False, False], 0
+    ended, resets, finished = [False, False], 0, 0
     for _ in range(1300):
         a = rng.uniform(-0.3, 0.3, size=(2, 1)).astype(np.float32)
         o, r, term, trunc, info = venv.step(a)
@@ -231,15 +236,13 @@ def test_batched_vector_env_matches_single_envs_through_an_autoreset():
             else:
                 so, sr, st, _, sinfo = env.step(a[k])
                 if st:
+                    finished += 1
                     assert info["_lambda66_est"][k]
-                    assert abs(info["lambda66_est"][k] - sinfo["lambda66_est"]) < 1e-4 * sinfo["lambda66_est"]
+                    assert info["lambda66_est"][k] == pytest.approx(sinfo["lambda66_est"], rel=1e-9)
             ended[k] = st
             assert term[k] == st
-            # one hull-encoder count is 0.01 in tracking_error and up to ~0.05 in rate_error
-            np.testing.assert_allclose(o[k], so, atol=0.1)
-            # an encoder count in the tracking term; at the end, the accuracy term (-1 per % of
-            # lambda66 error) carries the 1e-5 relative difference of the two engines' estimates
-            assert r[k] == pytest.approx(sr, rel=1e-3, abs=1e-3 if st else 5e-5)
-    assert resets >= 1, "the run must pass through an autoreset"
+            np.testing.assert_allclose(o[k], so, atol=1e-5)
+            assert r[k] == pytest.approx(sr, rel=1e-6, abs=1e-9)
+    assert resets >= 1 and finished >= 2, "the run must pass through episode ends and an autoreset"
     with pytest.raises(ValueError, match="action_repeat"):
         BatchedReverseStrokeVectorEnv(2, action_repeat=2)

@@ -143,7 +143,8 @@ class BatchedReverseStrokeVectorEnv(VectorEnv):
             infos = self._add_info(infos, info, k)
         # One batch for all slots, with each slot's parameters and noise stream.
         solos = [slot.solo for slot in self.slots]
-        self.batch = BatchedRig([s.params for s in solos], seed=[s.batch.sensors.rngs_or_rng(0) for s in solos])
+        self.batch = BatchedRig([s.params for s in solos], seed=[s.batch.sensors.rngs_or_rng(0) for s in solos],
+                                initial_reading=False)
         for slot in self.slots:
             slot.enter_batch()
         self._needs_reset[:] = False

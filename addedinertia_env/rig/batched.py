@@ -174,13 +174,15 @@ class BatchedRig:
     ``params``: one :class:`RigParams` (repeated ``n_envs`` times), a list of them, or a
     :class:`BatchedParams`. ``seed``: one seed for a batched noise Generator, or a list
     of per-environment seeds (each environment then reproduces the sensor noise of a
-    :class:`MujocoRig` with that seed). ``dtype``: float64 (default) or float32.
+    :class:`MujocoRig` with that seed), or a list of Generators (used as they are).
+    ``dtype``: float64 (default) or float32. ``initial_reading``: reset and read once on
+    construction, as :class:`MujocoRig` does (False: draw nothing from the Generators).
     """
 
     source = "sim"
 
     def __init__(self, params: RigParams | Sequence[RigParams] | BatchedParams, n_envs: int | None = None,
-                 seed=None, dtype=np.float64):
+                 seed=None, dtype=np.float64, initial_reading: bool = True):
         if isinstance(params, RigParams):
             params = BatchedParams.repeat(params, n_envs or 1, dtype=dtype)
         elif not isinstance(params, BatchedParams):
@@ -201,7 +203,10 @@ class BatchedRig:
         self.t = np.zeros(n)  # s, float64 always (phase timing)
         self.brake = np.zeros(n, dtype=bool)
         self._tmp = np.zeros(n, dtype=dtype)
-        self.reset()
+        if initial_reading:  # as MujocoRig: reset and read (draws noise from the seeded stream)
+            self.reset()
+        else:  # for Generators already in use elsewhere: nothing drawn
+            self.set_brake(True)
 
     def _build(self, p: BatchedParams, rng) -> None:
         """Everything that follows from the parameters: true constants, step maps, sensors."""
