@@ -242,7 +242,16 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   "| vector env | n | env steps/s |", "|---|---:|---:|"]
         for row in vec["rows"]:
             lines.append(f"| {row['kind']} | {row['n_envs']} | {row['env_steps_per_s']:,.0f} |")
-        lines += ["", vec.get("note", ""), ""]
+        faster = vec["ratio_batched_to_sync"] > 1.0
+        lines += ["", vec.get("note", ""), "",
+                  ("The batched vector env is faster here; select it with "
+                   "`addedinertia_env.envs.batched_vector.vector_env(n, batched=True, **options)`."
+                   if faster else
+                   "The batched vector env is **not** faster than `gym.make_vec` here: each copy's Python "
+                   "bookkeeping (experiment log, rate filters, reference, observation) is untouched by the batch, and the free strokes run on one-environment numpy "
+                   "rigs, slower than MuJoCo at n = 1. Training and benchmark should keep `gym.make_vec` "
+                   "(what `vector_env(n)` returns by default) until the experiment protocol itself is "
+                   "vectorised (free strokes in batch, reference evaluated in batch)."), ""]
     lines += [
         "## What the batched rig is",
         "",

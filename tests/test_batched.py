@@ -216,7 +216,7 @@ def test_batched_vector_env_matches_single_envs_through_an_autoreset():
     from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv
 
     kw = dict(hold_s=0.2, fixed={"period_s": 2.0})
-    venv = vector_env(2, **kw)
+    venv = vector_env(2, batched=True, **kw)
     assert isinstance(venv, BatchedReverseStrokeVectorEnv) and isinstance(venv, gym.vector.VectorEnv)
     singles = [ReverseStrokeEnv(rig_factory=lambda s: BatchedSingleRig(s.rig, seed=s.sensor_seed), **kw)
                for _ in range(2)]

@@ -19,8 +19,12 @@ physics speed-up.
 Autoreset: Gymnasium's next-step mode (the step after an episode ends resets that
 environment and returns its first observation, reward 0). ``action_repeat`` must be 1.
 
-Select it with :func:`vector_env`, which training and benchmark code can call in place of
-``gym.make_vec``.
+Select it with :func:`vector_env` (``batched=True``), which training and benchmark code
+can call in place of ``gym.make_vec``. As measured (docs/PERFORMANCE.md), it is *not*
+faster than ``gym.make_vec`` yet: per-environment Python bookkeeping dominates the step,
+and the free strokes run on one-environment numpy rigs, slower than MuJoCo at n = 1. So
+:func:`vector_env` defaults to ``gym.make_vec``; a vectorised experiment protocol (free
+strokes simulated in batch, reference evaluated in batch) is what would make it pay.
 """
 
 from __future__ import annotations
@@ -183,12 +187,13 @@ class BatchedReverseStrokeVectorEnv(VectorEnv):
         return self._obs.copy(), rewards, terminated, truncated, infos
 
     def close_extras(self, **kwargs: Any) -> None:
-        for env in self.envs:
+        for env in getattr(self, "envs", []):  # also after a refused __init__
             env.close()
 
 
-def vector_env(num_envs: int, batched: bool = True, **env_kwargs: Any) -> VectorEnv:
-    """The reverse-stroke vector environment: batched rig (default) or ``gym.make_vec`` (sync).
+def vector_env(num_envs: int, batched: bool = False, **env_kwargs: Any) -> VectorEnv:
+    """The reverse-stroke vector environment: ``gym.make_vec`` (sync, default: faster today,
+    see docs/PERFORMANCE.md) or, with ``batched=True``, the batched-rig vector env.
 
     Falls back to ``gym.make_vec`` where the batched one cannot serve (``action_repeat``
     above 1, a custom ``rig_factory``, rendering).
