@@ -69,3 +69,7 @@ clean:
 # docs/DISCOVERY.md: detection and false-alarm rates of `discover` (about 1 min per dataset of 4 runs on 2 cores)
 detection-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.discover.detection_table --seeds 10 --out docs/DISCOVERY.md
+
+# docs/PERFORMANCE.md: single MuJoCo env vs batched physics, 1..16384 envs, one run.
+perf: $(STAMP)
+	$(BIN)/addedinertia perf --max-envs 16384 --vector --out docs/PERFORMANCE.md
