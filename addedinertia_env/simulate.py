@@ -15,7 +15,7 @@ from .rig.effects import Effects
 from .rig.mujoco_rig import MujocoRig
 from .rig.params import RigParams
 
-# Experiment kinds besides the reverse-symmetric one: "module:function(rig, seed) -> RunRecord".
+# Experiment kinds besides the reverse-symmetric one: "module:function(rig, plan=, run_id=) -> RunRecord".
 OTHER_KINDS = {
     "free-decay": "addedinertia_env.experiment.free_decay:run_free_decay",
     "forced-oscillation": "addedinertia_env.experiment.forced:run_forced",
