@@ -179,12 +179,27 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
         "observation_fields": list(OBSERVATION_FIELDS),
         "parity_max_abs_diff": parity,
         "latency_us": latency,
-        "training": {k: train_card.get(k) for k in ("algo", "env_id", "seed", "env_seeds", "eval_seed", "command",
-                                                    "cost", "machine", "final_eval", "config", "resumed_from")},
+        "training": _portable({k: train_card.get(k) for k in ("algo", "env_id", "seed", "env_seeds", "eval_seed",
+                                                              "command", "cost", "machine", "final_eval", "config",
+                                                              "resumed_from")}),
         **(extra_card or {}),
     }
     write_json_atomic(onnx_path.with_suffix(".json"), card)
     return card
+
+
+def _portable(training: dict[str, Any]) -> dict[str, Any]:
+    """The training record with the config path relative to the repository (no machine's absolute path)."""
+    from ..rig.presets import CONFIG_DIR  # noqa: PLC0415
+
+    config = dict(training.get("config") or {})
+    path = config.get("path")
+    if path and Path(path).is_absolute():
+        try:
+            config["path"] = Path(path).resolve().relative_to(CONFIG_DIR.parent).as_posix()
+        except ValueError:
+            pass  # outside the repository: keep it as given
+    return {**training, "config": config}
 
 
 def random_observations(n: int, vecnorm=None, seed: int = 0) -> np.ndarray:
