@@ -11,6 +11,8 @@ best of a few repeats (as :mod:`timeit` advises: the minimum is the least distur
 
 from __future__ import annotations
 
+from .machine import cpu_model
+
 import datetime as _dt
 import os
 import platform
@@ -30,15 +32,7 @@ DEFAULT_SIZES = tuple(4**k for k in range(8))  # 1, 4, ..., 16384
 
 def machine() -> dict[str, Any]:
     """CPU model (``/proc/cpuinfo``), ``nproc``, load average, library versions."""
-    model = platform.processor() or "unknown"
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    model = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
+    model = cpu_model()
     import mujoco  # noqa: PLC0415
 
     try:

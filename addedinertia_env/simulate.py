@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from agents.registry import DEFAULT_CONTROLLER
+
 from .experiment.protocol import ExperimentPlan
 from .experiment.runner import run_experiment
 from .record import RunRecord, write_record
@@ -22,7 +24,7 @@ OTHER_KINDS = {
 }
 
 
-def simulate_run(rig_params: RigParams, controller: Any = "feedforward-pd", plan: ExperimentPlan | None = None,
+def simulate_run(rig_params: RigParams, controller: Any = DEFAULT_CONTROLLER, plan: ExperimentPlan | None = None,
                  seed: int | np.random.SeedSequence = 0, kind: str = "reverse-symmetric",
                  run_id: str = "run") -> RunRecord:
     """One simulated experiment of ``kind`` on a fresh MuJoCo rig."""
@@ -40,7 +42,7 @@ def simulate_run(rig_params: RigParams, controller: Any = "feedforward-pd", plan
     return record
 
 
-def simulate_to_dir(rig_params: RigParams, out: str | Path, controller: str = "feedforward-pd",
+def simulate_to_dir(rig_params: RigParams, out: str | Path, controller: str = DEFAULT_CONTROLLER,
                     plan: ExperimentPlan | None = None, seed: int = 0, cycles: int = 1,
                     kind: str = "reverse-symmetric") -> list[Path]:
     """``cycles`` records (independent sensor noise each) written as ``run-NNNN.csv/.json``."""

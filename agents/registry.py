@@ -6,6 +6,10 @@ from __future__ import annotations
 import importlib
 from typing import Any, Callable
 
+# The controller used where none is named (demo, simulate, the accuracy table): the best
+# classical controller on realistic sensors in docs/LEADERBOARD.md.
+DEFAULT_CONTROLLER = "lqr"
+
 # name -> "module:attribute" of a zero-argument factory (usually the class).
 CLASSICAL: dict[str, str] = {
     "pd": "agents.feedforward_pd:PD",

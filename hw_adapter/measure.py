@@ -16,10 +16,11 @@ deployed on it in this process with ``feedforward-pd``:
 
 from __future__ import annotations
 
+from addedinertia_env.machine import cpu_model
+
 import argparse
 import json
 import os
-import platform
 import subprocess
 import tempfile
 import time
@@ -34,15 +35,6 @@ from .loopback import spawn_bench_server
 FAULTS = {"drop": "drop=1.0@{at}", "corrupt": "corrupt=1.0@{at}", "latency": "latency=300@{at}",
           "disconnect": "disconnect@{at}", "glitch": "glitch=0.2@{at}", "stuck_brake": "stuck_brake@{at}"}
 
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def one_run(name: str, faults: str, args, work: Path) -> dict:

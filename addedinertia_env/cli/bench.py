@@ -9,9 +9,10 @@
 
 from __future__ import annotations
 
+from ..machine import machine_line as _machine_line
+
 import datetime
 import os
-import platform
 import re
 import shlex
 import sys
@@ -99,15 +100,7 @@ def run_bench(args) -> int:
 
 
 def machine_line() -> str:
-    cpu = "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{os.cpu_count()} CPU core(s) (nproc), {cpu}, {platform.system()} {platform.release()}"
+    return _machine_line()
 
 
 def _preamble(rows: list[dict], files: list[str]) -> str:

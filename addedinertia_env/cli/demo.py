@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from agents.registry import DEFAULT_CONTROLLER
+
 import time
 from pathlib import Path
 
@@ -17,7 +19,7 @@ def register(sub) -> None:
     p = sub.add_parser("demo", help="simulate the default rig, identify lambda66, plot the run")
     p.add_argument("--out", default="out/demo")
     p.add_argument("--rig", default="wigley-2m")
-    p.add_argument("--controller", default="feedforward-pd")
+    p.add_argument("--controller", default=DEFAULT_CONTROLLER)
     p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)

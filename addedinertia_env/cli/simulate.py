@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from agents.registry import DEFAULT_CONTROLLER
+
 from pathlib import Path
 
 from ..rig.effects import DIAGNOSIS_WORDS
@@ -13,7 +15,7 @@ from .common import BadInput, emit_json, info, non_negative_float, non_negative_
 def register(sub) -> None:
     p = sub.add_parser("simulate", help="simulate experiments and write run records")
     p.add_argument("--rig", default="wigley-2m", help="rig preset name or YAML path")
-    p.add_argument("--controller", default="feedforward-pd", help="controller name (see docs/CONTROLLERS.md)")
+    p.add_argument("--controller", default=DEFAULT_CONTROLLER, help="controller name (see docs/CONTROLLERS.md)")
     p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--hold", type=non_negative_float, default=None, help="brake hold at the reversal, s")
     p.add_argument("--alpha", type=float, default=None, help="twist before release, rad")

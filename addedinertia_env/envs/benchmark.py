@@ -10,12 +10,11 @@ is timed too. Numbers are medians over ``--trials`` runs.
 
 from __future__ import annotations
 
+from ..machine import machine_info
+
 import argparse
 import json
-import os
-import platform
 import statistics
-import sys
 import time
 
 import numpy as np
@@ -76,9 +75,7 @@ def main(argv: list[str] | None = None) -> int:
                               "us_per_sample": 1e6 * per_sample,
                               "overhead_us_per_agent_step": 1e6 * (per_step - r * bare),
                               "reset_s": reset}
-    cpu = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name")),
-               platform.processor()) if os.path.exists("/proc/cpuinfo") else platform.processor()
-    out["machine"] = {"nproc": os.cpu_count(), "cpu": cpu, "python": sys.version.split()[0]}
+    out["machine"] = machine_info()
     print(json.dumps(out, indent=1))
     return 0
 

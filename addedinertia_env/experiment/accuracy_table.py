@@ -8,10 +8,10 @@
 ``realistic`` sensor set (physics.md section 7); every other quantity (drag coefficient,
 linear damping, period, flywheel, torque constant, twist, hold) is drawn from
 ``configs/randomization.yaml``. Three experiments run on three fresh rigs with
-independent sensor noise: the reverse-symmetric one under the controller (default
-``feedforward-pd``) for the energy method, a free decay, and a forced oscillation, each
-with the scenario's twist ``alpha``. Each method gets one record and sees no ``truth``;
-only the scoring here reads it.
+independent sensor noise: the reverse-symmetric one under the controller (default: the
+project's default, ``agents.registry.DEFAULT_CONTROLLER``) for the energy method, a free
+decay, and a forced oscillation, each with the scenario's twist ``alpha``. Each method
+gets one record and sees no ``truth``; only the scoring here reads it.
 
 The Markdown written names the command, the date, the machine, the per-method summary
 (median and 90th-percentile ``|error|``, coverage of the 95 % interval, mean interval
@@ -24,10 +24,13 @@ import argparse
 import datetime as dt
 import math
 import os
-import platform
 import sys
 import tempfile
 import time
+
+from agents.registry import DEFAULT_CONTROLLER
+
+from ..machine import machine_line
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -80,7 +83,7 @@ def score(estimate: float, ci95: tuple[float, float], truth: float) -> Score:
                  covered=bool(lo <= truth <= hi))
 
 
-def run_hull(index: int, ratio: float, seed: int, controller: str = "feedforward-pd",
+def run_hull(index: int, ratio: float, seed: int, controller: str = DEFAULT_CONTROLLER,
              methods=METHODS, preset: str = "wigley-2m") -> HullRow:
     """All methods on one hull; an estimator's or experiment's refusal is recorded, not raised."""
     from ..cli.common import BAD_INPUT  # noqa: PLC0415
@@ -117,15 +120,7 @@ def summary(rows: list[HullRow], method: str) -> dict[str, Any]:
 
 
 def machine() -> str:
-    model = "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{os.cpu_count()} CPU cores (nproc), {model}, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+    return machine_line()
 
 
 def _pct(x: float, digits: int = 2) -> str:
@@ -218,7 +213,7 @@ def write_atomic(path: Path, text: str) -> None:
         raise
 
 
-def build(hulls: int, seed: int = DEFAULT_SEED, controller: str = "feedforward-pd", methods=METHODS,
+def build(hulls: int, seed: int = DEFAULT_SEED, controller: str = DEFAULT_CONTROLLER, methods=METHODS,
           progress: bool = True) -> list[HullRow]:
     from tqdm import tqdm  # noqa: PLC0415
 
@@ -234,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hulls", type=int, default=24, help="number of simulated hulls (>= 2)")
     ap.add_argument("--out", type=Path, default=Path("docs/ACCURACY.md"), help="Markdown file to write")
     ap.add_argument("--seed", type=int, default=DEFAULT_SEED, help="scenario seed of hull 0")
-    ap.add_argument("--controller", default="feedforward-pd", help="controller for the energy method's reverse stroke")
+    ap.add_argument("--controller", default=DEFAULT_CONTROLLER, help="controller for the energy method's reverse stroke")
     args = ap.parse_args(argv)
     if args.hulls < 2:
         ap.error(f"--hulls {args.hulls}: expected at least 2")
@@ -243,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
     command = f"{COMMAND} --hulls {args.hulls} --out {args.out}"
     if args.seed != DEFAULT_SEED:
         command += f" --seed {args.seed}"
-    if args.controller != "feedforward-pd":
+    if args.controller != DEFAULT_CONTROLLER:
         command += f" --controller {args.controller}"
     info = {"command": command, "date": dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
             "machine": machine(), "wall_s": time.time() - t0, "cpu_s": time.process_time() - c0,

@@ -100,6 +100,9 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
         raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
     i_offset = float(np.mean(rec["i"][free]))  # open circuit on the free stroke: true i = 0
     i = rec["i"] - i_offset
+    # Voltage offset: on the open-circuit free stroke the terminals show the back-EMF,
+    # u = k_e Omega + offset; the intercept of that line is the sensor's offset.
+    u_offset = _voltage_offset(t[free], psi[free], rec["u"][free]) if work == "electric" else 0.0
     phi_s, psi_s = smooth_angle(t, phi), smooth_angle(t, psi)  # for work increments only
     k2 = free.stop - 1  # last free sample: the brake is set (t2)
     k3 = (hold.stop - 1) if hold is not None else rev.start - 1  # last braked sample (t3)
@@ -132,9 +135,7 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
         if work == "current":
             A = k_t * float(np.sum(i_mid * dpsi))
         else:
-            u_mid = 0.5 * (rec["u"][s][1:] + rec["u"][s][:-1])
-            dt = np.diff(t[s])
-            A = float(np.sum(u_mid * i_mid * dt) - R * np.sum(i_mid**2 * dt) - 0.5 * L * (i[b] ** 2 - i[a] ** 2))
+            A = _electric_work(t[s], rec["u"][s] - u_offset, i[s], R, L)
         noise_i = float(np.std(rec["i"][free]))
         sigma = k_t * noise_i * float(np.sqrt(np.sum(dpsi**2) / 2.0)) + CURRENT_GAIN_UNCERTAINTY * abs(A)
         return A, sigma
@@ -267,3 +268,34 @@ def _dissipation_mismatch(t, phi, k1, k2, k3, k4, law, direction) -> tuple[float
 
     dW = float(np.trapezoid(D(vr) - D(vf), direction * grid)) if len(grid) > 1 else 0.0
     return dW, 0.5 * abs(dW)
+
+
+def _voltage_offset(t: np.ndarray, psi: np.ndarray, u: np.ndarray) -> float:
+    """Intercept of the terminal voltage against the flywheel rate on an open-circuit stroke, V."""
+    omega = np.gradient(smooth_angle(t, psi), t)
+    X = np.column_stack([np.ones_like(omega), omega])
+    coef, *_ = np.linalg.lstsq(X, u, rcond=None)
+    return float(coef[0])
+
+
+def _electric_work(t: np.ndarray, u: np.ndarray, i: np.ndarray, R: float, L: float) -> float:
+    """Electric energy minus ohmic loss and the change of magnetic energy, J (the patent's form).
+
+    A drive holds its terminal voltage over each sample, so the current inside a sample is
+    the exponential ``L di/dt = u - R i - k_e Omega`` with ``tau = L / R``; trapezoids on
+    ``u i`` and ``R i^2`` are off by percents when ``tau`` is near the sample period. Here each
+    sample's exponential is rebuilt from its two end currents, and the voltage recorded at
+    a sample's end is taken as the one held over it.
+    """
+    h = np.diff(t)
+    tau = L / R
+    a = np.exp(-h / tau)
+    i0, i1 = i[:-1], i[1:]
+    i_ss = (i1 - a * i0) / (1.0 - a)
+    d = i0 - i_ss
+    mean = i_ss + d * tau / h * (1.0 - a)
+    mean_sq = i_ss**2 + 2.0 * i_ss * d * tau / h * (1.0 - a) + d**2 * tau / (2.0 * h) * (1.0 - a * a)
+    electric = float(np.sum(u[1:] * mean * h))
+    ohmic = R * float(np.sum(mean_sq * h))
+    magnetic = 0.5 * L * (i[-1] ** 2 - i[0] ** 2)
+    return electric - ohmic - magnetic

@@ -17,8 +17,9 @@ The resumed run is not bit-identical to an uninterrupted one (environment RNGs r
 
 from __future__ import annotations
 
+from ..machine import machine_info
+
 import json
-import platform
 import re
 from pathlib import Path
 from typing import Any
@@ -166,14 +167,4 @@ def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]
 
 
 def machine() -> dict[str, Any]:
-    import os  # noqa: PLC0415
-
-    cpu = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"nproc": os.cpu_count(), "cpu": cpu, "python": platform.python_version()}
+    return machine_info()
