@@ -84,14 +84,17 @@ def score(estimate: float, ci95: tuple[float, float], truth: float) -> Score:
 
 
 def run_hull(index: int, ratio: float, seed: int, controller: str = DEFAULT_CONTROLLER,
-             methods=METHODS, preset: str = "wigley-2m") -> HullRow:
+             methods=METHODS, preset: str = "wigley-2m", effect: str | None = None) -> HullRow:
     """All methods on one hull; an estimator's or experiment's refusal is recorded, not raised."""
     from ..cli.common import BAD_INPUT  # noqa: PLC0415
     from ..identify import identify  # noqa: PLC0415
     from ..scenarios import make_scenario  # noqa: PLC0415
     from ..simulate import simulate_run  # noqa: PLC0415
 
-    sc = make_scenario(seed, preset=preset, fixed={"lambda_ratio": ratio, "sensor_quality": "realistic"})
+    from ..simulate import effects_from_name  # noqa: PLC0415
+
+    sc = make_scenario(seed, preset=preset, fixed={"lambda_ratio": ratio, "sensor_quality": "realistic"},
+                       effects=effects_from_name(effect, seed))
     hull = sc.rig.hull
     row = HullRow(index=index, seed=seed, lambda_ratio=ratio, lambda66=hull.lambda66, J_hull=hull.J_hull,
                   period_s=sc.rig.natural_period, b2=hull.b2, alpha=sc.plan.alpha, hold_s=sc.plan.hold_s)
@@ -140,7 +143,9 @@ def render(rows: list[HullRow], info: dict[str, Any]) -> str:
            f"scenario seeds {info['seed']}..{info['seed'] + len(rows) - 1} (`addedinertia_env.scenarios.make_scenario`, "
            "preset `wigley-2m`, other quantities drawn from `configs/randomization.yaml`).",
            "- Sensors: `realistic` (physics.md section 7: 17-bit hull and 14-bit motor encoders, current noise "
-           "10 mA rms, offset 3 mA, gain error 0.5 %, 1 kHz). No hidden effects.",
+           "10 mA rms, offset 3 mA, gain error 0.5 %, 1 kHz). "
+           + (f"Hidden effect in every hull: `{info['effect']}` (size drawn per hull from "
+              "`rig/effects.py` REALISTIC_RANGES)." if info.get("effect") else "No hidden effects."),
            f"- Controller for the energy method's reverse stroke: `{info['controller']}`.",
            "- One record per method and hull; errors relative to the true lambda66.", "",
            "## Summary", "",
@@ -214,13 +219,13 @@ def write_atomic(path: Path, text: str) -> None:
 
 
 def build(hulls: int, seed: int = DEFAULT_SEED, controller: str = DEFAULT_CONTROLLER, methods=METHODS,
-          progress: bool = True) -> list[HullRow]:
+          progress: bool = True, effect: str | None = None) -> list[HullRow]:
     from tqdm import tqdm  # noqa: PLC0415
 
     rows = []
     ratios = lambda_ratios(hulls)
     for k in tqdm(range(hulls), desc="hulls", unit="hull", disable=not progress, file=sys.stderr):
-        rows.append(run_hull(k, ratios[k], seed + k, controller=controller, methods=methods))
+        rows.append(run_hull(k, ratios[k], seed + k, controller=controller, methods=methods, effect=effect))
     return rows
 
 
@@ -230,19 +235,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("docs/ACCURACY.md"), help="Markdown file to write")
     ap.add_argument("--seed", type=int, default=DEFAULT_SEED, help="scenario seed of hull 0")
     ap.add_argument("--controller", default=DEFAULT_CONTROLLER, help="controller for the energy method's reverse stroke")
+    ap.add_argument("--effect", default=None, help="hide one effect of run-record.md in every hull (seeded size)")
     args = ap.parse_args(argv)
     if args.hulls < 2:
         ap.error(f"--hulls {args.hulls}: expected at least 2")
     t0, c0 = time.time(), time.process_time()
-    rows = build(args.hulls, args.seed, args.controller)
+    rows = build(args.hulls, args.seed, args.controller, effect=args.effect)
     command = f"{COMMAND} --hulls {args.hulls} --out {args.out}"
     if args.seed != DEFAULT_SEED:
         command += f" --seed {args.seed}"
     if args.controller != DEFAULT_CONTROLLER:
         command += f" --controller {args.controller}"
+    if args.effect:
+        command += f" --effect {args.effect}"
     info = {"command": command, "date": dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
             "machine": machine(), "wall_s": time.time() - t0, "cpu_s": time.process_time() - c0,
-            "seed": args.seed, "controller": args.controller}
+            "seed": args.seed, "controller": args.controller, "effect": args.effect}
     write_atomic(args.out, render(rows, info))
     for m in METHODS:
         s = summary(rows, m)
