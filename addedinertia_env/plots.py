@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_target
 from .record import RunRecord
 
 PHASE_COLOURS = {"idle": "0.85", "free": "#cfe8ff", "hold": "#ffe7b3", "reverse": "#d6f5d6"}
@@ -19,16 +19,11 @@ def plot_run(record: RunRecord, path: str | os.PathLike, title: str = "") -> Pat
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
+        with atomic_target(path, suffix=".png") as tmp:
+            fig.savefig(tmp, dpi=110)
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return path
 
 

@@ -16,12 +16,13 @@ import io
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .atomic import atomic_write_texts
 
 FORMAT = "addedinertia-run/1"
 PHASES = ("free", "hold", "reverse", "idle")
@@ -105,31 +106,7 @@ class RunRecord:
 
 # --- writing -----------------------------------------------------------------------
 
-def _atomic_write_texts(files: list[tuple[Path, str]]) -> None:
-    """Write every ``(path, text)`` to a temporary file beside it, then rename them all.
-
-    Nothing under a final name changes until every temporary file is complete and on
-    disk, so a crash while writing (disk full, killed process) leaves the older files
-    there intact; only the renames themselves, which do not write data, come after.
-    """
-    temps: list[tuple[str, Path]] = []
-    try:
-        for path, text in files:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-            temps.append((tmp, path))
-            with os.fdopen(fd, "w", newline="") as f:
-                f.write(text)
-                f.flush()
-                os.fsync(f.fileno())
-        while temps:
-            tmp, path = temps[0]
-            os.replace(tmp, path)
-            temps.pop(0)
-    finally:
-        for tmp, _ in temps:  # only left over after an error
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+_atomic_write_texts = atomic_write_texts  # the CSV and the JSON are replaced together
 
 
 def _atomic_write_text(path: Path, text: str) -> None:

@@ -12,32 +12,17 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import time
 from pathlib import Path
 from typing import Any, Callable
 
+from addedinertia_env.atomic import atomic_write_text
 from addedinertia_env.record import FORMAT
 from addedinertia_env.rig.motor import MotorCommand
 from addedinertia_env.rig.sensors import Reading
 
 COLUMNS = ("t", "phase", "phi", "psi", "u", "i", "i_cmd", "u_cmd", "brake")
 
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    """Temporary file in the same folder, then ``os.replace``: whole or not at all."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def json_safe(x: Any) -> Any:
@@ -73,7 +58,7 @@ class IncrementalRecord:
         self.csv_path.parent.mkdir(parents=True, exist_ok=True)
         meta = {"format": FORMAT, "run_id": self.run_id, **meta}
         meta.setdefault("experiment", {})["status"] = "running"
-        _atomic_write_text(self.json_path, json.dumps(json_safe(meta), indent=2) + "\n")
+        atomic_write_text(self.json_path, json.dumps(json_safe(meta), indent=2) + "\n")
         self._file = open(self.csv_path, "w", newline="")  # noqa: SIM115 - kept open for the run
         self._file.write(",".join(COLUMNS) + "\n")
         self._file.flush()
@@ -103,5 +88,5 @@ class IncrementalRecord:
             self._file = None
         meta = {"format": FORMAT, "run_id": self.run_id, **meta}
         meta.setdefault("experiment", {})["status"] = status
-        _atomic_write_text(self.json_path, json.dumps(json_safe(meta), indent=2) + "\n")
+        atomic_write_text(self.json_path, json.dumps(json_safe(meta), indent=2) + "\n")
         return self.csv_path

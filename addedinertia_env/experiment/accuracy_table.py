@@ -23,13 +23,12 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import math
-import os
 import sys
-import tempfile
 import time
 
 from agents.registry import DEFAULT_CONTROLLER
 
+from ..atomic import atomic_write_text
 from ..machine import machine_line
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -206,16 +205,7 @@ All three use only the record's samples and its `rig` and `experiment` blocks; t
 
 
 def write_atomic(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_write_text(path, text)
 
 
 def build(hulls: int, seed: int = DEFAULT_SEED, controller: str = DEFAULT_CONTROLLER, methods=METHODS,

@@ -19,15 +19,14 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime as dt
-import os
 import sys
-import tempfile
 
 import numpy as np
 from tqdm import tqdm
 
 from agents.registry import DEFAULT_CONTROLLER
 
+from ..atomic import atomic_write_text
 from ..machine import machine_line
 from ..rig.params import SensorParams
 from ..scenarios import make_scenario
@@ -104,10 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = dt.datetime.now().timestamp()
     errors = measure(args.scenarios)
     text = render(errors, args.scenarios, dt.datetime.now().timestamp() - t0)
-    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(args.out)), suffix=".md")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, args.out)
+    atomic_write_text(args.out, text)
     print(text)
     return 0
 
