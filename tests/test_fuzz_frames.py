@@ -18,7 +18,9 @@ from hypothesis import strategies as st
 from hw_adapter import messages as m
 from hw_adapter.framing import HEADER, MAX_FRAME, MAX_PAYLOAD, SYNC, FrameParser, encode_frame
 
-FUZZ = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomize: the same examples on every run, so CI is reproducible. To explore further,
+# run these tests by hand with derandomize off and more examples.
+FUZZ = settings(max_examples=100, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 
 messages = st.one_of(
     st.builds(m.Command, st.sampled_from(["passive", "current", "voltage"]),
@@ -103,9 +105,18 @@ def test_truncated_frames_wait_then_resync(msg, cut):
     cut = min(cut, len(whole) - 1)
     parser = FrameParser()
     assert parser.feed(whole[:cut]) == []
-    frames = parser.feed(frame_bytes(msg, 2))
-    # The truncated frame's CRC fails against the new bytes; the new frame is still found.
-    assert [f.seq for f in frames][-1:] == [2]
+    second = frame_bytes(msg, 2)
+    frames = parser.feed(second)
+    missing = len(whole) - cut
+    if whole[cut:] == second[:missing]:
+        # The next frame's first bytes happen to equal the truncated frame's missing tail
+        # (its last CRC byte equal to the sync byte: odds 1 in 256 per byte): the bytes
+        # received really are a valid frame 1, and frame 2 lost its start. No parser
+        # can tell; hypothesis found this case.
+        assert [f.seq for f in frames][:1] == [1]
+    else:
+        # The truncated frame's CRC fails against the new bytes; the new frame is still found.
+        assert [f.seq for f in frames][-1:] == [2]
 
 
 @FUZZ
