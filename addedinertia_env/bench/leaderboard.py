@@ -144,11 +144,48 @@ def _training_cost(e: dict) -> str:
     return ", ".join(p for p in parts if p)
 
 
+def verdict(entries: list[dict], baseline: str = "pd", target: float = 0.01) -> list[str]:
+    """Sentences computed from the table: the best classical controller against the target
+    and the baseline, and whether any learned policy beats it (non-overlapping 95 % CIs of
+    the median count as a difference; overlapping ones do not)."""
+    classical = [e for e in entries if e.get("train_env_steps") is None and e.get("train_cpu_minutes") is None]
+    learned = [e for e in entries if e not in classical]
+    out: list[str] = []
+    if classical:
+        best = min(classical, key=lambda e: (e["median_abs_error"], e["iqm_abs_error"]))
+        meets = "meets" if best["median_abs_error"] <= target else "does not meet"
+        out.append(f"- Best classical controller: `{best['controller']}`, median |error| "
+                   f"{_pct(best['median_abs_error'])}; it {meets} the {100 * target:.0f} % target. "
+                   + ("Every classical controller meets it." if all(e["median_abs_error"] <= target for e in classical)
+                      else "Not every classical controller meets it."))
+        base = next((e for e in entries if e["controller"] == baseline), None)
+        if base is not None and base is not best:
+            out.append(f"- Against the bare `{baseline}` baseline ({_pct(base['median_abs_error'])}): "
+                       + _compare(best, base) + ".")
+        for e in learned:
+            out.append(f"- Learned `{e['controller']}` ({_pct(e['median_abs_error'])}, trained with "
+                       f"{_training_cost(e)}) against `{best['controller']}`: " + _compare(e, best) + ".")
+    return out
+
+
+def _compare(a: dict, b: dict) -> str:
+    (alo, ahi), (blo, bhi) = a["ci95_median"], b["ci95_median"]
+    if ahi < blo:
+        return f"`{a['controller']}` is better, the 95 % intervals of the medians do not overlap"
+    if bhi < alo:
+        return f"`{a['controller']}` is worse, the 95 % intervals of the medians do not overlap"
+    return ("no difference can be claimed: the 95 % intervals of the medians overlap "
+            f"({_pct(alo)} .. {_pct(ahi)} against {_pct(blo)} .. {_pct(bhi)})")
+
+
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,
                     preamble: str = "") -> str:
     lines = [preamble.rstrip(), ""] if preamble else []
     lines += ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(_cells(e)) + " |" for e in entries]
+    said = verdict(entries)
+    if said:
+        lines += ["", "## Verdict (computed from the table above)", ""] + said
     for title, path in (figures or {}).items():
         rel = path.relative_to(relative_to) if relative_to else path
         lines += ["", f"![{title}]({rel.as_posix()})"]
