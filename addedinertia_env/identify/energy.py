@@ -51,6 +51,8 @@ class Interval:
     w1r: float
     terms: dict[str, float] = field(default_factory=dict)
     rejected: str = ""
+    sigma_independent: float = float("inf")  # noise and rate fits: independent between boundary angles
+    sigma_common: float = 0.0  # current-sensor gain and dissipation-mismatch model: shared by all angles
 
 
 def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=DEFAULT_FRACTIONS,
@@ -68,16 +70,19 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
     by_run: dict[str, list[Interval]] = {}
     for iv in good:
         by_run.setdefault(iv.run, []).append(iv)
-    # Intervals of one run share most of their data: combine them to one value per run
-    # whose uncertainty is the typical interval's, plus their spread; then pool runs.
+    # Within a run, the boundary angles lie ~100 ms apart, so their rate fits (+-30 ms) and
+    # the current noise over their different stretches are independent: those parts average
+    # down, widened by the Birge ratio when the angles scatter more than they allow. The
+    # current-sensor gain and the dissipation-mismatch model act on every angle alike and
+    # do not average down. Then runs are pooled.
     run_values, run_sigmas = [], []
     for ivs in by_run.values():
         lam = np.array([iv.lambda66 for iv in ivs])
-        sig = np.array([iv.sigma for iv in ivs])
-        wts = 1.0 / sig**2
-        run_values.append(float(np.sum(wts * lam) / np.sum(wts)))
-        spread = float(np.std(lam, ddof=1)) if len(lam) > 1 else 0.0
-        run_sigmas.append(float(np.sqrt(np.median(sig) ** 2 + spread**2)))
+        s_ind = np.array([iv.sigma_independent for iv in ivs])
+        value, lo, _ = pooled_interval(lam, s_ind)
+        s_common = float(np.median([iv.sigma_common for iv in ivs]))
+        run_values.append(value)
+        run_sigmas.append(float(np.hypot((value - lo) / 1.96, s_common)))
     value, lo, hi = pooled_interval(np.array(run_values), np.array(run_sigmas))
     return Result(method="energy", lambda66=value, ci95=(lo, hi), n_intervals=len(good),
                   details={"work": work, "asymmetry_correction": asymmetry_correction, "n_runs": len(by_run),
@@ -119,7 +124,7 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
         return 0.5 * J_f * (rate(k, phi) + rate(k, psi)) ** 2
 
     def motor_work(a: int, b: int) -> tuple[float, float]:
-        """Work on [t_a, t_b] (sample indices), and its 1-sigma noise, J."""
+        """Work on [t_a, t_b] (sample indices), and its 1-sigma noise from the current noise, J."""
         s = slice(a, b + 1)
         i_mid = 0.5 * (i[s][1:] + i[s][:-1])
         dpsi = np.diff(psi_s[s])
@@ -130,15 +135,13 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
             torque = k_t * i_mid - (f_visc * omega + f_coul * np.sign(omega))
             A = -float(np.sum(torque * dphi))
             noise_i = float(np.std(rec["i"][free]))
-            sigma = k_t * noise_i * float(np.sqrt(np.sum(dphi**2) / 2.0)) + CURRENT_GAIN_UNCERTAINTY * abs(A)
-            return A, sigma
+            return A, k_t * noise_i * float(np.sqrt(np.sum(dphi**2) / 2.0))
         if work == "current":
             A = k_t * float(np.sum(i_mid * dpsi))
         else:
             A = _electric_work(t[s], rec["u"][s] - u_offset, i[s], R, L)
         noise_i = float(np.std(rec["i"][free]))
-        sigma = k_t * noise_i * float(np.sqrt(np.sum(dpsi**2) / 2.0)) + CURRENT_GAIN_UNCERTAINTY * abs(A)
-        return A, sigma
+        return A, k_t * noise_i * float(np.sqrt(np.sum(dpsi**2) / 2.0))
 
     def bearing_work(a: int, b: int) -> float:
         s = slice(a, b + 1)
@@ -176,13 +179,16 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
         denom = 0.5 * (w1f**2 + w1r**2)
         J_total = numerator / denom
         lam = J_total - J_h
-        # Uncertainty: work noise and gain, rate fits, dissipation-mismatch model.
-        s_num = float(np.sqrt(sA_f**2 + sA_r**2 + s_dW**2))
+        # Uncertainty, split by what the boundary angles share (see identify_energy).
+        s_gain = CURRENT_GAIN_UNCERTAINTY * float(np.hypot(A_f, A_r))
         s_den = float(np.sqrt((w1f * sw1f) ** 2 + (w1r * sw1r) ** 2))
-        sigma = float(np.sqrt((s_num / denom) ** 2 + (J_total * s_den / denom) ** 2))
+        s_independent = float(np.hypot(np.hypot(sA_f, sA_r) / denom, J_total * s_den / denom))
+        s_common = float(np.hypot(s_gain, s_dW)) / denom
+        sigma = float(np.hypot(s_independent, s_common))
         sat = float(np.mean(np.abs(rec["i_cmd"][k3:k4 + 1]) >= 0.999 * float(rig.get("i_max", np.inf)))) \
             if "i_cmd" in rec.samples else 0.0
         iv.lambda66, iv.sigma, iv.w1f, iv.w1r = float(lam), sigma, float(w1f), float(w1r)
+        iv.sigma_independent, iv.sigma_common = s_independent, s_common
         iv.terms = {"spring": spring, "A_f": A_f, "A_r": A_r, "B_f": B_f, "B_r": B_r, "K1": K1, "K2": K2,
                     "K3": K3, "K4": K4, "hull_rest": hull_rest, "dW": dW, "saturated_frac": sat,
                     "t1": t1, "t4": t4, "speed_mismatch": abs(abs(w1r) - abs(w1f)) / max(abs(w1f), 1e-12)}
