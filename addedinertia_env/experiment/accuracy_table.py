@@ -181,7 +181,10 @@ NOTES = """## How each method works here, and why its interval is what it is
   dissipation cancels only as far as the controller mirrors the stroke, and the
   mismatch is estimated from a damping law fitted to the forward stroke. Its interval
   holds the work noise, the current-sensor gain (0.5 %), the rate fits at the boundary
-  angles and half of the dissipation-mismatch correction.
+  angles and half of the dissipation-mismatch correction; the parts that are
+  independent between boundary angles (noise, rate fits) average down over the angles,
+  widened by the Birge ratio when the angles scatter more than that, the shared parts
+  (sensor gain, mismatch model) do not.
 - **free-decay** (textbook, source 004): `addedinertia_env/identify/free_decay.py`. Periods
   and half-swing decrements from the extrema of a passive decay. Two things a plain
   textbook reading gets wrong on this rig are handled from the record itself: the
