@@ -22,11 +22,10 @@ from typing import Any
 import numpy as np
 
 from addedinertia_env.experiment.protocol import Experiment, ExperimentError
-from addedinertia_env.experiment.runner import controller_context
+from addedinertia_env.experiment.runner import drive
 from addedinertia_env.identify import IdentificationError, identify
 from addedinertia_env.record import read_record
 from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.task import ReverseStrokeTask
 
 from . import messages as m
 from .bench_rig import BenchRig
@@ -212,12 +211,7 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
 def _run(exp: Experiment, rig: BenchRig, controller: Any) -> None:
     """The loop of ``run_experiment``, on the bench."""
     exp.start()
-    task = ReverseStrokeTask(i_max=float(exp.known["i_max"]))
-    if hasattr(controller, "reset"):
-        controller.reset(controller_context(exp))
-    while exp.needs_control:
-        action, _ = controller.predict(task.observe(exp), deterministic=True)
-        exp.step(task.command(action))
+    drive(exp, controller)
     rig.disarm()
 
 

@@ -29,7 +29,7 @@ from typing import Any
 from ..record import RunRecord
 from ..rig.motor import MotorCommand
 from .filters import RateEstimator
-from .free_decay import PASSIVE, SampleLog
+from .sample_log import PASSIVE, SampleLog
 from .protocol import ExperimentError
 
 

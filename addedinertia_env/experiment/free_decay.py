@@ -19,15 +19,11 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
-import numpy as np
 
-from ..record import FORMAT, RunRecord
-from ..rig.motor import MotorCommand
-from ..rig.sensors import Reading
+from ..record import RunRecord
 from .protocol import ExperimentError
+from .sample_log import PASSIVE, SampleLog
 
-PASSIVE = MotorCommand("passive", 0.0)
-LOG_COLUMNS = ("t", "phase", "phi", "psi", "u", "i", "i_cmd", "u_cmd", "brake")
 
 
 @dataclass(frozen=True)
@@ -58,37 +54,6 @@ class FreeDecayPlan:
         if isinstance(plan, cls):
             return plan
         return cls(alpha=float(getattr(plan, "alpha", cls.alpha)))
-
-
-class SampleLog:
-    """Columns of a run record, appended one reading at a time."""
-
-    def __init__(self) -> None:
-        self.columns: dict[str, list] = {k: [] for k in LOG_COLUMNS}
-        self.last: Reading | None = None
-
-    def add(self, r: Reading, cmd: MotorCommand, phase: str) -> Reading:
-        c = self.columns
-        c["t"].append(r.t)
-        c["phase"].append(phase)
-        c["phi"].append(r.phi)
-        c["psi"].append(r.psi)
-        c["u"].append(r.u)
-        c["i"].append(r.i)
-        c["brake"].append(1.0 if r.brake else 0.0)
-        c["i_cmd"].append(cmd.value if cmd.mode == "current" else 0.0)
-        c["u_cmd"].append(cmd.value if cmd.mode == "voltage" else 0.0)
-        self.last = r
-        return r
-
-    def record(self, rig: Any, experiment: dict[str, Any], run_id: str) -> RunRecord:
-        samples = {k: np.asarray(v, dtype=str if k == "phase" else float) for k, v in self.columns.items()}
-        meta: dict[str, Any] = {"format": FORMAT, "run_id": run_id, "source": getattr(rig, "source", "sim"),
-                                "rig": rig.known, "experiment": experiment}
-        truth = getattr(rig, "truth", None)
-        if callable(truth) and truth() is not None:
-            meta["truth"] = truth()
-        return RunRecord(samples=samples, meta=meta)
 
 
 def run_free_decay(rig: Any, plan: Any = None, run_id: str = "run") -> RunRecord:

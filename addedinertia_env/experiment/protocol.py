@@ -24,13 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from ..record import FORMAT, RunRecord
+from ..record import RunRecord
 from ..rig.motor import MotorCommand
 from ..rig.sensors import Reading
 from .filters import RateEstimator
 from .reference import MirroredReference, StrokeLaw, fit_stroke
+from .sample_log import PASSIVE, SampleLog
 
-PASSIVE = MotorCommand("passive", 0.0)
 
 
 @dataclass(frozen=True)
@@ -69,7 +69,7 @@ class Experiment:
         self.known = rig.known
         self.phase = "idle"
         self.done = False
-        self._log: dict[str, list] = {k: [] for k in ("t", "phase", "phi", "psi", "u", "i", "i_cmd", "u_cmd", "brake")}
+        self.log = SampleLog()
         self.law: StrokeLaw | None = None
         self.reference: MirroredReference | None = None
         self.inertia_prior = float("nan")
@@ -108,8 +108,8 @@ class Experiment:
             raise ExperimentError(f"the hull did not stop within {p.max_free_s} s of release")
         self.rig.set_brake(True)
         self.t_brake = self.last.t
-        t = np.asarray(self._log["t"])
-        phi = np.asarray(self._log["phi"])
+        t = np.asarray(self.log.columns["t"])
+        phi = np.asarray(self.log.columns["phi"])
         self.law = fit_stroke(t, phi, t_cross - p.lead_s, self.t_brake)
         self.inertia_prior = self.law.inertia_prior(float(self.known["c_torsion"]), phi_n)
         self.reference = MirroredReference(self.law, t_begin=self.t_brake + p.hold_s)
@@ -119,8 +119,8 @@ class Experiment:
 
     def _stop_due(self, window: int) -> bool:
         """Predict the stop from a quadratic over the last ``window`` samples; true when due."""
-        t = np.asarray(self._log["t"][-window:])
-        phi = np.asarray(self._log["phi"][-window:])
+        t = self.log.tail("t", window)
+        phi = self.log.tail("phi", window)
         tt = t - t[-1]
         c2, c1, _ = np.polyfit(tt, phi, 2)
         if c2 == 0.0:
@@ -161,31 +161,15 @@ class Experiment:
     def _log_reading(self, r: Reading, cmd: MotorCommand | None, phase: str = "idle") -> None:
         if self.last is not None and phase in ("hold", "reverse"):
             self.electric_energy += abs(r.u * r.i) * (r.t - self.last.t)
-        self.last = r
-        log = self._log
-        log["t"].append(r.t)
-        log["phase"].append(phase)
-        log["phi"].append(r.phi)
-        log["psi"].append(r.psi)
-        log["u"].append(r.u)
-        log["i"].append(r.i)
-        log["brake"].append(1.0 if r.brake else 0.0)
-        log["i_cmd"].append(cmd.value if cmd is not None and cmd.mode == "current" else 0.0)
-        log["u_cmd"].append(cmd.value if cmd is not None and cmd.mode == "voltage" else 0.0)
+        self.last = self.log.add(r, cmd, phase)
         self.hull_rate.update(r.phi)
         self.flywheel_rate.update(r.psi)
 
     def record(self, run_id: str = "run", extra_experiment: dict | None = None) -> RunRecord:
         """The run record so far (complete once ``done``)."""
-        samples = {k: np.asarray(v, dtype=str if k == "phase" else float) for k, v in self._log.items()}
         experiment = {"kind": "reverse-symmetric", **asdict(self.plan),
                       "t_release": self.t_release, "t_brake": self.t_brake}
         if self.law is not None:
             experiment["stroke_fit_rms_rad"] = self.law.fit_rms
         experiment.update(extra_experiment or {})
-        meta: dict[str, Any] = {"format": FORMAT, "run_id": run_id, "source": getattr(self.rig, "source", "sim"),
-                                "rig": self.known, "experiment": experiment}
-        truth = getattr(self.rig, "truth", None)
-        if callable(truth) and truth() is not None:
-            meta["truth"] = truth()
-        return RunRecord(samples=samples, meta=meta)
+        return self.log.record(self.rig, experiment, run_id)

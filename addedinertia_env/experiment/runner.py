@@ -26,10 +26,19 @@ def run_experiment(rig: Any, controller: Any, plan: ExperimentPlan | None = None
     """
     exp = Experiment(rig, plan)
     exp.start()
+    drive(exp, controller)
+    return exp.record(run_id)
+
+
+def drive(exp: Experiment, controller: Any) -> None:
+    """The controlled part of a started experiment: hold and reverse stroke under ``controller``.
+
+    The simulator (:func:`run_experiment`), the environment's classical baselines and the
+    bench (``hw_adapter.deploy``) all run this one loop.
+    """
     task = ReverseStrokeTask(i_max=float(exp.known["i_max"]))
     if hasattr(controller, "reset"):
         controller.reset(controller_context(exp))
     while exp.needs_control:
         action, _ = controller.predict(task.observe(exp), deterministic=True)
         exp.step(task.command(action))
-    return exp.record(run_id)
