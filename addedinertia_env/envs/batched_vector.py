@@ -39,6 +39,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..rig.batched import BatchedRig
 from ..rig.batched_single import BatchedSingleRig
+from ..rig.interface import SimulatedRigBase
 from ..rig.motor import MODES, MotorCommand
 from ..scenarios import Scenario
 from .reverse_stroke import ReverseStrokeEnv
@@ -46,7 +47,7 @@ from .reverse_stroke import ReverseStrokeEnv
 ENV_ID = "AddedInertia/ReverseStroke-v0"
 
 
-class SlotRig:
+class SlotRig(SimulatedRigBase):
     """Slot ``k`` of the owner's batch, behind the Rig protocol (see the module docstring)."""
 
     source = "sim"
@@ -57,14 +58,6 @@ class SlotRig:
         self.solo = BatchedSingleRig(scenario.rig, seed=scenario.sensor_seed)
         self.in_batch = False
         self.pending: tuple[MotorCommand, Any] | None = None  # (command, reading) taken by the batch
-
-    @property
-    def dt(self) -> float:
-        return self.params.sensors.dt
-
-    @property
-    def known(self) -> dict:
-        return self.params.known()
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True):
         self._leave_batch()

@@ -14,12 +14,13 @@ import numpy as np
 
 from . import forces
 from .batched import BatchedRig
+from .interface import SimulatedRigBase
 from .motor import MODES, MotorCommand
 from .params import RigParams
 from .sensors import Reading
 
 
-class BatchedSingleRig:
+class BatchedSingleRig(SimulatedRigBase):
     """A single simulated rig on the batched (numpy) dynamics."""
 
     source = "sim"
@@ -28,14 +29,6 @@ class BatchedSingleRig:
         self.params = params
         self.batch = BatchedRig(params, n_envs=1, seed=seed, dtype=dtype)
         self.k_t = float(forces.true_torque_constant(params))
-
-    @property
-    def dt(self) -> float:
-        return self.params.sensors.dt
-
-    @property
-    def known(self) -> dict:
-        return self.params.known()
 
     @property
     def time(self) -> float:

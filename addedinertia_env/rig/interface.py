@@ -36,3 +36,19 @@ class Rig(Protocol):
 
     def truth(self) -> dict[str, Any] | None:
         """The run record's ``truth`` block for a simulated rig; ``None`` on a real bench."""
+
+
+class SimulatedRigBase:
+    """``dt`` and ``known`` of a simulated rig, read from its :class:`RigParams` ``self.params``."""
+
+    params: Any  # RigParams
+
+    @property
+    def dt(self) -> float:
+        """Sample (and control) period, s."""
+        return self.params.sensors.dt
+
+    @property
+    def known(self) -> dict[str, Any]:
+        """The run record's ``rig`` block: what the experimenter knows."""
+        return self.params.known()

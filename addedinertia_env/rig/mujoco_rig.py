@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from . import forces
+from .interface import SimulatedRigBase
 from .motor import MotorCommand, current_step, terminal_voltage
 from .params import RigParams
 from .sensors import Reading, Sensors
@@ -91,7 +92,7 @@ class TrueState:
     ohmic_loss: float  # J, cumulative integral of R i^2 dt
 
 
-class MujocoRig:
+class MujocoRig(SimulatedRigBase):
     """One simulated rig; see :class:`addedinertia_env.rig.interface.Rig` for the protocol."""
 
     source = "sim"
@@ -111,15 +112,6 @@ class MujocoRig:
         self.reset()
 
     # --- protocol -------------------------------------------------------------------
-    @property
-    def dt(self) -> float:
-        return self.params.sensors.dt
-
-    @property
-    def known(self) -> dict:
-        """The run record's ``rig`` block: what the experimenter knows."""
-        return self.params.known()
-
     @property
     def time(self) -> float:
         return float(self.data.time)
