@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: demo test test-slow test-all bench leaderboard policy accuracy-table perf clean detection-table
+.PHONY: leaderboard-realistic demo test test-slow test-all bench leaderboard policy accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -33,6 +33,7 @@ test-all: $(STAMP)
 BENCH_SUITE ?= standard-v0
 BENCH_CONTROLLERS ?= pd feedforward-pd pid lqr ilc mpc
 BENCH_JOBS ?= 2
+LEADERBOARD_DOC ?= docs/LEADERBOARD.md
 # Learned policies (docs/LEARNING.md), run as onnx:PATH on the same suite, split and seeds.
 LEARNED_POLICIES ?= agents/policies/reverse_stroke.onnx
 BENCH_ROWS = $(foreach c,$(BENCH_CONTROLLERS),out/bench/$(BENCH_SUITE)-$(c).jsonl) \
@@ -50,9 +51,9 @@ leaderboard: $(STAMP)
 	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller onnx:$$p --jobs $(BENCH_JOBS) \
 	    --out out/bench/$(BENCH_SUITE)-onnx-$$(basename $$p .onnx).jsonl || exit 1; \
 	done
-	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format md --out docs/LEADERBOARD.md \
+	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format md --out $(LEADERBOARD_DOC) \
 	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
-	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format html --out out/bench/leaderboard.html \
+	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format html --out out/bench/leaderboard-$(BENCH_SUITE).html \
 	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
 
 # Retrain and re-export the shipped policy (docs/LEARNING.md; about 20 min on 2 shared cores).
@@ -73,3 +74,7 @@ detection-table: $(STAMP)
 # docs/PERFORMANCE.md: single MuJoCo env vs batched physics, 1..16384 envs, one run.
 perf: $(STAMP)
 	$(BIN)/addedinertia perf --max-envs 16384 --vector --out docs/PERFORMANCE.md
+
+# docs/LEADERBOARD_realistic.md: the same controllers on realistic-v0 (realistic sensors everywhere).
+leaderboard-realistic:
+	$(MAKE) leaderboard BENCH_SUITE=realistic-v0 LEADERBOARD_DOC=docs/LEADERBOARD_realistic.md
