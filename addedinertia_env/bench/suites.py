@@ -22,7 +22,7 @@ from typing import Any
 
 import yaml
 
-from ..rig.presets import CONFIG_DIR, ConfigError
+from ..rig.presets import CONFIG_DIR, ConfigError, config_path
 from ..scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
 
 SUITE_DIR = CONFIG_DIR / "suites"
@@ -91,14 +91,7 @@ class Suite:
 
 
 def suite_path(name: str) -> Path:
-    p = Path(name)
-    if p.suffix in (".yaml", ".yml") and p.exists():
-        return p
-    candidate = SUITE_DIR / f"{name}.yaml"
-    if not candidate.exists():
-        raise ConfigError(f"unknown suite {name!r}; expected one of {', '.join(available_suites())} "
-                          "or a path to a suite .yaml file")
-    return candidate
+    return config_path("suite", name, SUITE_DIR)
 
 
 def load_suite(name: str) -> Suite:

@@ -31,14 +31,20 @@ def available_rigs() -> list[str]:
     return sorted(p.stem for p in RIG_DIR.glob("*.yaml"))
 
 
-def rig_path(name: str) -> Path:
+def config_path(kind: str, name: str, folder: Path) -> Path:
+    """``name`` as a YAML path, or as the stem of a file in ``folder``; else a ConfigError."""
     p = Path(name)
     if p.suffix in (".yaml", ".yml") and p.exists():
         return p
-    candidate = RIG_DIR / f"{name}.yaml"
+    candidate = folder / f"{name}.yaml"
     if not candidate.exists():
-        raise ConfigError(f"unknown rig {name!r}; expected one of {', '.join(available_rigs())} or a path to a .yaml file")
+        known = ", ".join(sorted(q.stem for q in folder.glob("*.yaml")))
+        raise ConfigError(f"unknown {kind} {name!r}; expected one of {known} or a path to a {kind} .yaml file")
     return candidate
+
+
+def rig_path(name: str) -> Path:
+    return config_path("rig", name, RIG_DIR)
 
 
 TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps", "effects", "experiment")
