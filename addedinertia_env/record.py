@@ -5,7 +5,7 @@ refuse bad input with the file, the line or column, the value and what was expec
 they never drop rows. Writers are atomic: a temporary file in the same folder, then an
 ``os.replace`` to the final name.
 
-Estimators read ``record.rig`` and ``record.experiment``; only scoring reads
+Estimators read ``record.known`` (the typed ``rig`` block) and ``record.experiment``; only scoring reads
 ``record.truth_lambda66`` (simulated runs).
 """
 
@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from .atomic import atomic_write_texts
+from .rig.known import KnownRig
 
 FORMAT = "addedinertia-run/1"
 PHASES = ("free", "hold", "reverse", "idle")
@@ -73,7 +74,13 @@ class RunRecord:
 
     @property
     def rig(self) -> dict[str, Any]:
+        """The raw ``rig`` block as stored (kept on round trip); read constants from :attr:`known`."""
         return self.meta["rig"]
+
+    @property
+    def known(self) -> KnownRig:
+        """The ``rig`` block, typed: what the experimenter knows (SI units)."""
+        return KnownRig.from_block(self.meta["rig"])
 
     @property
     def experiment(self) -> dict[str, Any]:
@@ -308,7 +315,7 @@ def _check_samples(csv_path: Path, s: dict[str, np.ndarray], meta: dict) -> list
         if bad.any():
             k = int(np.argmax(bad))
             raise RecordError(f"{csv_path}: line {k + 2}, column 'brake': {s['brake'][k]!r}; expected 0 or 1")
-    period = 1.0 / float(meta["rig"]["sample_rate"])
+    period = KnownRig.from_block(meta["rig"]).dt
     # A relative 1e-6 keeps rounding in stored times (0.013 - 0.008 > 0.005) from flagging
     # a step of exactly five periods.
     gaps = [(float(t[k]), float(dt[k])) for k in np.nonzero(dt > MAX_GAP_PERIODS * period * (1 + 1e-6))[0]]

@@ -27,6 +27,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .experiment.protocol import Experiment
+from .rig.known import KnownRig
 from .rig.motor import MotorCommand
 from .rig.sensors import Reading
 
@@ -145,11 +146,12 @@ class ReverseStrokeTask:
         self.weights = weights or RewardWeights()
 
     @classmethod
-    def for_rig(cls, known: dict, weights: RewardWeights | None = None,
+    def for_rig(cls, known: KnownRig, weights: RewardWeights | None = None,
                 control_mode: str = "current") -> "ReverseStrokeTask":
-        """The task for a rig whose known constants (``rig`` block) are ``known``."""
-        return cls(i_max=float(known["i_max"]), weights=weights, control_mode=control_mode,
-                   u_max=float(known["u_max"]))
+        """The task for a rig whose known constants are ``known`` (``i_max`` must be given)."""
+        if known.i_max is None:
+            raise ValueError("rig.i_max (drive current limit, A) is not given; the task scales actions by it")
+        return cls(i_max=known.i_max, weights=weights, control_mode=control_mode, u_max=known.u_max)
 
     # Actions ------------------------------------------------------------------------
     def command(self, action: np.ndarray | float) -> MotorCommand:
@@ -161,7 +163,7 @@ class ReverseStrokeTask:
     def observe(self, exp: Experiment) -> np.ndarray:
         r, ref, known = exp.last, exp.reference, exp.known
         t = r.t
-        phi_n = float(known["phi_neutral"])
+        phi_n = known.phi_neutral
         hull_rate, fly_rate = exp.hull_rate.value, exp.flywheel_rate.value
         phi_ref, rate_ref, acc_ref = float(ref.phi(t)), float(ref.rate(t)), float(ref.accel(t))
         # Scalar calls: faster than one vectorised call for four points.
@@ -195,9 +197,9 @@ class ReverseStrokeTask:
             to_end,  # time_to_phase_end
             exp.inertia_prior,
             duration,  # stroke_duration
-            float(known["c_torsion"]),
-            float(known["k_t"]),
-            float(known["J_flywheel"]),
+            known.c_torsion,
+            known.k_t,
+            known.J_flywheel,
         )
         obs = np.array(values) / _SCALES
         return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)

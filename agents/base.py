@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from addedinertia_env.experiment.reference import MirroredReference
+from addedinertia_env.rig.known import KnownRig
 from addedinertia_env.task import ObservationLayout
 
 
@@ -15,7 +16,7 @@ from addedinertia_env.task import ObservationLayout
 class ControllerContext:
     """Known before the controlled part of an episode begins (sensor data and rig constants only)."""
 
-    rig: dict[str, Any]  # the run record's ``rig`` block (known constants, SI)
+    rig: KnownRig  # the known rig constants (the run record's ``rig`` block, SI)
     layout: ObservationLayout  # named access to observation entries
     reference: MirroredReference  # the mirrored free-stroke law, from the encoder
     inertia_prior: float  # kg m^2, J_hull + lambda66 seen at the free stroke's stop
@@ -24,11 +25,15 @@ class ControllerContext:
 
     @property
     def i_max(self) -> float:
-        return float(self.rig["i_max"])
+        """Drive current limit, A (the rig must state it: a controller's action is a fraction of it)."""
+        if self.rig.i_max is None:
+            raise ValueError("rig.i_max (drive current limit, A) is not given; a controller needs it")
+        return self.rig.i_max
 
     @property
     def k_t(self) -> float:
-        return float(self.rig["k_t"])
+        """Motor torque constant, N m/A."""
+        return self.rig.k_t
 
 
 class Controller:
@@ -56,7 +61,7 @@ def stroke_feedforward_current(ctx: ControllerContext, phi_ref_rel: float, accel
     mirror the rate changes sign, so the motor must supply ``-2 Q_w``; its reaction on
     the hull is ``-k_t i``, hence ``i = -2 (J f'' + c (f - phi_n)) / k_t``.
     """
-    c = float(ctx.rig["c_torsion"])
+    c = ctx.rig.c_torsion
     return -2.0 * (J * accel_ref + c * phi_ref_rel) / ctx.k_t
 
 
@@ -64,6 +69,6 @@ def stroke_impulse(ctx: ControllerContext, J: float, n: int = 400) -> float:
     """Angular impulse (N m s) the feedforward puts on the flywheel over the reverse stroke."""
     law = ctx.reference.law
     s = np.linspace(law.t_start, law.t_stop, n)
-    phi_n = float(ctx.rig["phi_neutral"])
-    torque = -2.0 * (J * law.accel(s) + float(ctx.rig["c_torsion"]) * (law.phi(s) - phi_n))
+    phi_n = ctx.rig.phi_neutral
+    torque = -2.0 * (J * law.accel(s) + ctx.rig.c_torsion * (law.phi(s) - phi_n))
     return float(np.trapezoid(torque, s))

@@ -49,10 +49,10 @@ class StrokeController(Controller):
         super().reset(context)
         rig = context.rig
         self.J = context.inertia_prior
-        self.c = float(rig["c_torsion"])
+        self.c = rig.c_torsion
         impulse = stroke_impulse(context, self.J) if self.prespin else 0.0
-        self.omega_start = -impulse / (2.0 * float(rig["J_flywheel"]))
-        counts = int((rig.get("encoder_counts") or {}).get("phi", 0))
+        self.omega_start = -impulse / (2.0 * rig.J_flywheel)
+        counts = rig.phi_counts
         self.obs_filter = HullObserver(self.J, self.c, context.k_t, context.dt, counts,
                                        disturbance_bandwidth=float(self.observer_bandwidth))
         self.started = False
@@ -62,7 +62,7 @@ class StrokeController(Controller):
     def hold_current(self, obs: dict[str, float]) -> float:
         if not self.prespin:
             return 0.0
-        J_f = float(self.ctx.rig["J_flywheel"])
+        J_f = self.ctx.rig.J_flywheel
         return J_f * (self.omega_start - obs["flywheel_rate"]) / (self.spinup_time_s * self.ctx.k_t)
 
     def expected_damping(self, obs: dict[str, float]) -> float:

@@ -76,7 +76,7 @@ class MPC(StrokeController):
         t_now = ctx.reference.t_begin + obs["phase_progress"] * ctx.reference.law.duration
         tk = t_now + h * np.arange(n)
         ref = ctx.reference
-        phi_n = float(ctx.rig["phi_neutral"])
+        phi_n = ctx.rig.phi_neutral
         i_ff = (stroke_feedforward_current(ctx, ref.phi(tk) - phi_n, ref.accel(tk), self.J)
                 if self.feedforward else np.zeros(n))
         x0 = np.array([e, e_rate])

@@ -30,12 +30,13 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
+from addedinertia_env.rig.known import KnownRig
 from addedinertia_env.rig.motor import MotorCommand
 from addedinertia_env.rig.sensors import Reading
 
 from . import messages as m
 from .framing import ClockUnwrapper
-from .lab import LabConfig, rig_block
+from .lab import LabConfig, known_rig
 from .link import Link, LinkError
 from .safety import SafetyEnvelope, SafetyLimits, SafetyTrip
 from .watchdog import Watchdog
@@ -124,7 +125,7 @@ class BenchRig:
             raise LinkError(f"bench {self.url!r} did not answer HELLO with CAPS ({HELLO_TRIES} tries of 0.5 s); "
                             "is the board powered and is this its port?")
         self.source = "emulator" if self.caps.flags & m.CAP_EMULATOR else "bench"
-        self.known_block = rig_block(self.lab, self.caps)
+        self._known = known_rig(self.lab, self.caps)
         self.limits = self.lab.safety_limits(self.caps, **self.limit_overrides)
         self.envelope = SafetyEnvelope(self.limits, self.lab.constants["phi_neutral"])
         if self._watchdog_s is None:
@@ -152,8 +153,9 @@ class BenchRig:
         return self.caps.sample_period_us * 1e-6
 
     @property
-    def known(self) -> dict:
-        return self.known_block
+    def known(self) -> KnownRig:
+        """What the experimenter knows of this bench (lab file + the board's CAPS)."""
+        return self._known
 
     def truth(self) -> None:
         return None  # a bench has no truth, the emulator's stays in its own process

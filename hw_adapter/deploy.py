@@ -87,7 +87,7 @@ def arm_checks(rig: BenchRig, plan, pings: int) -> list[dict[str, Any]]:
     add("no_latched_faults", sample.faults == 0, f"board faults {m.fault_names(sample.faults) or 'none'}")
     add("brake_engaged", sample.brake, "brake sensed engaged" if sample.brake else "brake sensed released")
     add("current_near_zero", abs(sample.current) <= max(0.2, 0.05 * caps.i_max), f"{sample.current:+.3f} A")
-    phi_rel = reading.phi - float(rig.known["phi_neutral"])
+    phi_rel = reading.phi - rig.known.phi_neutral
     add("angle_inside_envelope", abs(phi_rel) <= lim.phi_max, f"{phi_rel:+.4f} rad from neutral")
     rtts = []
     for k in range(pings):
@@ -161,7 +161,7 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
             recorder = IncrementalRecord(opts.out, opts.run_id)
             exp = Experiment(rig, plan)
             recorder.phase = lambda: exp.phase
-            recorder.start({"source": rig.source, "rig": rig.known,
+            recorder.start({"source": rig.source, "rig": rig.known.to_block(),
                             "experiment": {"kind": "reverse-symmetric", **asdict(plan), "controller": opts.controller,
                                            "bench": opts.bench}})
             rig.on_sample = recorder.append

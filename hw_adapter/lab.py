@@ -3,7 +3,8 @@ board cannot tell (inertias, stiffness, motor constants from calibration), plus 
 safety limits and the experiment plan for this bench.
 
 The board's half (encoder counts, sample rate, current and voltage limits) comes from
-its CAPS message at connection time; :func:`rig_block` joins the two.
+its CAPS message at connection time; :func:`known_rig` joins the two into the typed
+:class:`~addedinertia_env.rig.known.KnownRig` (the run record's ``rig`` block).
 
 A lab file is YAML (example: ``hw_adapter/labs/example.yaml``)::
 
@@ -20,7 +21,7 @@ A lab file is YAML (example: ``hw_adapter/labs/example.yaml``)::
     experiment: {alpha: 0.1, hold_s: 2.0}      # optional, ExperimentPlan fields
 
 For the emulator, a rig preset name (``wigley-2m``) may stand in for a lab file: its
-experimenter-known constants (``RigParams.known()``, never the truth) are used.
+experimenter-known constants (``RigParams.known()``, a ``KnownRig``; never the truth) are used.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from typing import Any
 
 import yaml
 
+from addedinertia_env.rig.known import KnownRig
 from addedinertia_env.rig.presets import ConfigError, load_preset, plan_from_preset, rig_from_mapping
 
 from .messages import CAP_EMULATOR, Caps
@@ -45,6 +47,8 @@ LAB_KEYS = {"name", *MECHANICAL_KEYS, "motor_friction", "limits", "experiment"}
 
 @dataclass(frozen=True)
 class LabConfig:
+    """A lab file, checked: the bench's constants, safety limits and experiment plan."""
+
     name: str
     constants: dict[str, Any]  # MECHANICAL_KEYS + motor_friction, SI
     limits: dict[str, float] = field(default_factory=dict)  # SafetyLimits overrides
@@ -63,6 +67,7 @@ class LabConfig:
             raise ConfigError(f"{self.source or self.name}: limits: {e}") from None
 
     def plan(self, **overrides: Any):
+        """The experiment plan of this lab (``ExperimentPlan``), with ``overrides`` applied."""
         return plan_from_preset({"experiment": self.experiment, "_path": self.source or self.name}, **overrides)
 
 
@@ -77,13 +82,14 @@ def load_lab(name_or_path: str) -> LabConfig:
         return lab_from_mapping(data, str(path))
     preset = load_preset(name_or_path)  # raises ConfigError naming the known presets
     known = rig_from_mapping(preset).known()
-    constants = {k: known[k] for k in MECHANICAL_KEYS}
-    constants["motor_friction"] = dict(known["motor_friction"])
+    constants: dict[str, Any] = {k: getattr(known, k) for k in MECHANICAL_KEYS}
+    constants["motor_friction"] = {"viscous": known.friction_viscous, "coulomb": known.friction_coulomb}
     return LabConfig(name=str(preset.get("name", name_or_path)), constants=constants,
                      experiment=dict(preset.get("experiment") or {}), source=preset["_path"])
 
 
 def lab_from_mapping(data: Any, where: str) -> LabConfig:
+    """Check a lab file's mapping (``where`` names it in errors); raises ``ConfigError``."""
     if not isinstance(data, dict):
         raise ConfigError(f"{where}: expected a mapping with keys {sorted(LAB_KEYS)}")
     unknown = sorted(set(data) - LAB_KEYS)
@@ -120,17 +126,17 @@ def lab_from_mapping(data: Any, where: str) -> LabConfig:
     return lab
 
 
-def rig_block(lab: LabConfig, caps: Caps) -> dict[str, Any]:
-    """The run record's ``rig`` block: the lab's constants joined with the board's CAPS."""
-    return {
-        **{k: lab.constants[k] for k in MECHANICAL_KEYS},
-        "i_max": caps.i_max,
-        "u_max": caps.u_max,
-        "motor_friction": dict(lab.constants["motor_friction"]),
-        "encoder_counts": {"phi": caps.phi_counts, "psi": caps.psi_counts},
-        "sample_rate": caps.sample_rate,
-        "board": {"id": caps.board_id, "firmware": caps.firmware_version,
-                  "emulator": bool(caps.flags & CAP_EMULATOR), "watchdog_ms": caps.watchdog_ms,
-                  "brake_response_ms": caps.brake_response_ms},
-        "lab": lab.name,
-    }
+def known_rig(lab: LabConfig, caps: Caps) -> KnownRig:
+    """What the experimenter knows of this bench: the lab's constants joined with the board's
+    CAPS (limits, encoder counts, sample rate); the board and lab names ride along in ``extra``."""
+    c, fric = lab.constants, lab.constants["motor_friction"]
+    return KnownRig(J_hull=c["J_hull"], J_flywheel=c["J_flywheel"], c_torsion=c["c_torsion"],
+                    phi_neutral=c["phi_neutral"], k_t=c["k_t"], R=c["R"], L=c["L"], i_max=caps.i_max,
+                    u_max=caps.u_max, friction_viscous=fric.get("viscous", 0.0),
+                    friction_coulomb=fric.get("coulomb", 0.0), phi_counts=caps.phi_counts,
+                    psi_counts=caps.psi_counts, sample_rate=caps.sample_rate,
+                    extra={"board": {"id": caps.board_id, "firmware": caps.firmware_version,
+                                     "emulator": bool(caps.flags & CAP_EMULATOR), "watchdog_ms": caps.watchdog_ms,
+                                     "brake_response_ms": caps.brake_response_ms},
+                           "lab": lab.name})
+

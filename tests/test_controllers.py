@@ -27,7 +27,7 @@ def test_controller_runs_within_current_limit(name, smoke_scenario):
     ctrl = make_controller(name) if name == "pd" else make_controller(name, tuned=False)
     rec = run_experiment(MujocoRig(sc.rig, seed=sc.sensor_seed), ctrl, sc.plan)
     rev = rec.phase == "reverse"
-    i_max = float(rec.rig["i_max"])
+    i_max = rec.known.i_max
     assert rev.sum() > 100
     assert np.all(np.isfinite(rec["i_cmd"]))
     assert np.max(np.abs(rec["i_cmd"])) <= i_max + 1e-9

@@ -48,7 +48,7 @@ def check_full_run(summary: dict, status: int, controller: str) -> None:
     assert "truth" not in rec.meta  # the emulator keeps its truth in its own process
     assert set(rec.phase) >= {"idle", "free", "hold", "reverse"}
     assert rec.experiment["controller"] == controller
-    assert summary["max_abs_current_sent_A"] <= rec.rig["i_max"]
+    assert summary["max_abs_current_sent_A"] <= rec.known.i_max
     assert summary["loop_jitter_p99_ms"] is not None and summary["loop_jitter_p99_ms"] >= 0
     sim, sim_ci = simulated_lambda66(controller)
     emu = summary["lambda66"]

@@ -94,7 +94,7 @@ def test_estimate_depends_on_the_data(realistic_record, clone):
     changed = identify([stiffer], "energy").lambda66
     # J_total = (spring + motor work terms) / kinetic term, and the spring is most of the
     # numerator (about 85 % here): 1 % more c gives a bit under 1 % more J_total.
-    J_hull = record.rig["J_hull"]
+    J_hull = record.known.J_hull
     assert 1.005 < (changed + J_hull) / (base + J_hull) < 1.0101
 
 

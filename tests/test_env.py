@@ -238,14 +238,14 @@ def test_controller_context_has_the_control_period():
     ctx = env.controller_context()
     assert ctx.dt == pytest.approx(10 * env.experiment.rig.dt)
     assert ctx.inertia_prior == env.experiment.inertia_prior
-    assert "lambda66" not in ctx.rig  # known constants only
+    assert "lambda66" not in ctx.rig.to_block()  # known constants only
 
 
 def test_voltage_mode_puts_the_commanded_voltage_on_the_terminals():
     env = ReverseStrokeEnv(control_mode="voltage", sensor_quality="ideal", action_repeat=5, **SHORT)
     env.reset(seed=0)
     env.step(np.array([0.25], np.float32))
-    u_max = env.experiment.known["u_max"]
+    u_max = env.experiment.known.u_max
     np.testing.assert_allclose(env.record()["u"][-5:], 0.25 * u_max, rtol=1e-12)
 
 

@@ -34,7 +34,7 @@ def test_record_lists_its_drive(forced_run):
     assert np.max(np.abs(rec["i_cmd"][driven])) > 0.1
     # The natural-frequency guess from the half swing is close to the truth (damped).
     J = 5.8 + 8.0
-    assert rec.experiment["omega_guess"] == pytest.approx(np.sqrt(rec.rig["c_torsion"] / J), rel=0.05)
+    assert rec.experiment["omega_guess"] == pytest.approx(np.sqrt(rec.known.c_torsion / J), rel=0.05)
 
 
 def test_recovers_lambda66(forced_run):
@@ -46,7 +46,7 @@ def test_recovers_lambda66(forced_run):
     assert result.n_intervals >= 4
     # At the zero-rate instants the damping is gone: torque/acceleration is the inertia there.
     ratios = [p["torque"] / p["accel"] for p in result.details["intervals"]]
-    assert np.median(ratios) == pytest.approx(truth + forced_run.rig["J_hull"], rel=0.01)
+    assert np.median(ratios) == pytest.approx(truth + forced_run.known.J_hull, rel=0.01)
 
 
 def test_current_offset_is_removed(forced_run):

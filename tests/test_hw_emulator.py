@@ -113,8 +113,8 @@ def test_bench_rig_over_loopback_runs_the_rig_protocol():
         assert rig.source == "emulator" and rig.lockstep and rig.dt == pytest.approx(1e-3)
         assert caps.phi_counts == RIG.sensors.phi_counts
         known = rig.known
-        assert known["c_torsion"] == RIG.spring.c and known["i_max"] == RIG.motor.i_max
-        assert "lambda66" not in str(known) and rig.truth() is None
+        assert known.c_torsion == RIG.spring.c and known.i_max == RIG.motor.i_max
+        assert "lambda66" not in str(known.to_block()) and rig.truth() is None
         rig.arm()
         r0 = rig.reset(phi0=-0.1)
         assert r0.t == 0.0 and r0.brake and abs(r0.phi + 0.1) < 1e-4

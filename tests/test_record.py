@@ -34,7 +34,7 @@ def small_record() -> RunRecord:
     samples = {"t": t, "phase": np.array(PHASE_ROWS), "phi": -0.1 * np.cos(2 * np.pi * t / 4.0),
                "psi": 0.3 * t, "u": 0.1 + 0.01 * np.sin(t), "i": 0.002 * np.cos(t),
                "i_cmd": np.zeros(N_ROWS), "brake": np.array([1.0] * 5 + [0.0] * 15 + [1.0] * 5 + [0.0] * 15)}
-    meta = {"format": FORMAT, "run_id": "small", "source": "sim", "rig": RigParams().known(),
+    meta = {"format": FORMAT, "run_id": "small", "source": "sim", "rig": RigParams().known().to_block(),
             "experiment": {"kind": "reverse-symmetric", "alpha": 0.1, "hold_s": 0.005}}
     return RunRecord(samples=samples, meta=meta)
 

@@ -81,8 +81,7 @@ def saturated_fraction(rec: RunRecord) -> float:
     rev = rec.phase == "reverse"
     if not rev.any():
         return 0.0
-    i_max = float(rec.rig.get("i_max", math.inf))
-    return float(np.mean(np.abs(rec["i_cmd"][rev]) >= 0.999 * i_max))
+    return float(np.mean(np.abs(rec["i_cmd"][rev]) >= 0.999 * rec.known.current_limit))
 
 
 def cycle_seed(scenario, k: int) -> np.random.SeedSequence:

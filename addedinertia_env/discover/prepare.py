@@ -28,6 +28,7 @@ import numpy as np
 
 from ..record import RunRecord
 from ..rig import forces
+from ..rig.known import KnownRig
 
 STEP_SAMPLES = 20  # samples per integrator step (20 ms at 1 kHz); the input is averaged over it
 FLYWHEEL_CHUNK_S = 0.5  # s, flywheel residuals are shot from a fresh state every chunk
@@ -87,7 +88,7 @@ class Prepared:
     """All runs of one discovery, with the rig constants they share."""
 
     runs: list[RunData]
-    rig: dict
+    rig: KnownRig
     J_hull: float
     J_flywheel: float
     c: float
@@ -117,10 +118,10 @@ def _contiguous(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(starts.tolist(), stops.tolist()))
 
 
-def _rig_namespace(rig: dict) -> SimpleNamespace:
-    fric = rig.get("motor_friction") or {}
-    return SimpleNamespace(motor=SimpleNamespace(friction_viscous=float(fric.get("viscous", 0.0)),
-                                                 friction_coulomb=float(fric.get("coulomb", 0.0))))
+def _rig_namespace(rig: KnownRig) -> SimpleNamespace:
+    """The rotor friction constants in the shape :func:`forces.flywheel_friction_torque` reads."""
+    return SimpleNamespace(motor=SimpleNamespace(friction_viscous=rig.friction_viscous,
+                                                 friction_coulomb=rig.friction_coulomb))
 
 
 def _check_record(rec: RunRecord) -> None:
@@ -141,7 +142,7 @@ def _check_record(rec: RunRecord) -> None:
         raise DiscoveryInputError(f"{name}: gap of {gap:.4f} s in 't' after t = {t0:.4f} s; the whole-record fit "
                                   "needs uninterrupted sampling (cut the record or fill the gap)")
     dt = np.diff(rec.t)
-    nominal = 1.0 / float(rec.rig["sample_rate"])
+    nominal = rec.known.dt
     if np.max(np.abs(dt - nominal)) > 0.05 * nominal:
         k = int(np.argmax(np.abs(dt - nominal)))
         raise DiscoveryInputError(f"{name}: sample interval {dt[k]:.6f} s at t = {rec.t[k]:.4f} s; expected uniform "
@@ -174,15 +175,17 @@ def prepare(records: list[RunRecord]) -> Prepared:
     if not records:
         raise DiscoveryInputError("no records given; expected one or more reverse-symmetric run records")
     keys = ("J_hull", "J_flywheel", "c_torsion", "phi_neutral", "k_t", "sample_rate")
-    rig0 = records[0].rig
+    rig0 = records[0].known
     for rec in records:
         _check_record(rec)
+        rig = rec.known
         for key in keys:
-            if not math.isclose(float(rec.rig[key]), float(rig0[key]), rel_tol=1e-9, abs_tol=1e-12):
+            if not math.isclose(getattr(rig, key), getattr(rig0, key), rel_tol=1e-9, abs_tol=1e-12):
                 raise DiscoveryInputError(f"{rec.name}: rig.{key} = {rec.rig[key]!r} differs from "
-                                          f"{records[0].name}'s {rig0[key]!r}; discover runs of one rig together")
+                                          f"{records[0].name}'s {records[0].rig[key]!r}; discover runs of one rig "
+                                          "together")
     fric = _rig_namespace(rig0)
-    dt = 1.0 / float(rig0["sample_rate"])
+    dt = rig0.dt
     runs = []
     for k, rec in enumerate(records):
         t, phi, psi = rec.t, rec["phi"], rec["psi"]
@@ -198,17 +201,16 @@ def prepare(records: list[RunRecord]) -> Prepared:
         free = _hull_segment(k, "free", rec, f0 - 1, f1, current, q_fly, 0.0)
         rev = _hull_segment(k, "reverse", rec, r0 - 1, len(rec), current, q_fly, hold)
         fw = _flywheel_segment(k, rec, f1 - 1, current, q_fly, dt)
-        alpha = float(rig0["phi_neutral"]) - float(phi[f0 - 1])
+        alpha = rig0.phi_neutral - float(phi[f0 - 1])
         runs.append(RunData(name=rec.name, alpha=alpha, hold_s=hold, free=free, reverse=rev, flywheel=fw,
                             current_offset=offset, current_noise=noise, phase=rec.phase))
-    counts = (rig0.get("encoder_counts") or {})
-    q_phi = 2 * math.pi / counts["phi"] if counts.get("phi") else _scatter(runs[0].free.phi)
-    q_psi = 2 * math.pi / counts["psi"] if counts.get("psi") else q_phi
-    J_f, k_t = float(rig0["J_flywheel"]), float(rig0["k_t"])
+    q_phi = 2 * math.pi / rig0.phi_counts if rig0.phi_counts else _scatter(runs[0].free.phi)
+    q_psi = 2 * math.pi / rig0.psi_counts if rig0.psi_counts else q_phi
+    J_f, k_t = rig0.J_flywheel, rig0.k_t
     theta_noise = _flywheel_noise_floor(q_psi / math.sqrt(12), float(np.median([r.current_noise for r in runs])),
                                         k_t, J_f, dt)
-    return Prepared(runs=runs, rig=dict(rig0), J_hull=float(rig0["J_hull"]), J_flywheel=J_f,
-                    c=float(rig0["c_torsion"]), phi_neutral=float(rig0["phi_neutral"]), k_t=k_t, dt=dt,
+    return Prepared(runs=runs, rig=rig0, J_hull=rig0.J_hull, J_flywheel=J_f,
+                    c=rig0.c_torsion, phi_neutral=rig0.phi_neutral, k_t=k_t, dt=dt,
                     phi_noise=q_phi / math.sqrt(12), theta_noise=theta_noise)
 
 

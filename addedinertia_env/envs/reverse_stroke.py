@@ -15,6 +15,7 @@ from ..experiment.protocol import Experiment
 from ..experiment.runner import controller_context as _runner_context
 from ..identify import IdentificationError, identify
 from ..record import RunRecord
+from ..rig.interface import Rig
 from ..rig.mujoco_rig import MujocoRig
 from ..scenarios import Scenario, load_ranges
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
@@ -146,7 +147,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
                  sensor_quality: str | None = None, hold_s: float | None = None, alpha: float | None = None,
                  scenario_seed: int | None = None, action_repeat: int = 1, control_mode: str = "current",
                  reward_weights: RewardWeights | Mapping[str, float] | None = None,
-                 rig_factory: Callable[[Scenario], Any] | None = None, width: int = 480, height: int = 360):
+                 rig_factory: Callable[[Scenario], Rig] | None = None, width: int = 480, height: int = 360):
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"ReverseStrokeEnv option render_mode={render_mode!r}: expected None or one of {RENDER_MODES}")
         for name, value in (("width", width), ("height", height)):
@@ -169,7 +170,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self._default_ranges = load_ranges()  # configs/randomization.yaml, read once
         self.scenario: Scenario | None = None
-        self.rig: Any = None
+        self.rig: Rig | None = None
         self.experiment: Experiment | None = None
         self.task: ReverseStrokeTask | None = None
         self._renderer: RigRenderer | None = None

@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from ..record import RunRecord
+from ..rig.interface import Rig
 from ..rig.motor import MotorCommand
 from .filters import RateEstimator
 from .sample_log import PASSIVE, SampleLog
@@ -66,12 +67,12 @@ class ForcedPlan:
         return cls(alpha=float(getattr(plan, "alpha", cls.alpha)))
 
 
-def run_forced(rig: Any, plan: Any = None, run_id: str = "run") -> RunRecord:
+def run_forced(rig: Rig, plan: Any = None, run_id: str = "run") -> RunRecord:
     """Calibrate, swing once freely, then drive the hull at several frequencies; see the module docstring."""
     p = ForcedPlan.from_any(plan)
     known = rig.known
-    phi_n, c, k_t = float(known["phi_neutral"]), float(known["c_torsion"]), float(known["k_t"])
-    i_cap = p.current_fraction * float(known.get("i_max", 10.0))
+    phi_n, c, k_t = known.phi_neutral, known.c_torsion, known.k_t
+    i_cap = p.current_fraction * (known.i_max if known.i_max is not None else 10.0)
     log = SampleLog()
     log.add(rig.reset(phi0=phi_n - p.alpha, brake=True), PASSIVE, "idle")
     for _ in range(int(round(p.calibrate_s / rig.dt))):
@@ -104,7 +105,7 @@ def run_forced(rig: Any, plan: Any = None, run_id: str = "run") -> RunRecord:
     return log.record(rig, experiment, run_id)
 
 
-def _half_swing(rig: Any, log: SampleLog, p: ForcedPlan, phi_n: float) -> tuple[float, float]:
+def _half_swing(rig: Rig, log: SampleLog, p: ForcedPlan, phi_n: float) -> tuple[float, float]:
     """Release, swing passively through neutral to the first stop, brake there; (duration, stop angle)."""
     rig.set_brake(False)
     t_release = log.last.t

@@ -21,6 +21,7 @@ from typing import Any
 
 
 from ..record import RunRecord
+from ..rig.interface import Rig
 from .protocol import ExperimentError
 from .sample_log import PASSIVE, SampleLog
 
@@ -56,15 +57,16 @@ class FreeDecayPlan:
         return cls(alpha=float(getattr(plan, "alpha", cls.alpha)))
 
 
-def run_free_decay(rig: Any, plan: Any = None, run_id: str = "run") -> RunRecord:
+def run_free_decay(rig: Rig, plan: Any = None, run_id: str = "run") -> RunRecord:
     """Twist to ``phi_n - alpha``, release with the motor passive, record the decay.
 
     ``plan`` is a :class:`FreeDecayPlan` or anything with an ``alpha`` (rad); ``None``
     takes the defaults. Returns a run record of kind ``free-decay``.
     """
     p = FreeDecayPlan.from_any(plan)
-    phi_n = float(rig.known["phi_neutral"])
-    counts = int((rig.known.get("encoder_counts") or {}).get("phi", 0) or 0)
+    known = rig.known
+    phi_n = known.phi_neutral
+    counts = known.phi_counts
     band = p.hysteresis_counts * (2.0 * math.pi / counts) if counts > 0 else 1e-5
     log = SampleLog()
     log.add(rig.reset(phi0=phi_n - p.alpha, brake=True), PASSIVE, "idle")

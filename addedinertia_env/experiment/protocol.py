@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..record import RunRecord
+from ..rig.interface import Rig
 from ..rig.motor import MotorCommand
 from ..rig.sensors import Reading
 from .filters import RateEstimator
@@ -63,7 +64,7 @@ class ExperimentError(RuntimeError):
 class Experiment:
     """One reverse-symmetric experiment on ``rig``; see the module docstring."""
 
-    def __init__(self, rig: Any, plan: ExperimentPlan | None = None):
+    def __init__(self, rig: Rig, plan: ExperimentPlan | None = None):
         self.rig = rig
         self.plan = plan or ExperimentPlan()
         self.known = rig.known
@@ -84,7 +85,7 @@ class Experiment:
     # --- phases that run by themselves -------------------------------------------------
     def start(self) -> None:
         """Twist, release and run the free stroke; ends braked, in ``hold``."""
-        p, phi_n = self.plan, float(self.known["phi_neutral"])
+        p, phi_n = self.plan, self.known.phi_neutral
         sign = 1.0 if p.alpha > 0 else -1.0  # direction of the free stroke
         self._log_reading(self.rig.reset(phi0=phi_n - p.alpha), None)
         for _ in range(int(round(p.settle_s / self.rig.dt))):
@@ -111,7 +112,7 @@ class Experiment:
         t = np.asarray(self.log.columns["t"])
         phi = np.asarray(self.log.columns["phi"])
         self.law = fit_stroke(t, phi, t_cross - p.lead_s, self.t_brake)
-        self.inertia_prior = self.law.inertia_prior(float(self.known["c_torsion"]), phi_n)
+        self.inertia_prior = self.law.inertia_prior(self.known.c_torsion, phi_n)
         self.reference = MirroredReference(self.law, t_begin=self.t_brake + p.hold_s)
         self.phase = "hold" if p.hold_s > 0 else "reverse"
         if self.phase == "reverse":
@@ -139,7 +140,7 @@ class Experiment:
             raise ExperimentError(f"step() called in phase {self.phase!r}; call start() first, and stop when done")
         p = self.plan
         self.controlled_steps += 1
-        if cmd.mode == "current" and abs(cmd.value) >= float(self.known.get("i_max", math.inf)):
+        if cmd.mode == "current" and abs(cmd.value) >= self.known.current_limit:
             self.saturated_steps += 1
         r = self._advance(cmd, self.phase)
         if self.phase == "hold" and r.t >= self.reference.t_begin - 0.5 * self.rig.dt:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..record import RunRecord
+from ..rig.interface import Rig
 from ..task import ReverseStrokeTask
 from .protocol import Experiment, ExperimentPlan
 
@@ -17,7 +18,7 @@ def controller_context(exp: Experiment):
                              inertia_prior=exp.inertia_prior, dt=exp.rig.dt, hold_s=exp.plan.hold_s)
 
 
-def run_experiment(rig: Any, controller: Any, plan: ExperimentPlan | None = None,
+def run_experiment(rig: Rig, controller: Any, plan: ExperimentPlan | None = None,
                    run_id: str = "run") -> RunRecord:
     """Twist, release, hold and reverse under ``controller``; returns the run record.
 
@@ -36,7 +37,7 @@ def drive(exp: Experiment, controller: Any) -> None:
     The simulator (:func:`run_experiment`), the environment's classical baselines and the
     bench (``hw_adapter.deploy``) all run this one loop.
     """
-    task = ReverseStrokeTask(i_max=float(exp.known["i_max"]))
+    task = ReverseStrokeTask.for_rig(exp.known)
     if hasattr(controller, "reset"):
         controller.reset(controller_context(exp))
     while exp.needs_control:

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from ..record import FORMAT, RunRecord
+from ..rig.interface import Rig
 from ..rig.motor import MotorCommand
 from ..rig.sensors import Reading
 
@@ -39,11 +40,11 @@ class SampleLog:
         """The last ``n`` values of ``column``."""
         return np.asarray(self.columns[column][-n:])
 
-    def record(self, rig: Any, experiment: dict[str, Any], run_id: str) -> RunRecord:
+    def record(self, rig: Rig, experiment: dict[str, Any], run_id: str) -> RunRecord:
         """The record so far; a simulated rig adds its ``truth`` block (for scoring only)."""
         samples = {k: np.asarray(v, dtype=str if k == "phase" else float) for k, v in self.columns.items()}
         meta: dict[str, Any] = {"format": FORMAT, "run_id": run_id, "source": getattr(rig, "source", "sim"),
-                                "rig": rig.known, "experiment": experiment}
+                                "rig": rig.known.to_block(), "experiment": experiment}
         truth = getattr(rig, "truth", None)
         if callable(truth) and truth() is not None:
             meta["truth"] = truth()

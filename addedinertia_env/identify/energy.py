@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..record import RunRecord
+from ..rig.known import KnownRigError
 from .common import IdentificationError, Result, local_fit, pooled_interval, segment, smooth_angle
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
@@ -91,11 +92,16 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
 
 
 def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: bool) -> list[Interval]:
-    rig = rec.rig
-    J_h, J_f, c = float(rig["J_hull"]), float(rig["J_flywheel"]), float(rig["c_torsion"])
-    phi_n, k_t, R, L = float(rig["phi_neutral"]), float(rig["k_t"]), float(rig["R"]), float(rig["L"])
-    fric = rig.get("motor_friction") or {}
-    f_visc, f_coul = float(fric.get("viscous", 0.0)), float(fric.get("coulomb", 0.0))
+    rig = rec.known
+    J_h, J_f, c = rig.J_hull, rig.J_flywheel, rig.c_torsion
+    phi_n, k_t, R = rig.phi_neutral, rig.k_t, rig.R
+    f_visc, f_coul = rig.friction_viscous, rig.friction_coulomb
+    L = 0.0
+    if work == "electric":
+        try:
+            L = rig.require_L("the energy method with work='electric'")
+        except KnownRigError as e:
+            raise IdentificationError(f"{rec.name}: {e}") from None
     if rec.experiment.get("kind") != "reverse-symmetric":
         raise IdentificationError(f"{rec.name}: the energy method needs a reverse-symmetric run, "
                                   f"not {rec.experiment.get('kind')!r}")
@@ -114,7 +120,6 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
     phi2 = phi[k2]
     direction = np.sign(phi2 - phi_n)
     phi1_list = rec.experiment.get("phi1") or [phi_n + f * (phi2 - phi_n) for f in fractions]
-    sample_dt = 1.0 / float(rig["sample_rate"])
     fwd_law = _forward_damping_law(rec, free, k2, J_h, c, phi_n, i)
 
     def rate(k: int, angle: np.ndarray) -> float:
@@ -185,7 +190,7 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
         s_independent = float(np.hypot(np.hypot(sA_f, sA_r) / denom, J_total * s_den / denom))
         s_common = float(np.hypot(s_gain, s_dW)) / denom
         sigma = float(np.hypot(s_independent, s_common))
-        sat = float(np.mean(np.abs(rec["i_cmd"][k3:k4 + 1]) >= 0.999 * float(rig.get("i_max", np.inf)))) \
+        sat = float(np.mean(np.abs(rec["i_cmd"][k3:k4 + 1]) >= 0.999 * rig.current_limit)) \
             if "i_cmd" in rec.samples else 0.0
         iv.lambda66, iv.sigma, iv.w1f, iv.w1r = float(lam), sigma, float(w1f), float(w1r)
         iv.sigma_independent, iv.sigma_common = s_independent, s_common
@@ -196,7 +201,6 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
             iv.rejected = f"current at its limit for {sat:.0%} of the reverse stroke"
         elif iv.terms["speed_mismatch"] > 0.2:
             iv.rejected = f"reverse speed at phi1 differs by {iv.terms['speed_mismatch']:.0%} from the forward speed"
-    del sample_dt
     return out
 
 

@@ -93,7 +93,7 @@ def _regress(rec: RunRecord, instants: list[Instant]) -> dict:
     t_factor = float(student_t.ppf(0.975, n - 2)) / 1.96  # express the noise part as a 1.96-sigma equivalent
     motor_slope = float((XtX_inv @ X.T @ m)[0])
     s_gain = CURRENT_GAIN_UNCERTAINTY * abs(motor_slope)
-    J_h = float(rec.rig["J_hull"])
+    J_h = rec.known.J_hull
     per_segment = {}
     for seg in sorted({p.segment for p in instants}):
         sel = np.array([p.segment == seg for p in instants])
@@ -118,10 +118,9 @@ def _instants(rec: RunRecord) -> list[Instant]:
             for s in segments):
         raise IdentificationError(f"{rec.name}: experiment.segments must list the driven segments as "
                                   "{'omega': rad/s, 't_start': s, 't_end': s}; got " f"{segments!r}")
-    rig = rec.rig
-    c, phi_n, k_t = float(rig["c_torsion"]), float(rig["phi_neutral"]), float(rig["k_t"])
-    fric = rig.get("motor_friction") or {}
-    f_visc, f_coul = float(fric.get("viscous", 0.0)), float(fric.get("coulomb", 0.0))
+    rig = rec.known
+    c, phi_n, k_t = rig.c_torsion, rig.phi_neutral, rig.k_t
+    f_visc, f_coul = rig.friction_viscous, rig.friction_coulomb
     t, phi, psi, i = rec.t, rec["phi"], rec["psi"], rec["i"]
     t_drive = min(float(s["t_start"]) for s in segments)
     passive = t < t_drive

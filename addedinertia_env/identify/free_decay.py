@@ -107,17 +107,17 @@ def _run_periods(rec: RunRecord) -> list[Period]:
     if kind != "free-decay":
         raise IdentificationError(f"{rec.name}: the free-decay method needs a record of kind 'free-decay', "
                                   f"not {kind!r}; simulate one with `addedinertia simulate --kind free-decay`")
-    rig = rec.rig
-    J_h, c = float(rig["J_hull"]), float(rig["c_torsion"])
+    rig = rec.known
+    J_h, c = rig.J_hull, rig.c_torsion
     flywheel = rec.experiment.get("flywheel", "free")
     if flywheel not in ("free", "locked"):
         raise IdentificationError(f"{rec.name}: experiment.flywheel is {flywheel!r}; expected 'free' or 'locked'")
-    J_f = float(rig["J_flywheel"])
+    J_f = rig.J_flywheel
     free = segment(rec, "free")
     if free is None:
         raise IdentificationError(f"{rec.name}: no 'free' phase (the decay with the motor passive)")
     t, phi, theta = rec.t[free], rec["phi"][free], rec["phi"][free] + rec["psi"][free]
-    counts = int((rig.get("encoder_counts") or {}).get("phi", 0) or 0)
+    counts = rig.phi_counts
     min_swing = MIN_SWING_COUNTS * 2 * math.pi / counts if counts > 0 else 1e-6
     ext = _extrema(t, phi)
     periods = []

@@ -7,10 +7,14 @@ this interface knows which one it drives.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
+from .known import KnownRig
 from .motor import MotorCommand
 from .sensors import Reading
+
+if TYPE_CHECKING:
+    from .params import RigParams
 
 
 @runtime_checkable
@@ -22,8 +26,8 @@ class Rig(Protocol):
         """Sample (and control) period, s."""
 
     @property
-    def known(self) -> dict[str, Any]:
-        """What the experimenter knows: the run record's ``rig`` block."""
+    def known(self) -> KnownRig:
+        """What the experimenter knows (the run record's ``rig`` block, typed)."""
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
         """Bring the hull to ``phi0`` (rod twisted), motor passive, brake as given."""
@@ -41,7 +45,7 @@ class Rig(Protocol):
 class SimulatedRigBase:
     """``dt`` and ``known`` of a simulated rig, read from its :class:`RigParams` ``self.params``."""
 
-    params: Any  # RigParams
+    params: RigParams
 
     @property
     def dt(self) -> float:
@@ -49,6 +53,6 @@ class SimulatedRigBase:
         return self.params.sensors.dt
 
     @property
-    def known(self) -> dict[str, Any]:
-        """The run record's ``rig`` block: what the experimenter knows."""
+    def known(self) -> KnownRig:
+        """What the experimenter knows (the run record's ``rig`` block, typed)."""
         return self.params.known()

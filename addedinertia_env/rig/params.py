@@ -9,8 +9,8 @@ Two views of a rig exist:
 * :class:`RigParams` is the *simulated truth*: it includes the true ``lambda66``, the true
   damping law and any hidden :class:`~addedinertia_env.rig.effects.Effects`.
 * :meth:`RigParams.known` is what an experimenter knows (data sheet, test in air, static
-  calibration); it is what goes into a run record's ``rig`` block and all that estimators
-  and controllers may use.
+  calibration), a :class:`~addedinertia_env.rig.known.KnownRig`; it is what goes into a run
+  record's ``rig`` block and all that estimators and controllers may use.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 from .effects import Effects
+from .known import KnownRig
 
 
 @dataclass(frozen=True)
@@ -140,23 +141,9 @@ class RigParams:
     def replace(self, **changes) -> "RigParams":
         return replace(self, **changes)
 
-    def known(self) -> dict:
-        """What the experimenter knows: the run record's ``rig`` block (no truth)."""
-        m, s = self.motor, self.sensors
-        return {
-            "J_hull": self.hull.J_hull,
-            "J_flywheel": m.J_flywheel,
-            "c_torsion": self.spring.c,
-            "phi_neutral": self.spring.phi_neutral,
-            "k_t": m.k_t,
-            "R": m.R,
-            "L": m.L,
-            "i_max": m.i_max,
-            "u_max": m.u_max,
-            "motor_friction": {"viscous": m.friction_viscous, "coulomb": m.friction_coulomb},
-            "encoder_counts": {"phi": s.phi_counts, "psi": s.psi_counts},
-            "sample_rate": s.sample_rate,
-        }
+    def known(self) -> "KnownRig":
+        """What the experimenter knows (no truth): the typed run record ``rig`` block."""
+        return KnownRig.from_params(self)
 
 
 def _positive(obj, *names: str) -> None:
