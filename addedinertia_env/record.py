@@ -29,8 +29,24 @@ FORMAT = "addedinertia-run/1"
 PHASES = ("free", "hold", "reverse", "idle")
 REQUIRED_COLUMNS = ("t", "phase", "phi", "psi", "u", "i")
 OPTIONAL_NUMERIC_COLUMNS = ("u_cmd", "i_cmd", "brake")
-REQUIRED_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "phi_neutral", "k_t", "R", "L", "sample_rate")
-POSITIVE_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L", "sample_rate")
+REQUIRED_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "phi_neutral", "k_t", "R", "sample_rate")
+POSITIVE_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "sample_rate")
+# Optional rig keys: ``L`` (H) may be 0 (neglected) or absent (unknown), run-record.md;
+# ``current_sampling`` says how the DAQ logged the current (see CURRENT_SAMPLING).
+NONNEGATIVE_OPTIONAL_RIG_KEYS = ("L",)
+# How a logged current sample relates to the true current (``rig.current_sampling``):
+#   "instant"       - the value at the sample instant (a sampled analogue channel): the
+#                     current between samples is interpolated linearly;
+#   "held-previous" - the value held over the interval before the sample (an averaging
+#                     or integrating converter, or a controller logging what it applied);
+#   "held-next"     - the value held from the sample to the next (a controller logging the
+#                     command it is about to apply, with no inductance to smooth it).
+# Absent: "instant" (the documented default); discovery also estimates it from the
+# flywheel channel and reports what it used.
+CURRENT_SAMPLING = ("instant", "held-previous", "held-next")
+DEFAULT_CURRENT_SAMPLING = "instant"
+# Spec range of DAQ sample rates (Hz); outside it a record is still read, with a note.
+SAMPLE_RATE_RANGE = (250.0, 10_000.0)
 EXPERIMENT_KINDS = ("reverse-symmetric", "free-decay", "forced-oscillation")
 SOURCES = ("sim", "emulator", "bench")
 MAX_GAP_PERIODS = 5.0
@@ -42,7 +58,6 @@ RIG_KEY_MEANING = {
     "phi_neutral": "calibrated neutral angle, rad",
     "k_t": "motor torque constant, N m/A",
     "R": "winding resistance, ohm",
-    "L": "winding inductance, H",
     "sample_rate": "sampling rate, Hz",
 }
 
@@ -184,7 +199,7 @@ def read_record(path: str | os.PathLike) -> RunRecord:
 
 def _read_meta(json_path: Path) -> dict[str, Any]:
     try:
-        meta = json.loads(json_path.read_text())
+        meta = json.loads(json_path.read_text(encoding="utf-8-sig"))
     except json.JSONDecodeError as e:
         raise RecordError(f"{json_path}: line {e.lineno} column {e.colno}: not valid JSON ({e.msg})") from None
     except UnicodeDecodeError:
@@ -215,6 +230,15 @@ def _read_meta(json_path: Path) -> dict[str, Any]:
     for key in POSITIVE_RIG_KEYS:
         if rig[key] <= 0:
             raise RecordError(f"{json_path}: key 'rig.{key}' is {rig[key]!r}; expected a number > 0 (SI units)")
+    for key in NONNEGATIVE_OPTIONAL_RIG_KEYS:
+        if key in rig and rig[key] is not None:
+            value = rig[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise RecordError(f"{json_path}: key 'rig.{key}' is {value!r}; expected a finite number >= 0 "
+                                  "(0 or absent: neglected or unknown)")
+    mode = rig.get("current_sampling")
+    if mode is not None and mode not in CURRENT_SAMPLING:
+        raise RecordError(f"{json_path}: key 'rig.current_sampling' is {mode!r}; expected one of {CURRENT_SAMPLING}")
     if abs(rig["phi_neutral"]) > 2 * math.pi:
         raise RecordError(f"{json_path}: key 'rig.phi_neutral' is {rig['phi_neutral']!r} rad; expected |value| <= 2 pi")
     friction = rig.get("motor_friction", {})
@@ -243,7 +267,7 @@ def _read_meta(json_path: Path) -> dict[str, Any]:
 
 def _read_samples(csv_path: Path) -> dict[str, np.ndarray]:
     try:
-        text = csv_path.read_text()
+        text = csv_path.read_text(encoding="utf-8-sig")  # a DAQ's byte-order mark is not part of the header
     except UnicodeDecodeError:
         raise RecordError(f"{csv_path}: not UTF-8 text; expected a CSV file") from None
     except OSError as e:
@@ -260,6 +284,8 @@ def _read_samples(csv_path: Path) -> dict[str, np.ndarray]:
         raise RecordError(f"{csv_path}: line 1: missing required column(s) {missing}; "
                           f"expected at least {list(REQUIRED_COLUMNS)}, header is {header}")
     body = rows[1:]
+    while body and not any(c.strip() for c in body[-1]):  # blank lines at the end of the file
+        body.pop()
     if not body:
         raise RecordError(f"{csv_path}: header only; expected at least one sample row")
     for k, row in enumerate(body):
@@ -320,3 +346,90 @@ def _check_samples(csv_path: Path, s: dict[str, np.ndarray], meta: dict) -> list
     # a step of exactly five periods.
     gaps = [(float(t[k]), float(dt[k])) for k in np.nonzero(dt > MAX_GAP_PERIODS * period * (1 + 1e-6))[0]]
     return gaps
+
+
+# --- sampling and segmentation (what every method reads instead of assuming) ----------
+
+@dataclass(frozen=True)
+class Sampling:
+    """How a record was sampled, measured from its ``t`` column (s, Hz).
+
+    ``uniform``: every interval within 1 % of the nominal period ``1 / rig.sample_rate``;
+    methods that need a uniform grid must check it (or resample and say so).
+    """
+
+    nominal_rate: float  # Hz, rig.sample_rate
+    median_interval: float  # s
+    jitter_rms: float  # s, RMS of (interval - its nearest whole number of periods)
+    dropped: int  # samples missing, estimated as sum(round(interval / period) - 1)
+    gaps: tuple[tuple[float, float], ...]  # (t before, length s) of intervals over five periods
+    uniform: bool
+    in_spec_range: bool  # nominal rate within 250 Hz .. 10 kHz (run-record.md)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"nominal_rate_hz": self.nominal_rate, "median_interval_s": self.median_interval,
+                "jitter_rms_s": self.jitter_rms, "dropped_samples": self.dropped,
+                "gaps": [{"after_t": a, "length_s": g} for a, g in self.gaps], "uniform": self.uniform,
+                "rate_in_spec_range": self.in_spec_range}
+
+
+def sampling(record: RunRecord) -> Sampling:
+    """Measure how ``record`` was sampled: jitter, dropped samples, gaps (never assumed uniform)."""
+    t = np.asarray(record.t, dtype=float)
+    rate = float(record.rig["sample_rate"])
+    period = 1.0 / rate
+    dt = np.diff(t)
+    if dt.size == 0:
+        return Sampling(rate, period, 0.0, 0, tuple(record.gaps), True,
+                        SAMPLE_RATE_RANGE[0] <= rate <= SAMPLE_RATE_RANGE[1])
+    whole = np.maximum(np.round(dt / period), 1.0)
+    jitter = dt - whole * period
+    return Sampling(nominal_rate=rate, median_interval=float(np.median(dt)),
+                    jitter_rms=float(np.sqrt(np.mean(jitter**2))), dropped=int(np.sum(whole - 1.0)),
+                    gaps=tuple(record.gaps), uniform=bool(np.all(np.abs(dt - period) <= 0.01 * period)),
+                    in_spec_range=SAMPLE_RATE_RANGE[0] <= rate <= SAMPLE_RATE_RANGE[1])
+
+
+def braked(record: RunRecord) -> np.ndarray:
+    """Boolean per sample: the hull is held (``brake`` = 1, or phase ``hold``)."""
+    held = record.phase == "hold"
+    if "brake" in record.samples:
+        held = held | (np.asarray(record["brake"]) == 1.0)
+    return held
+
+
+def motion_phase(record: RunRecord) -> np.ndarray:
+    """The phase of each sample as the hull experienced it: ``phase`` and ``brake`` together.
+
+    A braked sample is never free or controlled motion, whatever its ``phase`` says
+    (run-record.md): braked ``free``/``reverse`` samples become ``hold`` when they lie
+    between the first free-motion sample and the last reverse-motion sample (the hull
+    held at the reversal), else ``idle`` (set-up before release, a braked tail after the
+    reverse stroke). Where there is no ``brake`` column the ``phase`` column is taken as is.
+    """
+    phase = np.asarray(record.phase).astype(object).copy()
+    if "brake" not in record.samples:
+        return phase.astype(str)
+    held = np.asarray(record["brake"]) == 1.0
+    moving = ~held & np.isin(phase, ("free", "reverse"))
+    idx = np.nonzero(moving)[0]
+    relabel = held & np.isin(phase, ("free", "reverse"))
+    if idx.size:
+        inside = (np.arange(len(phase)) > idx[0]) & (np.arange(len(phase)) < idx[-1])
+        phase[relabel & inside] = "hold"
+        phase[relabel & ~inside] = "idle"
+    else:
+        phase[relabel] = "idle"
+    return phase.astype(str)
+
+
+def rig_inductance(rig: dict[str, Any]) -> float | None:
+    """Winding inductance ``L`` (H) from a rig block: 0.0 when neglected, None when unknown (absent)."""
+    value = rig.get("L")
+    return None if value is None else float(value)
+
+
+def current_sampling(rig: dict[str, Any]) -> tuple[str, bool]:
+    """How the current was logged (one of :data:`CURRENT_SAMPLING`) and whether the rig block said so."""
+    mode = rig.get("current_sampling")
+    return (str(mode), True) if mode is not None else (DEFAULT_CURRENT_SAMPLING, False)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..identify import METHODS, identify
-from ..record import read_record
+from ..record import read_record, sampling
 from .common import emit_json, info
 
 
@@ -32,7 +32,10 @@ def run(args) -> int:
             options["work"] = args.work
     result = identify(records, args.method, **options)
     if args.json:
-        emit_json(result.to_json(verbose=args.verbose))
+        out = result.to_json(verbose=args.verbose)
+        # how each record was sampled (jitter, dropped samples, gaps): never assumed uniform
+        out.setdefault("sampling", [{"run": rec.name, **sampling(rec).to_json()} for rec in records])
+        emit_json(out)
     else:
         lo, hi = result.ci95
         print(f"lambda66 = {result.lambda66:.4f} kg m^2  (95 % interval {lo:.4f} .. {hi:.4f}; "
