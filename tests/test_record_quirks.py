@@ -28,7 +28,7 @@ def _record(rate: float = 1000.0, n: int = 400, t: np.ndarray | None = None, bra
         brake[k >= 7 * n // 8] = 1.0  # the brake set while the phase still says 'reverse'
     samples = {"t": t, "phase": phase.astype(str), "phi": -0.08 * np.cos(2 * np.pi * t / 4.0), "psi": 0.3 * t,
                "u": 0.1 + 0.01 * np.sin(t), "i": 0.002 * np.cos(t), "brake": brake}
-    rig = RigParams().known()
+    rig = RigParams().known().to_block()
     meta = {"format": FORMAT, "run_id": "q", "source": "bench", "rig": dict(rig, sample_rate=rate),
             "experiment": {"kind": "reverse-symmetric", "alpha": 0.08, "hold_s": 0.0}}
     return RunRecord(samples=samples, meta=meta)
