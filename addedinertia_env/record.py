@@ -194,7 +194,11 @@ def read_record(path: str | os.PathLike) -> RunRecord:
     meta = _read_meta(json_path)
     samples = _read_samples(csv_path)
     gaps = _check_samples(csv_path, samples, meta)
-    return RunRecord(samples=samples, meta=meta, path=csv_path, gaps=gaps)
+    record = RunRecord(samples=samples, meta=meta, path=csv_path, gaps=gaps)
+    from .plausibility import check_plausible  # noqa: PLC0415 - it builds on this module
+
+    check_plausible(record)  # physically possible for its own rig block (docs/RELIABILITY.md)
+    return record
 
 
 def _read_meta(json_path: Path) -> dict[str, Any]:

@@ -55,5 +55,10 @@ def test_unmodelled_effect_biases_nominal_and_extended_model_recovers():
 def test_wrong_kind_refused():
     rec = dataset("none", 3)[0]
     bad = type(rec)(samples=rec.samples, meta={**rec.meta, "experiment": {**rec.experiment, "kind": "free-decay"}})
-    with pytest.raises(IdentificationError, match="reverse-symmetric"):
+    from addedinertia_env.identify.whole_record import identify_whole_record
+    from addedinertia_env.record import RecordError
+
+    with pytest.raises(IdentificationError, match="reverse-symmetric"):  # the method itself refuses the kind
+        identify_whole_record([bad])
+    with pytest.raises(RecordError, match="phase"):  # identify() refuses first: phases out of a free decay's order
         identify([bad], "whole-record")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 
 from ..record import RunRecord
-from .common import IdentificationError, Result
+from .common import IdentificationError, Result, check_physical
 
 METHODS = {
     "energy": "addedinertia_env.identify.energy:identify_energy",
@@ -20,11 +20,19 @@ METHODS = {
 
 
 def identify(records: list[RunRecord], method: str = "energy", **options) -> Result:
+    """lambda66 by ``method`` from ``records``: each record is first checked against its own rig
+    (:mod:`addedinertia_env.plausibility`), and a physically impossible result is refused
+    (:func:`~addedinertia_env.identify.common.check_physical`); both raise with the file names."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
+    from ..plausibility import check_plausible  # noqa: PLC0415
+
+    for rec in records:  # also records made in memory (benchmark episodes), not only those read from files
+        check_plausible(rec)
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
-    return estimator([r.without_truth() for r in records], **options)
+    result = estimator([r.without_truth() for r in records], **options)
+    return check_physical(result, records)
 
 
 __all__ = ["IdentificationError", "METHODS", "Result", "identify"]

@@ -44,6 +44,44 @@ def segment(rec: RunRecord, phase: str) -> slice | None:
     return slice(int(idx[0]), int(end))
 
 
+def largest_gap(rec: RunRecord, a: int, b: int) -> tuple[float, float] | None:
+    """The largest gap in ``t`` between samples ``a`` and ``b`` (inclusive) longer than the
+    spec's reporting threshold (five nominal periods), as ``(t_before, gap_s)``, or None."""
+    from ..record import MAX_GAP_PERIODS  # noqa: PLC0415
+
+    period = 1.0 / float(rec.rig["sample_rate"])
+    dt = np.diff(rec.t[a:b + 1])
+    if not dt.size:
+        return None
+    k = int(np.argmax(dt))
+    if dt[k] <= MAX_GAP_PERIODS * period * (1 + 1e-6):
+        return None
+    return float(rec.t[a + k]), float(dt[k])
+
+
+def check_physical(result: "Result", records: list[RunRecord]) -> "Result":
+    """Refuse a result no rig can have: a non-finite lambda66 or interval, a total inertia
+    ``J_hull + lambda66 <= 0``, or an interval wholly below zero (an added inertia is >= 0).
+
+    Such a value means the records contradict their own ``rig`` blocks (wrong units, a bad
+    calibration, a broken stretch of samples); it is an :class:`IdentificationError` that
+    names the files, never a result.
+    """
+    names = ", ".join(sorted({rec.name for rec in records})) or "<no records>"
+    lam = float(result.lambda66)
+    lo, hi = (float(x) for x in result.ci95)
+    if not all(np.isfinite([lam, lo, hi])):
+        raise IdentificationError(f"{result.method} method on {names}: lambda66 = {lam!r} with interval "
+                                  f"[{lo!r}, {hi!r}]; expected finite numbers (the records do not determine it)")
+    j_hull = min(float(rec.rig["J_hull"]) for rec in records) if records else 0.0
+    if j_hull + lam <= 0 or hi < 0:
+        raise IdentificationError(
+            f"{result.method} method on {names}: lambda66 = {lam:.6g} kg m^2 (95 % interval {lo:.6g} .. {hi:.6g}) "
+            f"is physically impossible; expected an added inertia >= 0 and J_hull + lambda66 > 0 (J_hull = "
+            f"{j_hull:g} kg m^2): the records contradict their rig blocks (units, calibration, broken samples?)")
+    return result
+
+
 def local_fit(t: np.ndarray, y: np.ndarray, tc: float, half_width: float, full: bool = False, degree: int = 3):
     """Least-squares polynomial ``y ~ a0 + a1 s + a2 s^2 + ...``, ``s = t - tc``, over ``|s| <= half_width``.
 

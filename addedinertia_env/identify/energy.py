@@ -29,8 +29,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..record import RunRecord
+from ..record import MAX_GAP_PERIODS
 from ..rig.known import KnownRigError
-from .common import IdentificationError, Result, local_fit, pooled_interval, segment, smooth_angle
+from .common import IdentificationError, Result, largest_gap, local_fit, pooled_interval, segment, smooth_angle
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
 # the patent drops the nearly uniform middle of the stroke, and too near the stop the
@@ -67,7 +68,10 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
     good = [iv for iv in intervals if not iv.rejected]
     if not good:
         reasons = "; ".join(sorted({iv.rejected for iv in intervals})) or "no usable interval"
-        raise IdentificationError(f"energy method: every interval was rejected ({reasons})")
+        names = ", ".join(sorted({rec.name for rec in records}))
+        raise IdentificationError(f"energy method on {names}: every boundary-angle interval was rejected "
+                                  f"({reasons}); expected a reverse-symmetric run whose strokes pass the boundary "
+                                  "angles, sampled without gaps, current below its limit")
     by_run: dict[str, list[Interval]] = {}
     for iv in good:
         by_run.setdefault(iv.run, []).append(iv)
@@ -161,6 +165,11 @@ def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: b
         k4 = _crossing(phi, rev.start, rev.stop - 1, phi1, -direction)
         if k1 is None or k4 is None:
             iv.rejected = "boundary angle not passed on both strokes"
+            continue
+        gap = largest_gap(rec, k1, k2) or largest_gap(rec, k3, k4)
+        if gap is not None:  # the work sums and rate fits assume the stroke was sampled throughout
+            iv.rejected = (f"a gap of {gap[1]:.4g} s in 't' after t = {gap[0]:.4f} s inside the integrated stroke "
+                           f"({MAX_GAP_PERIODS:g} sample periods allowed)")
             continue
         # Refine the crossing instants and rates with local quadratic fits.
         t1, w1f, sw1f = _crossing_fit(t, phi, k1, phi1)
