@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
+from .config_io import read_yaml
 
 from .experiment.protocol import ExperimentPlan
 from .rig.effects import Effects
@@ -38,7 +38,9 @@ class Scenario:
 
 def load_ranges(path: str | Path | None = None) -> dict[str, Any]:
     path = Path(path) if path else CONFIG_DIR / "randomization.yaml"
-    data = yaml.safe_load(path.read_text()) or {}
+    data = read_yaml(path, "randomisation ranges") or {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping of [low, high] ranges")
     unknown = sorted(set(data) - RANGE_KEYS)
     if unknown:
         raise ConfigError(f"{path}: unknown key(s) {unknown}; allowed keys are {sorted(RANGE_KEYS)}")

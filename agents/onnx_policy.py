@@ -20,6 +20,7 @@ the benchmark can put it in the leaderboard row.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,8 @@ import numpy as np
 from addedinertia_env.task import OBSERVATION_FIELDS
 
 META_PREFIX = "addedinertia."
+MAX_POLICY_BYTES = 200_000_000  # a policy network for this task is well under 1 MB
+MAX_ACTION_REPEAT = 1000  # rig samples per network evaluation (1 Hz at a 1 kHz rig)
 
 
 class OnnxPolicyError(ValueError):
@@ -41,45 +44,108 @@ class OnnxPolicy:
         import onnxruntime as ort  # noqa: PLC0415 - heavy, only for learned controllers
 
         self.path = Path(path)
-        if not self.path.exists():
-            raise FileNotFoundError(f"ONNX policy {self.path} does not exist; write one with `addedinertia export`")
+        if not self.path.is_file():
+            raise OnnxPolicyError(f"{self.path}: no such file; expected an ONNX policy written by `addedinertia export`")
+        size = self.path.stat().st_size
+        if size > MAX_POLICY_BYTES:
+            raise OnnxPolicyError(f"{self.path}: {size} bytes; expected an exported policy of at most "
+                                  f"{MAX_POLICY_BYTES} bytes")
         opts = ort.SessionOptions()
         opts.intra_op_num_threads = opts.inter_op_num_threads = 1
+        opts.log_severity_level = 3  # errors only: a refusal is one line, not onnxruntime's log
         try:
             self.session = ort.InferenceSession(str(self.path), opts, providers=["CPUExecutionProvider"])
-        except Exception as e:  # onnxruntime raises its own exception types
-            raise OnnxPolicyError(f"{self.path}: not a loadable ONNX model ({e})") from None
+        except Exception as e:  # noqa: BLE001 - onnxruntime raises its own exception types
+            first = " ".join(str(e).split())[:200]
+            raise OnnxPolicyError(f"{self.path}: not a loadable ONNX model ({first}); expected a policy written by "
+                                  "`addedinertia export`") from None
         props = self.session.get_modelmeta().custom_metadata_map
         self.metadata = {k[len(META_PREFIX):]: v for k, v in props.items() if k.startswith(META_PREFIX)}
-        fields = json.loads(self.metadata.get("obs_fields", "null") or "null")
+        try:
+            fields = json.loads(self.metadata.get("obs_fields", "null") or "null")
+        except json.JSONDecodeError:
+            raise OnnxPolicyError(f"{self.path}: metadata obs_fields is not JSON; expected the list of observation "
+                                  "fields it was trained on") from None
         if fields is not None and fields != list(OBSERVATION_FIELDS):
             raise OnnxPolicyError(f"{self.path}: trained on observation fields {fields}; this version observes "
                                   f"{list(OBSERVATION_FIELDS)}. Retrain or use a matching version.")
-        self.input_name = self.session.get_inputs()[0].name
-        self.action_repeat = int(self.metadata.get("action_repeat", "1") or 1)
-        if self.action_repeat < 1:
-            raise OnnxPolicyError(f"{self.path}: metadata action_repeat = {self.action_repeat}; expected >= 1")
+        self.input_name = self._check_signature()
+        self.action_repeat = self._meta_number("action_repeat", "1", int, 1, MAX_ACTION_REPEAT)
         self.algo = self.metadata.get("algo", "")
         self.residual_base = self.metadata.get("residual_base", "") or None
-        self.residual_scale = float(self.metadata.get("residual_scale", "0") or 0.0)
+        self.residual_scale = self._meta_number("residual_scale", "0", float, 0.0, 1.0)
+        self.sample_rate_hz = (self._meta_number("sample_rate_hz", "0", float, 1.0, 1e6)
+                               if self.metadata.get("sample_rate_hz") else None)
         self.train_env_steps = _optional_int(self.metadata.get("train_env_steps"))
         self.train_cpu_minutes = _optional_float(self.metadata.get("train_cpu_minutes"))
         self.name = f"onnx:{self.path.name}"
         self.base = None
-        self.residual_base_params = json.loads(self.metadata.get("residual_base_params", "{}") or "{}")
+        try:
+            self.residual_base_params = json.loads(self.metadata.get("residual_base_params", "{}") or "{}")
+        except json.JSONDecodeError:
+            raise OnnxPolicyError(f"{self.path}: metadata residual_base_params is not JSON; expected an object "
+                                  "of the base controller's parameters") from None
         if self.residual_base:
             self.base = self._make_base()
         self._calls = 0
         self._held = np.zeros(1, dtype=np.float32)
 
+    def _meta_number(self, key: str, default: str, kind: type, low: float, high: float):
+        """Metadata ``key`` as a number in [low, high], else OnnxPolicyError."""
+        text = self.metadata.get(key, default) or default
+        try:
+            value = kind(text)
+        except ValueError:
+            value = None
+        if value is None or not math.isfinite(value) or not low <= value <= high:
+            raise OnnxPolicyError(f"{self.path}: metadata {key} = {text!r}; expected a number in [{low:g}, {high:g}]")
+        return value
+
+    def _check_signature(self) -> str:
+        """One float input ``(batch, n_obs)`` and an output ``(batch, 1)``, tried on a zero observation."""
+        n_obs = len(OBSERVATION_FIELDS)
+        inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
+        if len(inputs) != 1:
+            raise OnnxPolicyError(f"{self.path}: {len(inputs)} inputs; expected one, the observation "
+                                  f"(batch, {n_obs})")
+        shape = inputs[0].shape
+        if inputs[0].type != "tensor(float)" or len(shape) != 2 or (isinstance(shape[1], int) and shape[1] != n_obs):
+            raise OnnxPolicyError(f"{self.path}: input {inputs[0].name!r} is {inputs[0].type} {shape}; expected "
+                                  f"tensor(float) [batch, {n_obs}] (addedinertia_env.task.OBSERVATION_FIELDS)")
+        if not outputs:
+            raise OnnxPolicyError(f"{self.path}: no outputs; expected the action (batch, 1)")
+        try:
+            out = self.session.run(None, {inputs[0].name: np.zeros((2, n_obs), dtype=np.float32)})[0]
+        except Exception as e:  # noqa: BLE001 - onnxruntime's own types
+            first = " ".join(str(e).split())[:200]
+            raise OnnxPolicyError(f"{self.path}: fails on an observation of {n_obs} fields ({first}); expected a "
+                                  f"policy for this task's observation") from None
+        out = np.asarray(out)
+        if out.shape != (2, 1):
+            raise OnnxPolicyError(f"{self.path}: action of shape {list(out.shape)} for a batch of 2 observations; "
+                                  "expected [2, 1] (one drive command per observation)")
+        if not np.all(np.isfinite(out)):
+            raise OnnxPolicyError(f"{self.path}: non-finite action {out.ravel().tolist()} for a zero observation")
+        return inputs[0].name
+
+    def check_rate(self, dt: float) -> None:
+        """Refuse a control period other than the one the policy was trained at (when its metadata says)."""
+        if self.sample_rate_hz is not None and abs(1.0 / dt - self.sample_rate_hz) > 1e-6 * self.sample_rate_hz:
+            raise OnnxPolicyError(f"{self.path}: trained at {self.sample_rate_hz:g} Hz; this rig samples at "
+                                  f"{1.0 / dt:g} Hz. Retrain for this rate or use a matching rig.")
+
     def _make_base(self):
         """The base controller with the parameters it was trained with (never re-read from tuned.yaml)."""
         from .registry import make_controller  # noqa: PLC0415
 
-        if not self.residual_base_params:
-            return make_controller(self.residual_base)
+        from .registry import UnknownController  # noqa: PLC0415
+
         try:
+            if not self.residual_base_params:
+                return make_controller(self.residual_base)
             return make_controller(self.residual_base, tuned=False, **self.residual_base_params)
+        except UnknownController as e:
+            raise OnnxPolicyError(f"{self.path}: residual base controller: {e}") from None
         except TypeError as e:
             raise OnnxPolicyError(f"{self.path}: base controller {self.residual_base!r} no longer takes the "
                                   f"parameters it was trained with ({e}); retrain the policy") from None
@@ -88,6 +154,8 @@ class OnnxPolicy:
         """Start of an episode: restart the hold counter; reset the base controller with ``context``."""
         self._calls = 0
         self._held = np.zeros(1, dtype=np.float32)
+        if context is not None and getattr(context, "dt", None):
+            self.check_rate(float(context.dt))
         if self.base is not None:
             if context is None:
                 raise OnnxPolicyError(f"{self.path}: a residual policy on {self.residual_base!r} needs "

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
+from addedinertia_env.config_io import read_yaml
 
 from addedinertia_env.rig.known import KnownRig
 from addedinertia_env.rig.presets import ConfigError, load_preset, plan_from_preset, rig_from_mapping
@@ -75,10 +75,7 @@ def load_lab(name_or_path: str) -> LabConfig:
     """A lab file (``.yaml``) or, for the emulator, a rig preset's known constants."""
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") and path.exists():
-        try:
-            data = yaml.safe_load(path.read_text())
-        except yaml.YAMLError as e:
-            raise ConfigError(f"{path}: not valid YAML ({e})") from None
+        data = read_yaml(path, "lab")
         return lab_from_mapping(data, str(path))
     preset = load_preset(name_or_path)  # raises ConfigError naming the known presets
     known = rig_from_mapping(preset).known()

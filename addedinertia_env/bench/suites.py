@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
+from ..config_io import read_yaml
 
 from ..rig.presets import CONFIG_DIR, ConfigError, config_path
 from ..scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
@@ -97,10 +97,7 @@ def suite_path(name: str) -> Path:
 def load_suite(name: str) -> Suite:
     """The suite ``name`` (a file in configs/suites/ or a path), validated."""
     path = suite_path(name)
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML ({e})") from None
+    data = read_yaml(path, "suite") or {}
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping with keys {sorted(SUITE_KEYS)}")
     unknown = sorted(set(data) - SUITE_KEYS)

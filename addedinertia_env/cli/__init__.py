@@ -3,7 +3,9 @@
 Each subcommand lives in its own module of this package and exposes
 ``register(subparsers)``, which adds its parser and sets ``func(args) -> int``. Modules
 are found by name, so adding a command means adding a file. Errors in the input (bad
-records, bad configs, bad options) print one line on stderr and exit with status 2.
+records, bad configs, bad options, a policy or link that cannot be used) print one line
+on stderr and exit with status 2; any other exception is a bug: one line on stderr
+points to a log file with the traceback, exit status 70 (docs/RELIABILITY.md).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import importlib
 import pkgutil
 import sys
 
-from .common import BAD_INPUT, fail
+from .common import bad_input_types, fail, report_bug
 
 
 class OneLineErrorParser(argparse.ArgumentParser):
@@ -53,11 +55,15 @@ def main(argv: list[str] | None = None) -> int:
         return e.code if isinstance(e.code, int) else 2
     try:
         return int(args.func(args) or 0)
-    except BAD_INPUT as e:
-        return fail(e)
     except KeyboardInterrupt:
         print("addedinertia: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # stdout closed by the reader (| head): nothing more to say
+        return 0
+    except Exception as e:  # noqa: BLE001 - the one place every failure ends up
+        if isinstance(e, bad_input_types()):
+            return fail(e)
+        return report_bug(e, argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -60,9 +60,12 @@ def _check_controller(name: str) -> None:
     """Refuse an unknown controller before any episode runs (exit status 2)."""
     from agents.registry import CLASSICAL, UnknownController, _load  # noqa: PLC0415
 
-    if name in CLASSICAL or name.startswith("onnx:"):
-        if name.startswith("onnx:") and not Path(name[5:]).exists():
-            raise BadInput(f"--controller {name!r}: no such ONNX file {name[5:]!r}")
+    if name in CLASSICAL:
+        return
+    if name.startswith("onnx:"):
+        from agents.registry import make_controller  # noqa: PLC0415
+
+        make_controller(name)  # loads and validates the policy (OnnxPolicyError names the file: exit 2)
         return
     if ":" not in name:
         raise BadInput(f"--controller {name!r}: expected one of {', '.join(sorted(CLASSICAL))}, "

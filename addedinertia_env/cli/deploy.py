@@ -37,6 +37,17 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _check_url(url: str) -> None:
+    """A --bench URL pyserial cannot even parse is bad input (exit 2); one that does not answer is exit 4."""
+    import serial  # noqa: PLC0415
+
+    try:
+        serial.serial_for_url(url, do_not_open=True)
+    except (ValueError, serial.SerialException) as e:
+        raise BadInput(f"--bench {url!r}: {e}; expected a pyserial URL such as /dev/ttyUSB0, "
+                       "socket://127.0.0.1:5555 or loop://") from None
+
+
 def run(args) -> int:
     from agents.registry import UnknownController, make_controller  # noqa: PLC0415
     from hw_adapter.deploy import DeployOptions, deploy  # noqa: PLC0415
@@ -51,6 +62,7 @@ def run(args) -> int:
         name = args.controller
     if args.watchdog_ms is not None and not 0 < args.watchdog_ms <= 1000:
         raise BadInput(f"--watchdog-ms {args.watchdog_ms}: expected 0 < ms <= 1000")
+    _check_url(args.bench)
     lab = load_lab(args.lab)
     try:
         lab.plan(hold_s=args.hold, alpha=args.alpha)

@@ -34,12 +34,14 @@ def run(args) -> int:
     sensors = sensors_for_quality(args.sensors) if args.sensors else None
     rig = rig_from_mapping(data, effects=effects_from_name(args.effect, args.seed), sensors=sensors)
     plan = plan_from_preset(data, hold_s=args.hold, alpha=args.alpha)
-    if args.kind == "reverse-symmetric" and ":" not in args.controller:
-        from agents.registry import CLASSICAL  # noqa: PLC0415
+    if args.kind == "reverse-symmetric":
+        from agents.registry import CLASSICAL, make_controller  # noqa: PLC0415
 
-        if args.controller not in CLASSICAL:
+        if ":" not in args.controller and args.controller not in CLASSICAL:
             raise BadInput(f"--controller {args.controller!r}: expected one of {', '.join(sorted(CLASSICAL))}, "
                            "onnx:PATH or module:factory")
+        if ":" in args.controller:
+            make_controller(args.controller)  # a policy or factory is loaded and checked before anything runs
     paths = simulate_to_dir(rig, Path(args.out), controller=args.controller, plan=plan, seed=args.seed,
                             cycles=args.cycles, kind=args.kind)
     for p in paths:

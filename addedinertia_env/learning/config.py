@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
+from ..config_io import read_yaml
 
 from ..rig.presets import CONFIG_DIR, ConfigError
 
@@ -107,10 +107,7 @@ def load_config(algo: str, path: str | Path | None = None, env_id: str = DEFAULT
         raise ConfigError(f"unknown algorithm {algo!r}; expected one of {', '.join(ALGOS)}")
     if not path.exists():
         raise ConfigError(f"config file {path} does not exist; see configs/algos/ for examples")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML ({e})") from None
+    data = read_yaml(path, "training config")
     if not isinstance(data, dict) or env_id not in data:
         found = list(data) if isinstance(data, dict) else type(data).__name__
         raise ConfigError(f"{path}: expected a block for environment {env_id!r} at the top level, found {found}")

@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-import yaml
+from ..config_io import read_yaml
 
 from . import hydro
 from .effects import Effects
@@ -53,10 +53,7 @@ TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physi
 def load_preset(name: str) -> dict[str, Any]:
     """The raw preset mapping (validated for top-level keys)."""
     path = rig_path(name)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML ({e})") from None
+    data = read_yaml(path, "rig preset")
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
     _only_keys(data, set(TOP_KEYS), str(path))

@@ -1,0 +1,40 @@
+"""Reading configuration files (YAML) with one kind of refusal: :class:`ConfigError` naming the file.
+
+A rig preset, suite, randomisation range, lab or training config that is missing,
+unreadable, not UTF-8 or not valid YAML gives a one-line message with the file and what
+was expected, never a ``UnicodeDecodeError`` or ``yaml`` traceback.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+MAX_CONFIG_BYTES = 1_000_000  # a configuration file is a few kB; beyond this it is not one
+
+
+def read_yaml(path: str | Path, what: str = "configuration") -> Any:
+    """The parsed YAML document of ``path`` (a ``what`` file); raises ConfigError naming the file."""
+    from .rig.presets import ConfigError  # noqa: PLC0415 - presets imports this module
+
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_CONFIG_BYTES:
+            raise ConfigError(f"{path}: {size} bytes; expected a {what} YAML file of at most {MAX_CONFIG_BYTES} bytes")
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {e.start}); expected a {what} YAML file") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: is a folder; expected a {what} YAML file") from None
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read ({e.strerror}); expected a readable {what} YAML file") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        where = getattr(e, "problem_mark", None)
+        at = f"line {where.line + 1}: " if where is not None else ""
+        raise ConfigError(f"{path}: {at}not valid YAML ({getattr(e, 'problem', None) or e}); "
+                          f"expected a {what} YAML file") from None
