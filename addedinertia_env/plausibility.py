@@ -74,14 +74,15 @@ class Limits:
 def check_plausible(rec: RunRecord) -> Limits:
     """Refuse a record its own rig could not have produced (:class:`RecordError`); returns the limits used."""
     name = rec.name
-    rig = rec.rig
+    try:
+        known = rec.known
+    except ValueError as e:  # KnownRigError: the rig block itself is unusable
+        raise RecordError(f"{name}: rig block: {e}") from None
     _check_phase_order(rec)
     t, phi, psi, u, i = (np.asarray(rec[c], dtype=float) for c in ("t", "phi", "psi", "u", "i"))
-    k_t, R, c = float(rig["k_t"]), float(rig["R"]), float(rig["c_torsion"])
-    J_h, phi_n = float(rig["J_hull"]), float(rig["phi_neutral"])
-    i_max_rig, u_max_rig = _optional_positive(rig, "i_max"), _optional_positive(rig, "u_max")
-    counts = rig.get("encoder_counts") if isinstance(rig.get("encoder_counts"), dict) else {}
-    q_phi, q_psi = _count_step(counts.get("phi")), _count_step(counts.get("psi"))
+    k_t, R, c, J_h, phi_n = known.k_t, known.R, known.c_torsion, known.J_hull, known.phi_neutral
+    i_max_rig, u_max_rig = _positive_or_none(known.i_max), _positive_or_none(known.u_max)
+    q_phi, q_psi = _count_step(known.phi_counts), _count_step(known.psi_counts)
 
     # Angles first: a psi of 1e15 rad would make every rate below meaningless.
     psi_abs = max(q_psi if q_psi > 0 else 2 * math.pi / 2**24, 1e-9) * PSI_RESOLUTION_FRACTION / np.finfo(float).eps
@@ -131,8 +132,7 @@ def check_plausible(rec: RunRecord) -> Limits:
 
 # --- helpers ---------------------------------------------------------------------------
 
-def _optional_positive(rig: dict, key: str) -> float | None:
-    v = rig.get(key)
+def _positive_or_none(v) -> float | None:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
         return None
     return float(v)
