@@ -18,11 +18,12 @@ import json
 import math
 import multiprocessing
 import os
+import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
@@ -132,26 +133,48 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
 
 
 def _init_worker() -> None:
+    """A worker ends quietly: Ctrl-C is the parent's to handle, SIGTERM (the parent's
+    ``terminate``) just ends it, and on Linux it ends when the parent dies (no orphan
+    left computing, no BrokenPipe traceback from writing to a parent that is gone)."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes  # noqa: PLC0415
+
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
 
 
-def run_tasks(tasks: list[EpisodeTask], jobs: int = 1, progress: bool = True, desc: str = "bench") -> list[dict]:
-    """Rows of ``tasks`` in task order; ``jobs`` > 1 uses that many processes."""
+def run_tasks(tasks: list[EpisodeTask], jobs: int = 1, progress: bool = True, desc: str = "bench",
+              on_row: Callable[[dict], None] | None = None) -> list[dict]:
+    """Rows of ``tasks`` in task order; ``jobs`` > 1 uses that many processes.
+
+    ``on_row(row)`` is called for each row as it lands (in task order), e.g. to append it
+    to a file at once so that a killed run keeps what it finished.
+    """
     from tqdm import tqdm  # noqa: PLC0415
 
     bar = tqdm(total=len(tasks), desc=desc, file=sys.stderr, disable=not progress, unit="ep")
     rows: list[dict] = []
+
+    def land(row: dict) -> None:
+        rows.append(row)
+        if on_row is not None:
+            on_row(row)
+        bar.update()
+
     try:
         if jobs <= 1 or len(tasks) <= 1:
             for task in tasks:
-                rows.append(run_episode(task))
-                bar.update()
+                land(run_episode(task))
         else:
             ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-            with ctx.Pool(min(jobs, len(tasks)), initializer=_init_worker) as pool:
+            with ctx.Pool(min(jobs, len(tasks)), initializer=_init_worker) as pool:  # exit: terminate()
                 for row in pool.imap(run_episode, tasks, chunksize=1):
-                    rows.append(row)
-                    bar.update()
+                    land(row)
     finally:
         bar.close()
     return rows

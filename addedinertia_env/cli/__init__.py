@@ -47,12 +47,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _sigterm_as_interrupt():
+    """SIGTERM ends a command like Ctrl-C: files are closed, workers stopped, exit 130, no traceback.
+    Returns the handler it replaced (None off the main thread)."""
+    import signal  # noqa: PLC0415
+    import threading  # noqa: PLC0415
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    return signal.signal(signal.SIGTERM, interrupt)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as e:  # usage error (2, one line already printed), --help or --version (0)
         return e.code if isinstance(e.code, int) else 2
+    previous = _sigterm_as_interrupt()
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
@@ -64,6 +80,11 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(e, bad_input_types()):
             return fail(e)
         return report_bug(e, argv)
+    finally:
+        if previous is not None:
+            import signal  # noqa: PLC0415
+
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

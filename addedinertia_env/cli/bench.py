@@ -33,6 +33,9 @@ def register(sub) -> None:
     r.add_argument("--out", default=None, help="JSON-lines file (default: out/bench/SUITE-CONTROLLER.jsonl)")
     r.add_argument("--jobs", type=positive_int, default=min(2, os.cpu_count() or 1), help="worker processes")
     r.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    r.add_argument("--force", action="store_true",
+                   help="start --out over even if it holds rows (by default a run resumes the rows of the same "
+                        "controller, suite and split, and refuses a file holding others)")
     r.add_argument("--json", action="store_true", help="print a one-object summary on stdout")
     r.set_defaults(func=run_bench)
 
@@ -77,7 +80,8 @@ def _check_controller(name: str) -> None:
 
 
 def run_bench(args) -> int:
-    from ..bench.runner import run_tasks, write_rows  # noqa: PLC0415
+    from ..bench.resume import RowAppender, prepare_output  # noqa: PLC0415
+    from ..bench.runner import run_tasks  # noqa: PLC0415
     from ..bench.suites import load_suite  # noqa: PLC0415
 
     suite = load_suite(args.suite)
@@ -88,11 +92,27 @@ def run_bench(args) -> int:
     tasks = [suite.task(sc, args.controller) for sc in scenarios]
     safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", args.controller)
     out = Path(args.out or f"out/bench/{suite.name}-{safe}.jsonl")
-    info(f"bench: {len(tasks)} scenario(s) of {suite.name}/{args.split} with {args.controller}, {args.jobs} job(s)")
-    rows = run_tasks(tasks, jobs=args.jobs, progress=not args.no_progress, desc=args.controller)
-    write_rows(rows, out)
+    key = {"controller": args.controller, "suite": suite.name, "split": args.split}
+    kept, notes = prepare_output(out, key, force=args.force)
+    for note in notes:
+        info(f"bench: {note}")
+    done = {r["scenario"]: r for r in kept}
+    todo = [t for t in tasks if t.scenario.name not in done]
+    if done:
+        info(f"bench: resuming {out}: {len(tasks) - len(todo)} of {len(tasks)} episode(s) already there, "
+             f"running the other {len(todo)} (--force starts over)")
+    info(f"bench: {len(todo)} scenario(s) of {suite.name}/{args.split} with {args.controller}, {args.jobs} job(s)")
+    try:
+        with RowAppender(out) as appender:
+            new = run_tasks(todo, jobs=args.jobs, progress=not args.no_progress, desc=args.controller,
+                            on_row=appender.append)
+    except KeyboardInterrupt:
+        info(f"bench: interrupted; the finished episodes are in {out}: run the same command to resume")
+        raise
+    by_name = {**done, **{r["scenario"]: r for r in new}}
+    rows = [by_name[t.scenario.name] for t in tasks if t.scenario.name in by_name]
     failures = sum(r["rel_error"] is None for r in rows)
-    info(f"wrote {len(rows)} row(s) to {out} ({failures} failure(s))")
+    info(f"wrote {len(new)} row(s) to {out}; {len(rows)} of this run's {len(tasks)} there ({failures} failure(s))")
     if args.json:
         import numpy as np  # noqa: PLC0415
 

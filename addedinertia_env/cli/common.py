@@ -38,6 +38,7 @@ def bad_input_types() -> tuple[type[BaseException], ...]:
                          ("addedinertia_env.discover.prepare", "DiscoveryInputError"),
                          ("addedinertia_env.decay", "DecayInputError"),
                          ("addedinertia_env.bench.leaderboard", "RowsError"),
+                         ("addedinertia_env.bench.resume", "RowsFileError"),
                          ("hw_adapter.link", "LinkError")):
         mod = sys.modules.get(module)
         if mod is not None and isinstance(getattr(mod, name, None), type):

@@ -1,0 +1,132 @@
+"""Benchmark rows that survive a kill: appended one flushed JSON line at a time, resumed by scenario.
+
+``addedinertia bench run`` writes each episode's row the moment it lands (one JSON line,
+flushed and synced), so a killed run loses at most the episodes still running. Run the
+same command again and it resumes: the rows already in the file for this controller,
+suite and split are kept, their scenarios are skipped, and the rest are appended. A last
+line cut short by the kill is removed first (and said so). A file holding rows of
+another controller, suite or split is never mixed with or overwritten unless ``force``
+(then the file starts over). See docs/RELIABILITY.md.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..atomic import atomic_write_text
+
+KEY_FIELDS = ("controller", "suite", "split")
+
+
+class RowsFileError(ValueError):
+    """An output file that cannot be resumed or must not be overwritten; the message says what to do."""
+
+
+def read_rows_tolerant(path: Path) -> tuple[list[dict[str, Any]], str | None]:
+    """Complete rows of ``path`` and, if its last line was cut short by a kill, that fragment."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise RowsFileError(f"{path}: not UTF-8 text; expected the JSON lines of `addedinertia bench run`") from None
+    lines = text.split("\n")
+    torn = lines.pop() or None  # text after the last newline: an unfinished line
+    rows = []
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError as e:
+            raise RowsFileError(f"{path}: line {n}: not a JSON line ({e.msg}); expected the rows of "
+                                "`addedinertia bench run` (use another --out, or --force to replace the file)") from None
+        if not isinstance(row, dict) or not all(k in row for k in KEY_FIELDS + ("scenario",)):
+            raise RowsFileError(f"{path}: line {n}: not a benchmark row (needs {list(KEY_FIELDS + ('scenario',))}); "
+                                "use another --out, or --force to replace the file")
+        rows.append(row)
+    if torn is not None:
+        try:
+            row = json.loads(torn)  # a complete row whose newline was lost
+            if isinstance(row, dict) and all(k in row for k in KEY_FIELDS + ("scenario",)):
+                rows.append(row)
+                torn = None
+        except json.JSONDecodeError:
+            pass
+    return rows, torn
+
+
+def prepare_output(path: str | Path, key: dict[str, Any], force: bool = False) -> tuple[list[dict], list[str]]:
+    """Rows already in ``path`` for this run's ``key`` (controller, suite, split) and messages for the user.
+
+    ``force``: start the file over whatever it holds. Otherwise a file holding rows of
+    another run is refused (:class:`RowsFileError`), and a torn last line is cut off.
+    """
+    path = Path(path)
+    notes: list[str] = []
+    stale = path.with_name(path.name + ".tmp")  # left by the writer of earlier versions
+    if stale.exists():
+        stale.unlink()
+        notes.append(f"removed the stale temporary file {stale}")
+    if not path.exists():
+        return [], notes
+    if force:
+        atomic_write_text(path, "")
+        notes.append(f"--force: started {path} over")
+        return [], notes
+    rows, torn = read_rows_tolerant(path)
+    others = sorted({tuple(str(r.get(k)) for k in KEY_FIELDS) for r in rows
+                     if any(r.get(k) != key[k] for k in KEY_FIELDS)})
+    if others:
+        desc = "; ".join(f"controller {c}, suite {s}, split {p}" for c, s, p in others[:3])
+        raise RowsFileError(f"{path}: holds rows of another run ({desc}); refusing to mix or overwrite them. "
+                            "Use another --out, or --force to replace the file")
+    if torn is not None:
+        atomic_write_text(path, "".join(json.dumps(r, allow_nan=False) + "\n" for r in rows))
+        notes.append(f"{path}: removed an unfinished last line ({len(torn)} characters) left by an interrupted run")
+    return rows, notes
+
+
+class RowAppender:
+    """Append rows to a JSON-lines file, each flushed and synced as it lands (context manager)."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._f = open(self.path, "a", encoding="utf-8")
+        self.written = 0
+
+    def append(self, row: dict[str, Any]) -> None:
+        self._f.write(json.dumps(finite(row), allow_nan=False) + "\n")
+        self._f.flush()
+        os.fsync(self._f.fileno())
+        self.written += 1
+
+    def close(self) -> None:
+        self._f.close()
+
+    def __enter__(self) -> "RowAppender":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def finite(x: Any) -> Any:
+    """JSON-safe copy: non-finite floats become None, numpy scalars plain numbers."""
+    if isinstance(x, dict):
+        return {k: finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [finite(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+RowCallback = Callable[[dict[str, Any]], None]
