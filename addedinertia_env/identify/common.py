@@ -122,8 +122,8 @@ def pooled_interval(values: np.ndarray, sigmas: np.ndarray, z: float = 1.96) -> 
     return mean, mean - z * sigma, mean + z * sigma
 
 
-def smooth_angle(t: np.ndarray, angle: np.ndarray, window_s: float = 0.04) -> np.ndarray:
-    """Centred Savitzky-Golay smoothing (cubic) of an encoder angle.
+def smooth_angle(t: np.ndarray, angle: np.ndarray, window_s: float = 0.04, degree: int = 3) -> np.ndarray:
+    """Centred Savitzky-Golay smoothing (cubic by default) of an encoder angle.
 
     Work sums ``sum(torque_k * dphi_k)`` over raw quantised increments are biased when
     the controller's torque reacted to the same quantisation errors (a PD sees ``-e_k``
@@ -134,7 +134,7 @@ def smooth_angle(t: np.ndarray, angle: np.ndarray, window_s: float = 0.04) -> np
     from scipy.signal import savgol_filter  # noqa: PLC0415
 
     dt = float(np.median(np.diff(t)))
-    n = max(5, int(round(window_s / dt)) | 1)
+    n = max(degree + 2, int(round(window_s / dt)) | 1)
     if len(angle) <= n:
         return angle.astype(float)
-    return savgol_filter(angle, n, 3)
+    return savgol_filter(angle, n, degree)

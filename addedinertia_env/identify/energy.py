@@ -7,6 +7,7 @@ rests at ``t2``, end of the free stroke, and ``t3``, end of the hold)::
         Pi(t2) - Pi(t1) + Pi(t3) - Pi(t4)            (spring, with measured angles)
       + (A_r + B_r) - (A_f + B_f)                     (motor work, rotor-bearing work)
       + K(t2) + K(t3) - K(t1) - K(t4)                 (flywheel energy 1/2 J_f (w + Omega)^2)
+      + hull energy left at t2, t3                    (nearly zero: the hull rests)
       - dW                                            (dissipation mismatch, optional)
 
 The hydrodynamic dissipation cancels if the reverse stroke retraces ``|w(phi)|``. What
@@ -14,31 +15,103 @@ the controller fails to retrace leaves ``dW = integral D'(|w|) (|w_r| - |w_f|) d
 which is estimated from the record itself (a damping law fitted to the forward stroke)
 and removed; half of it is kept as uncertainty.
 
-Motor work: ``A = sum k_t i dpsi`` (current and flywheel encoder; default) or, as the
-patent does, electric energy minus ohmic and magnetic energy
-``int u i dt - R int i^2 dt - [L i^2 / 2]``. The current-sensor offset is calibrated on
-the free stroke, where the motor is open-circuit and the true current is zero.
+Where the error comes from (docs/ENERGY_METHOD.md has the budget, term by term): the
+hull's rates at the boundary instants. A 17-bit encoder leaves about 5e-4 of relative
+error in a rate fitted around one instant, which is 0.1 to 1 % of lambda66 per boundary
+angle. So, unless the record names its boundary angles, the balance is evaluated at a
+dense set of angles between 25 % and 75 % of the stroke and averaged with smooth (Hann)
+weights: the average of many overlapping rate fits weighted smoothly is the rate error
+integrated against a smooth kernel, which is the angle noise times the kernel's slope,
+about ten times smaller than one pointwise rate. The motor work is a cumulative sum
+interpolated to the exact crossing instants (not to the nearest sample).
 
-Only the record's samples and its ``rig`` block are used; never ``truth``.
+Motor work forms (``work=``):
+
+* ``reaction`` (default): the work of the motor's reaction on the hull,
+  ``-integral (k_t i - M_f) dphi``; the hull's own balance, no flywheel energy enters;
+* ``current``: ``integral k_t i dpsi`` plus the flywheel energies at the four instants;
+* ``electric``: electric energy minus ohmic and magnetic energy (the patent's wording),
+  plus the flywheel energies.
+
+The three are one identity in exact arithmetic (the flywheel's own balance), but the
+``current`` and ``electric`` forms push the flywheel's tens of joules through the
+balance of a hull that carries a fraction of a joule: every relative error of the
+current gain, ``R`` or the flywheel rate is multiplied by that ratio. They are
+diagnostics, and say so when used (:data:`DIAGNOSTIC_FORM_WARNING`).
+
+The current-sensor offset is calibrated on the free stroke, where the motor is open
+circuit and the true current is zero. Only the record's samples and its ``rig`` block are
+used; never ``truth``. ``rig.L`` may be 0 or absent: the reaction form does not need it.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..record import RunRecord
-from ..record import MAX_GAP_PERIODS
+from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
 from .common import IdentificationError, Result, largest_gap, local_fit, pooled_interval, segment, smooth_angle
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
 # the patent drops the nearly uniform middle of the stroke, and too near the stop the
-# kinetic energy (the denominator) vanishes.
-DEFAULT_FRACTIONS = (0.3, 0.4, 0.5, 0.6, 0.7)
+# kinetic energy (the denominator) vanishes. ``DEFAULT_FRACTIONS`` spans the range; the
+# balance is evaluated at ``DENSE_ANGLES`` angles across it and averaged with Hann weights.
+DEFAULT_FRACTIONS = (0.25, 0.75)
+DENSE_ANGLES = 41
 WORK_FORMS = ("reaction", "current", "electric")
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
+RATE_HALF_WIDTH = 0.1  # s, window of the local quintic that gives crossing instants and rates
+RATE_DEGREE = 5
+WORK_SMOOTHING_S = 0.2  # s, window of the quintic smoothing of the angles in the work sums
+DIAGNOSTIC_FORM_WARNING = (
+    "energy method, work={work!r}: a diagnostic form; it books the flywheel's energy (tens of J) "
+    "against the hull's (under 1 J), so current-gain, R and flywheel-rate errors are multiplied "
+    "about 100-fold: expect errors of a few 0.1 % with ideal sensors and tens of % with realistic "
+    "ones (docs/ENERGY_METHOD.md). Use work='reaction' for the estimate.")
+
+
+@dataclass
+class BalanceTerms:
+    """Every term of the energy balance at one boundary angle (J; s; rad/s; rad).
+
+    :func:`inertia_from_terms` turns them into ``lambda66``; the error budget
+    (:mod:`addedinertia_env.experiment.energy_budget`) swaps single terms for the
+    simulator's truth to see what each one costs.
+    """
+
+    phi1: float
+    t1: float
+    t4: float
+    w1f: float
+    w1r: float
+    spring: float
+    A_f: float
+    A_r: float
+    B_f: float = 0.0
+    B_r: float = 0.0
+    K1: float = 0.0
+    K2: float = 0.0
+    K3: float = 0.0
+    K4: float = 0.0
+    hull_rest: float = 0.0
+    dW: float = 0.0
+
+
+def inertia_from_terms(terms: BalanceTerms, J_hull: float) -> float:
+    """``lambda66`` (kg m^2) from the balance terms and the hull's inertia in air ``J_hull``."""
+    T = terms
+    numerator = (T.spring + (T.A_r + T.B_r) - (T.A_f + T.B_f) + T.K2 + T.K3 - T.K1 - T.K4
+                 + T.hull_rest - T.dW)
+    return numerator / (0.5 * (T.w1f**2 + T.w1r**2)) - J_hull
+
+
+def hann_weights(fractions: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Smooth weights over boundary-angle fractions, zero at ``lo`` and ``hi``, peak in the middle."""
+    x = (np.asarray(fractions, float) - lo) / (hi - lo)
+    return np.where((x > 0) & (x < 1), np.sin(np.pi * np.clip(x, 0, 1)) ** 2, 0.0)
 
 
 @dataclass
@@ -53,164 +126,356 @@ class Interval:
     w1r: float
     terms: dict[str, float] = field(default_factory=dict)
     rejected: str = ""
-    sigma_independent: float = float("inf")  # noise and rate fits: independent between boundary angles
+    sigma_independent: float = float("inf")  # noise and rate fits
     sigma_common: float = 0.0  # current-sensor gain and dissipation-mismatch model: shared by all angles
+    weight: float = 1.0  # weight of this angle in its run's average
+
+
+@dataclass
+class _RunEstimate:
+    value: float
+    sigma: float
+    intervals: list[Interval]
 
 
 def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=DEFAULT_FRACTIONS,
                     asymmetry_correction: bool = True) -> Result:
-    """lambda66 from one or more reverse-symmetric runs, with a 95 % interval."""
+    """lambda66 (kg m^2) from one or more reverse-symmetric runs, with a 95 % interval.
+
+    ``fractions``: the range ``(lo, hi)`` of boundary angles as fractions of the stroke
+    (dense Hann-weighted average), or a list of three or more fractions to evaluate
+    separately and pool by inverse variance. A record's own ``experiment.phi1`` list wins.
+    """
     if work not in WORK_FORMS:
         raise ValueError(f"work={work!r}: expected one of {WORK_FORMS}")
-    intervals: list[Interval] = []
-    for rec in records:
-        intervals += _run_intervals(rec, work, fractions, asymmetry_correction)
-    good = [iv for iv in intervals if not iv.rejected]
+    if work != "reaction":
+        warnings.warn(DIAGNOSTIC_FORM_WARNING.format(work=work), stacklevel=2)
+    runs = [_run_estimate(rec, work, fractions, asymmetry_correction) for rec in records]
+    intervals = [iv for r in runs for iv in r.intervals]
+    good = [r for r in runs if np.isfinite(r.value)]
     if not good:
-        reasons = "; ".join(sorted({iv.rejected for iv in intervals})) or "no usable interval"
+        reasons = "; ".join(sorted({iv.rejected for iv in intervals if iv.rejected})) or "no usable interval"
         names = ", ".join(sorted({rec.name for rec in records}))
         raise IdentificationError(f"energy method on {names}: every boundary-angle interval was rejected "
                                   f"({reasons}); expected a reverse-symmetric run whose strokes pass the boundary "
                                   "angles, sampled without gaps, current below its limit")
-    by_run: dict[str, list[Interval]] = {}
-    for iv in good:
-        by_run.setdefault(iv.run, []).append(iv)
-    # Within a run, the boundary angles lie ~100 ms apart, so their rate fits (+-30 ms) and
-    # the current noise over their different stretches are independent: those parts average
-    # down, widened by the Birge ratio when the angles scatter more than they allow. The
-    # current-sensor gain and the dissipation-mismatch model act on every angle alike and
-    # do not average down. Then runs are pooled.
-    run_values, run_sigmas = [], []
-    for ivs in by_run.values():
-        lam = np.array([iv.lambda66 for iv in ivs])
-        s_ind = np.array([iv.sigma_independent for iv in ivs])
-        value, lo, _ = pooled_interval(lam, s_ind)
-        s_common = float(np.median([iv.sigma_common for iv in ivs]))
-        run_values.append(value)
-        run_sigmas.append(float(np.hypot((value - lo) / 1.96, s_common)))
-    value, lo, hi = pooled_interval(np.array(run_values), np.array(run_sigmas))
-    return Result(method="energy", lambda66=value, ci95=(lo, hi), n_intervals=len(good),
-                  details={"work": work, "asymmetry_correction": asymmetry_correction, "n_runs": len(by_run),
-                           "per_run": run_values, "rejected": len(intervals) - len(good),
+    value, lo, hi = pooled_interval(np.array([r.value for r in good]), np.array([r.sigma for r in good]))
+    n_good = sum(1 for iv in intervals if not iv.rejected)
+    return Result(method="energy", lambda66=value, ci95=(lo, hi), n_intervals=n_good,
+                  details={"work": work, "asymmetry_correction": asymmetry_correction, "n_runs": len(good),
+                           "per_run": [r.value for r in good], "rejected": len(intervals) - n_good,
                            "intervals": [iv.__dict__ for iv in intervals]})
 
 
-def _run_intervals(rec: RunRecord, work: str, fractions, asymmetry_correction: bool) -> list[Interval]:
-    rig = rec.known
-    J_h, J_f, c = rig.J_hull, rig.J_flywheel, rig.c_torsion
-    phi_n, k_t, R = rig.phi_neutral, rig.k_t, rig.R
-    f_visc, f_coul = rig.friction_viscous, rig.friction_coulomb
-    L = 0.0
-    if work == "electric":
-        try:
-            L = rig.require_L("the energy method with work='electric'")
-        except KnownRigError as e:
-            raise IdentificationError(f"{rec.name}: {e}") from None
-    if rec.experiment.get("kind") != "reverse-symmetric":
-        raise IdentificationError(f"{rec.name}: the energy method needs a reverse-symmetric run, "
-                                  f"not {rec.experiment.get('kind')!r}")
-    t, phi, psi = rec.t, rec["phi"], rec["psi"]
-    free, hold, rev = segment(rec, "free"), segment(rec, "hold"), segment(rec, "reverse")
-    if free is None or rev is None:
-        raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
-    i_offset = float(np.mean(rec["i"][free]))  # open circuit on the free stroke: true i = 0
-    i = rec["i"] - i_offset
-    # Voltage offset: on the open-circuit free stroke the terminals show the back-EMF,
-    # u = k_e Omega + offset; the intercept of that line is the sensor's offset.
-    u_offset = _voltage_offset(t[free], psi[free], rec["u"][free]) if work == "electric" else 0.0
-    phi_s, psi_s = smooth_angle(t, phi), smooth_angle(t, psi)  # for work increments only
-    k2 = free.stop - 1  # last free sample: the brake is set (t2)
-    k3 = (hold.stop - 1) if hold is not None else rev.start - 1  # last braked sample (t3)
-    phi2 = phi[k2]
-    direction = np.sign(phi2 - phi_n)
-    phi1_list = rec.experiment.get("phi1") or [phi_n + f * (phi2 - phi_n) for f in fractions]
-    fwd_law = _forward_damping_law(rec, free, k2, J_h, c, phi_n, i)
+def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool) -> _RunEstimate:
+    balance = RunBalance(rec, work, asymmetry_correction)
+    given = rec.experiment.get("phi1")
+    dense = not given and len(fractions) == 2
+    if given:
+        phi1_list, weights = [float(x) for x in given], None
+    elif dense:
+        f = np.linspace(fractions[0], fractions[1], DENSE_ANGLES)
+        phi1_list = list(balance.phi_n + f * (balance.phi2 - balance.phi_n))
+        weights = hann_weights(f, fractions[0], fractions[1])
+    else:
+        phi1_list, weights = [balance.phi_n + x * (balance.phi2 - balance.phi_n) for x in fractions], None
+    intervals = [balance.interval(phi1) for phi1 in phi1_list]
+    ok = [k for k, iv in enumerate(intervals) if not iv.rejected]
+    if not ok:
+        return _RunEstimate(float("nan"), float("inf"), intervals)
+    lam = np.array([intervals[k].lambda66 for k in ok])
+    if weights is None:  # separate angles, pooled by inverse variance (Birge-widened)
+        s_ind = np.array([intervals[k].sigma_independent for k in ok])
+        value, lo, _ = pooled_interval(lam, s_ind)
+        s_common = float(np.median([intervals[k].sigma_common for k in ok]))
+        for iv in intervals:
+            iv.weight = 0.0 if iv.rejected else 1.0
+        return _RunEstimate(value, float(np.hypot((value - lo) / 1.96, s_common)), intervals)
+    g = np.array([weights[k] for k in ok])
+    if g.sum() <= 0:
+        return _RunEstimate(float("nan"), float("inf"), intervals)
+    g = g / g.sum()
+    for iv in intervals:
+        iv.weight = 0.0
+    for gk, k in zip(g, ok):
+        intervals[k].weight = float(gk)
+    value = float(g @ lam)
+    s_rate = balance.averaged_rate_sigma([intervals[k] for k in ok], g)
+    s_current = float(g @ np.array([intervals[k].terms["s_current"] for k in ok]))
+    s_common = float(g @ np.array([intervals[k].sigma_common for k in ok]))
+    # Angles further apart than the rate windows see independent noise: their scatter about
+    # a smooth trend beyond what the rate noise allows is a sign of unmodelled structure,
+    # and the interval is widened by it (a Birge ratio on the trend residuals).
+    s_trend = _trend_excess([intervals[k] for k in ok], g)
+    sigma = float(np.sqrt(s_rate**2 + s_current**2 + s_common**2 + s_trend**2))
+    return _RunEstimate(value, sigma, intervals)
 
-    def rate(k: int, angle: np.ndarray) -> float:
-        return local_fit(t, angle, t[k], half_width=0.03)[1]
 
-    def flywheel_energy(k: int) -> float:
-        return 0.5 * J_f * (rate(k, phi) + rate(k, psi)) ** 2
+def _trend_excess(ivs: list[Interval], g: np.ndarray) -> float:
+    """Spread of the per-angle estimates about a straight line in phi1 beyond their own noise, kg m^2."""
+    phi1 = np.array([iv.phi1 for iv in ivs])
+    lam = np.array([iv.lambda66 for iv in ivs])
+    s = np.array([iv.sigma_independent for iv in ivs])
+    if len(ivs) < 6:
+        return 0.0
+    coef = np.polyfit(phi1, lam, 1)
+    resid = lam - np.polyval(coef, phi1)
+    excess = float(np.sum(g * (resid**2 - s**2)))
+    # The mean over the range equals the line's value at the weighted centre; a slope means
+    # the estimate depends on where the boundary is taken: a quarter of the end-to-end change
+    # is kept as uncertainty.
+    slope_part = 0.25 * abs(coef[0]) * float(np.ptp(phi1))
+    return float(np.hypot(np.sqrt(max(excess, 0.0)) / np.sqrt(max(len(ivs) / 8.0, 1.0)), slope_part))
 
-    def motor_work(a: int, b: int) -> tuple[float, float]:
-        """Work on [t_a, t_b] (sample indices), and its 1-sigma noise from the current noise, J."""
-        s = slice(a, b + 1)
-        i_mid = 0.5 * (i[s][1:] + i[s][:-1])
-        dpsi = np.diff(psi_s[s])
-        if work == "reaction":
-            # Work of the motor's reaction on the hull: -(k_t i - M_f) dphi.
-            dphi = np.diff(phi_s[s])
-            omega = dpsi / np.diff(t[s])
-            torque = k_t * i_mid - (f_visc * omega + f_coul * np.sign(omega))
-            A = -float(np.sum(torque * dphi))
-            noise_i = float(np.std(rec["i"][free]))
-            return A, k_t * noise_i * float(np.sqrt(np.sum(dphi**2) / 2.0))
-        if work == "current":
-            A = k_t * float(np.sum(i_mid * dpsi))
-        else:
-            A = _electric_work(t[s], rec["u"][s] - u_offset, i[s], R, L)
-        noise_i = float(np.std(rec["i"][free]))
-        return A, k_t * noise_i * float(np.sqrt(np.sum(dpsi**2) / 2.0))
 
-    def bearing_work(a: int, b: int) -> float:
-        s = slice(a, b + 1)
-        omega = np.gradient(psi[s], t[s])
-        return -float(np.sum((f_visc * omega[:-1] + f_coul * np.sign(omega[:-1])) * np.diff(psi[s])))
+class RunBalance:
+    """The energy balance of one reverse-symmetric record, evaluated at any boundary angle.
 
-    out: list[Interval] = []
-    for phi1 in phi1_list:
-        iv = Interval(run=rec.name, phi1=float(phi1), lambda66=float("nan"), sigma=float("inf"), w1f=0.0, w1r=0.0)
-        out.append(iv)
-        k1 = _crossing(phi, free.start, k2, phi1, direction)
-        k4 = _crossing(phi, rev.start, rev.stop - 1, phi1, -direction)
+    Everything that does not depend on the boundary angle (calibrated current, smoothed
+    angles, cumulative motor work, damping law, speed profiles) is prepared once.
+    """
+
+    def __init__(self, rec: RunRecord, work: str = "reaction", asymmetry_correction: bool = True):
+        rig = rec.known
+        self.rec, self.work = rec, work
+        self.J_h, self.J_f, self.c = rig.J_hull, rig.J_flywheel, rig.c_torsion
+        self.phi_n, self.k_t, self.R = rig.phi_neutral, rig.k_t, rig.R
+        self.L = float(rig.L or 0.0)  # 0: neglected or unknown; only the electric form needs it
+        self.current_sampling = current_sampling(rec.rig)[0]
+        self.f_visc, self.f_coul = rig.friction_viscous, rig.friction_coulomb
+        if rec.experiment.get("kind") != "reverse-symmetric":
+            raise IdentificationError(f"{rec.name}: the energy method needs a reverse-symmetric run, "
+                                      f"not {rec.experiment.get('kind')!r}")
+        if work == "electric":
+            try:
+                self.L = rig.require_L("the energy method with work='electric'")
+            except KnownRigError as e:
+                raise IdentificationError(f"{rec.name}: {e}") from None
+            if self.L <= 0.0:
+                raise IdentificationError(f"{rec.name}: the energy method with work='electric' needs rig.L > 0 "
+                                          f"(winding inductance, H); the record gives {self.L!r}; use work='reaction'")
+        t, phi, psi = rec.t, rec["phi"], rec["psi"]
+        self.t, self.phi, self.psi = t, phi, psi
+        free, hold, rev = segment(rec, "free"), segment(rec, "hold"), segment(rec, "reverse")
+        if free is None or rev is None:
+            raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
+        self.free, self.rev = free, rev
+        self.i_offset = float(np.mean(rec["i"][free]))  # open circuit on the free stroke: true i = 0
+        self.i = rec["i"] - self.i_offset
+        self.noise_i = float(np.std(rec["i"][free]))
+        self.k2 = free.stop - 1  # last free sample: the brake is set (t2)
+        self.k3 = (hold.stop - 1) if hold is not None else rev.start - 1  # last braked sample (t3)
+        self.phi2 = float(phi[self.k2])
+        self.direction = float(np.sign(self.phi2 - self.phi_n))
+        # Smoothed angles for the work increments, smoothed phase by phase: a window across the
+        # brake's release would leak the first milliseconds of the reverse stroke into t3.
+        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi), _smooth_by_phase(rec, psi)
+        self.work_cum = self._cumulative_work()
+        self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros_like(t)
+        self.law = _forward_damping_law(rec, free, self.k2, self.J_h, self.c, self.phi_n)
+        self.dW_of = _DissipationMismatch(t, phi, free, self.k2, self.k3, rev, self.law, self.direction) \
+            if (asymmetry_correction and self.law) else None
+        sat = None
+        if "i_cmd" in rec.samples and np.isfinite(rig.current_limit):
+            sat = np.abs(rec["i_cmd"]) >= 0.999 * rig.current_limit
+        self.saturated = sat
+        J_guess = self.law["J"] if self.law else self.J_h
+        self.hull_rest = 0.5 * J_guess * (self._rest_rate(self.k2, free.start) ** 2
+                                          + self._rest_rate(self.k3, hold.start if hold is not None else free.start) ** 2)
+        self.quantum = _quantum(phi, rig.phi_counts)
+
+    # --- per boundary angle ----------------------------------------------------------
+    def terms(self, phi1: float) -> tuple[BalanceTerms, dict] | str:
+        """The balance terms at ``phi1`` and fit details, or the reason the angle cannot be used."""
+        t, phi = self.t, self.phi
+        k1 = _crossing(phi, self.free.start, self.k2, phi1, self.direction)
+        k4 = _crossing(phi, self.rev.start, self.rev.stop - 1, phi1, -self.direction)
         if k1 is None or k4 is None:
-            iv.rejected = "boundary angle not passed on both strokes"
-            continue
-        gap = largest_gap(rec, k1, k2) or largest_gap(rec, k3, k4)
+            return "boundary angle not passed on both strokes"
+        gap = largest_gap(self.rec, k1, self.k2) or largest_gap(self.rec, self.k3, k4)
         if gap is not None:  # the work sums and rate fits assume the stroke was sampled throughout
-            iv.rejected = (f"a gap of {gap[1]:.4g} s in 't' after t = {gap[0]:.4f} s inside the integrated stroke "
-                           f"({MAX_GAP_PERIODS:g} sample periods allowed)")
-            continue
-        # Refine the crossing instants and rates with local quadratic fits.
-        t1, w1f, sw1f = _crossing_fit(t, phi, k1, phi1)
-        t4, w1r, sw1r = _crossing_fit(t, phi, k4, phi1)
-        k1, k4 = int(np.argmin(np.abs(t - t1))), int(np.argmin(np.abs(t - t4)))
-        A_f, sA_f = motor_work(k1, k2)
-        A_r, sA_r = motor_work(k3, k4)
-        if work == "reaction":  # the hull's own balance: no flywheel energy, rotor friction inside A
-            B_f = B_r = 0.0
-            K1 = K2 = K3 = K4 = 0.0
-        else:
-            B_f, B_r = bearing_work(k1, k2), bearing_work(k3, k4)
-            K1, K2, K3, K4 = (flywheel_energy(k) for k in (k1, k2, k3, k4))
-        spring = 0.5 * c * ((phi[k2] - phi_n) ** 2 - (phi1 - phi_n) ** 2 + (phi[k3] - phi_n) ** 2 - (phi1 - phi_n) ** 2)
-        # Hull kinetic energy left at t2, t3 (nearly zero; the brake holds the hull).
-        J_guess = fwd_law["J"] if fwd_law else J_h
-        hull_rest = 0.5 * J_guess * (rate(k2, phi) ** 2 + rate(k3, phi) ** 2)
-        dW, s_dW = (_dissipation_mismatch(t, phi, k1, k2, k3, k4, fwd_law, direction)
-                    if (asymmetry_correction and fwd_law) else (0.0, 0.0))
-        numerator = spring + (A_r + B_r) - (A_f + B_f) + K2 + K3 - K1 - K4 + hull_rest - dW
-        denom = 0.5 * (w1f**2 + w1r**2)
-        J_total = numerator / denom
-        lam = J_total - J_h
-        # Uncertainty, split by what the boundary angles share (see identify_energy).
-        s_gain = CURRENT_GAIN_UNCERTAINTY * float(np.hypot(A_f, A_r))
-        s_den = float(np.sqrt((w1f * sw1f) ** 2 + (w1r * sw1r) ** 2))
-        s_independent = float(np.hypot(np.hypot(sA_f, sA_r) / denom, J_total * s_den / denom))
-        s_common = float(np.hypot(s_gain, s_dW)) / denom
-        sigma = float(np.hypot(s_independent, s_common))
-        sat = float(np.mean(np.abs(rec["i_cmd"][k3:k4 + 1]) >= 0.999 * rig.current_limit)) \
-            if "i_cmd" in rec.samples else 0.0
-        iv.lambda66, iv.sigma, iv.w1f, iv.w1r = float(lam), sigma, float(w1f), float(w1r)
+            return (f"a gap of {gap[1]:.4g} s in 't' after t = {gap[0]:.4f} s inside the integrated stroke "
+                    f"({MAX_GAP_PERIODS:g} sample periods allowed)")
+        f1 = _crossing_fit(t, phi, k1, phi1)
+        f4 = _crossing_fit(t, phi, k4, phi1)
+        t1, w1f, t4, w1r = f1["t"], f1["rate"], f4["t"], f4["rate"]
+        t2, t3 = t[self.k2], t[self.k3]
+        W, B = self.work_cum, self.bearing_cum
+        A_f = float(np.interp(t2, t, W) - np.interp(t1, t, W))
+        A_r = float(np.interp(t4, t, W) - np.interp(t3, t, W))
+        B_f = float(np.interp(t2, t, B) - np.interp(t1, t, B))
+        B_r = float(np.interp(t4, t, B) - np.interp(t3, t, B))
+        c, n = self.c, self.phi_n
+        spring = 0.5 * c * ((phi[self.k2] - n) ** 2 - (phi1 - n) ** 2 + (phi[self.k3] - n) ** 2 - (phi1 - n) ** 2)
+        terms = BalanceTerms(phi1=float(phi1), t1=t1, t4=t4, w1f=w1f, w1r=w1r, spring=float(spring),
+                             A_f=A_f, A_r=A_r, B_f=B_f, B_r=B_r, hull_rest=float(self.hull_rest))
+        if self.work != "reaction":
+            terms.K1 = self._flywheel_energy_at(t1, w1f)
+            terms.K4 = self._flywheel_energy_at(t4, w1r)
+            terms.K2 = self._flywheel_energy_at(t2, self._rest_rate(self.k2, self.free.start))
+            terms.K3 = self._flywheel_energy_at(t3, 0.0 if self.k3 != self.k2 else self._rest_rate(self.k2, self.free.start))
+        s_dW = 0.0
+        if self.dW_of is not None:
+            terms.dW, s_dW = self.dW_of(phi1)
+        k1s, k4s = int(np.searchsorted(t, t1)), int(np.searchsorted(t, t4))
+        return terms, {"fit_f": f1, "fit_r": f4, "s_dW": s_dW, "k1": k1s, "k4": k4s}
+
+    def interval(self, phi1: float) -> Interval:
+        """One boundary angle's estimate with its uncertainty parts, or a rejected interval."""
+        iv = Interval(run=self.rec.name, phi1=float(phi1), lambda66=float("nan"), sigma=float("inf"),
+                      w1f=0.0, w1r=0.0)
+        got = self.terms(phi1)
+        if isinstance(got, str):
+            iv.rejected = got
+            return iv
+        T, fit = got
+        lam = inertia_from_terms(T, self.J_h)
+        denom = 0.5 * (T.w1f**2 + T.w1r**2)
+        J_total = lam + self.J_h
+        sA_f, sA_r = self._work_noise(fit["k1"], self.k2), self._work_noise(self.k3, fit["k4"])
+        s_den = float(np.hypot(T.w1f * fit["fit_f"]["sigma_rate"], T.w1r * fit["fit_r"]["sigma_rate"]))
+        s_current = float(np.hypot(sA_f, sA_r)) / denom
+        s_independent = float(np.hypot(s_current, J_total * s_den / denom))
+        s_gain = CURRENT_GAIN_UNCERTAINTY * float(np.hypot(T.A_f, T.A_r))
+        s_common = float(np.hypot(s_gain, fit["s_dW"])) / denom
+        iv.lambda66, iv.w1f, iv.w1r = float(lam), float(T.w1f), float(T.w1r)
         iv.sigma_independent, iv.sigma_common = s_independent, s_common
-        iv.terms = {"spring": spring, "A_f": A_f, "A_r": A_r, "B_f": B_f, "B_r": B_r, "K1": K1, "K2": K2,
-                    "K3": K3, "K4": K4, "hull_rest": hull_rest, "dW": dW, "saturated_frac": sat,
-                    "t1": t1, "t4": t4, "speed_mismatch": abs(abs(w1r) - abs(w1f)) / max(abs(w1f), 1e-12)}
+        iv.sigma = float(np.hypot(s_independent, s_common))
+        sat = float(np.mean(self.saturated[self.k3:fit["k4"] + 1])) if self.saturated is not None else 0.0
+        iv.terms = {**T.__dict__, "hull_rest": T.hull_rest, "saturated_frac": sat, "s_current": s_current,
+                    "rate_kernel_f": fit["fit_f"]["kernel"], "rate_kernel_r": fit["fit_r"]["kernel"],
+                    "speed_mismatch": abs(abs(T.w1r) - abs(T.w1f)) / max(abs(T.w1f), 1e-12)}
         if sat > 0.02:
             iv.rejected = f"current at its limit for {sat:.0%} of the reverse stroke"
         elif iv.terms["speed_mismatch"] > 0.2:
             iv.rejected = f"reverse speed at phi1 differs by {iv.terms['speed_mismatch']:.0%} from the forward speed"
+        return iv
+
+    def averaged_rate_sigma(self, ivs: list[Interval], g: np.ndarray) -> float:
+        """1-sigma of the weighted average's rate part, kg m^2, from the fits' linear kernels.
+
+        Every rate is a linear combination of angle samples; the weighted average of
+        lambda66 over the angles is, to first order, one combination of them, whose noise
+        is the angle noise times the combined kernel's norm.
+        """
+        combined = np.zeros(len(self.t))
+        for gk, iv in zip(g, ivs):
+            denom = 0.5 * (iv.w1f**2 + iv.w1r**2)
+            J_total = iv.lambda66 + self.J_h
+            for key, w in (("rate_kernel_f", iv.w1f), ("rate_kernel_r", iv.w1r)):
+                idx, kern = iv.terms[key]
+                combined[idx] += gk * (-J_total * w / denom) * kern
+        for iv in ivs:  # the kernels are bulky; keep the JSON small
+            iv.terms.pop("rate_kernel_f", None)
+            iv.terms.pop("rate_kernel_r", None)
+        return self.angle_noise * float(np.linalg.norm(combined))
+
+    @property
+    def angle_noise(self) -> float:
+        """Hull-angle noise per sample, rad: the quantisation floor or the fits' residual scatter."""
+        return self.quantum / np.sqrt(12.0) if self.quantum > 0 else 1e-7
+
+    # --- helpers ------------------------------------------------------------------------
+    def _rest_rate(self, k: int, start: int, window_s: float = 0.05) -> float:
+        """Hull rate at sample ``k`` from a quadratic over the samples before it in its own phase, rad/s.
+
+        At t2 the brake is set and at t3 released: a window reaching past either instant
+        would see motion that belongs to the next phase.
+        """
+        t = self.t
+        a = max(start, int(np.searchsorted(t, t[k] - window_s)))
+        if k - a < 5:
+            return 0.0
+        s = t[a:k + 1] - t[k]
+        coef = np.polynomial.polynomial.polyfit(s, self.phi[a:k + 1], 2)
+        return float(coef[1])
+
+    def _flywheel_energy_at(self, tc: float, hull_rate: float) -> float:
+        omega = float(local_fit(self.t, self.psi, tc, half_width=RATE_HALF_WIDTH, degree=RATE_DEGREE)[1])
+        return 0.5 * self.J_f * (hull_rate + omega) ** 2
+
+    def _work_noise(self, a: int, b: int) -> float:
+        """1-sigma of the motor work on [t_a, t_b] from white current noise, J."""
+        s = slice(a, b + 1)
+        d = np.diff(self.phi_s[s]) if self.work == "reaction" else np.diff(self.psi_s[s])
+        return self.k_t * self.noise_i * float(np.sqrt(np.sum(d**2) / 2.0))
+
+    def _cumulative_work(self) -> np.ndarray:
+        """Motor work from the first sample to each sample, J (the form chosen by ``work``)."""
+        t, i = self.t, self.i
+        i_mid = interval_mean_current(t, i, self.R, self.L, self.current_sampling)
+        dpsi = np.diff(self.psi_s)
+        if self.work == "reaction":
+            # Work of the motor's reaction on the hull: -(k_t i - M_f) dphi.
+            omega = dpsi / np.diff(t)
+            torque = self.k_t * i_mid - (self.f_visc * omega + self.f_coul * np.sign(omega))
+            steps = -torque * np.diff(self.phi_s)
+        elif self.work == "current":
+            steps = self.k_t * i_mid * dpsi
+        else:
+            u_offset = _voltage_offset(t[self.free], self.psi[self.free], self.rec["u"][self.free])
+            steps = _electric_work_steps(t, self.rec["u"] - u_offset, i, self.R, self.L)
+        return np.concatenate([[0.0], np.cumsum(steps)])
+
+    def _cumulative_bearing_work(self) -> np.ndarray:
+        """Work of the rotor-bearing friction on the flywheel from the first sample, J."""
+        omega = np.gradient(self.psi, self.t)
+        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.sign(omega[:-1])) * np.diff(self.psi)
+        return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def interval_mean_current(t: np.ndarray, i: np.ndarray, R: float, L: float,
+                          sampling: str = "instant") -> np.ndarray:
+    """Mean current over each sample interval, A, from the logged current samples.
+
+    ``sampling`` is the record's ``rig.current_sampling``: ``held-previous`` (a sample is the
+    value over the interval before it) and ``held-next`` (over the interval after it) say
+    it outright. For ``instant`` samples (the default), a drive holds its voltage over a sample, so inside it the current relaxes exponentially
+    with ``tau = L / R`` (physics.md section 2). Its mean is then
+    ``i_ss + (i0 - i1) tau / h`` with ``i_ss = (i1 - a i0) / (1 - a)``, ``a = exp(-h / tau)``:
+    0.42 i0 + 0.58 i1 for ``tau = h``, not the trapezoid's 0.5 / 0.5 (the trapezoid leaves
+    about 0.01 % of lambda66 in the reaction work). With ``L`` unknown (0) the trapezoid
+    is used: it assumes nothing about the drive.
+    """
+    if sampling == "held-previous":
+        return i[1:].astype(float)
+    if sampling == "held-next":
+        return i[:-1].astype(float)
+    if not L > 0.0:
+        return 0.5 * (i[1:] + i[:-1])
+    h = np.diff(t)
+    tau = L / R
+    a = np.exp(-h / tau)
+    i0, i1 = i[:-1], i[1:]
+    i_ss = (i1 - a * i0) / (1.0 - a)
+    return i_ss + (i0 - i1) * tau / h
+
+
+def _smooth_by_phase(rec: RunRecord, angle: np.ndarray) -> np.ndarray:
+    """Encoder angle smoothed within each contiguous block of one phase and brake state.
+
+    The work sum ``sum(torque_k * dphi_k)`` is biased where the torque reacts to the same
+    quantisation errors as the increments (a controller's feedback does): the smoothing
+    must reject the quantisation's high frequencies well. A quintic over 0.2 s leaves
+    about 1e-6 J of that correlation on the reverse stroke (a cubic over 40 ms: 3e-5 J,
+    0.03 % of lambda66), while following the stroke itself (period 3-6 s) exactly.
+    """
+    brake = rec["brake"] if "brake" in rec.samples else np.zeros(len(rec.t))
+    key = np.array([f"{p}/{b:g}" for p, b in zip(rec.phase, brake)])
+    cuts = np.concatenate([[0], np.nonzero(key[1:] != key[:-1])[0] + 1, [len(key)]])
+    out = np.empty(len(angle), dtype=float)
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        out[a:b] = smooth_angle(rec.t[a:b], angle[a:b], window_s=WORK_SMOOTHING_S, degree=5)
     return out
+
+
+def _quantum(angle: np.ndarray, counts: int) -> float:
+    """Encoder step, rad: from the counts per turn, or the smallest step seen when not given."""
+    if counts:
+        return 2.0 * np.pi / float(counts)
+    steps = np.abs(np.diff(angle))
+    steps = steps[steps > 0]
+    return float(np.min(steps)) if len(steps) else 0.0
 
 
 def _crossing(phi: np.ndarray, a: int, b: int, level: float, direction: float) -> int | None:
@@ -220,23 +485,34 @@ def _crossing(phi: np.ndarray, a: int, b: int, level: float, direction: float) -
     return None if not len(idx) else int(a + idx[0] + 1)
 
 
-def _crossing_fit(t: np.ndarray, phi: np.ndarray, k: int, level: float, half_width: float = 0.03):
-    """Time where a local cubic through ``phi`` equals ``level``; rate there and its sigma."""
+def _crossing_fit(t: np.ndarray, phi: np.ndarray, k: int, level: float,
+                  half_width: float = RATE_HALF_WIDTH, degree: int = RATE_DEGREE) -> dict:
+    """Where a local polynomial through ``phi`` equals ``level``: time, rate, its sigma, and the
+    rate's linear kernel over the samples (indices, weights)."""
     tc = t[k]
-    coef, cov, rms = local_fit(t, phi, tc, half_width=half_width, full=True)
-    poly = np.polynomial.Polynomial(coef)  # phi ~ poly(s), s = t - tc
+    sel = np.nonzero(np.abs(t - tc) <= half_width)[0]
+    if len(sel) < degree + 3:
+        raise IdentificationError(f"too few samples ({len(sel)}) around t = {tc:.4f} s for a local fit")
+    sv = t[sel] - tc
+    scale = half_width
+    X = np.vander(sv / scale, degree + 1, increasing=True)
+    pinv = np.linalg.pinv(X)
+    coef = pinv @ phi[sel]
+    poly = np.polynomial.Polynomial(coef)  # phi ~ poly(s / scale)
     dpoly = poly.deriv()
-    s = 0.0
-    for _ in range(6):  # Newton on poly(s) = level
-        s -= (poly(s) - level) / dpoly(s)
-    w = float(dpoly(s))
-    grad = np.array([k * s ** (k - 1) if k else 0.0 for k in range(len(coef))])  # d(rate)/d(coef)
-    sw = float(np.sqrt(grad @ cov @ grad))
-    return float(tc + s), float(w), sw
+    x = 0.0
+    for _ in range(8):  # Newton on poly(x) = level
+        x -= (poly(x) - level) / dpoly(x)
+    rate = float(dpoly(x)) / scale
+    grad = np.array([j * x ** (j - 1) if j else 0.0 for j in range(degree + 1)]) / scale
+    kernel = grad @ pinv
+    resid = phi[sel] - X @ coef
+    var = max(float(resid @ resid) / max(len(sel) - degree - 1, 1), 1e-24)
+    return {"t": float(tc + x * scale), "rate": rate, "sigma_rate": float(np.sqrt(var) * np.linalg.norm(kernel)),
+            "kernel": (sel, kernel)}
 
 
-def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_h: float, c: float, phi_n: float,
-                         i: np.ndarray) -> dict | None:
+def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_h: float, c: float, phi_n: float) -> dict | None:
     """Damping torque magnitude ``D(w) = d1 |w| + d2 w^2`` seen on the forward stroke.
 
     From ``J phi'' + c (phi - phi_n) = -D(w) sign(w)`` with ``J`` and the damping fitted
@@ -265,28 +541,35 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_h: float, c: fl
     return {"J": J, "d1": max(d1, 0.0), "d2": max(d2, 0.0)}
 
 
-def _dissipation_mismatch(t, phi, k1, k2, k3, k4, law, direction) -> tuple[float, float]:
-    """``dW = W_reverse - W_forward`` from the two strokes' speed profiles over angle."""
-    from scipy.signal import savgol_filter  # noqa: PLC0415
+class _DissipationMismatch:
+    """``dW(phi1) = W_reverse - W_forward`` between ``phi1`` and the stop, from the two strokes'
+    speed profiles over angle and the forward stroke's damping law; returns (dW, sigma) in J."""
 
-    def speed_over_angle(a: int, b: int):
-        lo, hi = max(a - 30, 0), min(b + 30, len(t) - 1)
-        dt = float(np.median(np.diff(t[lo:hi])))
-        speed = np.abs(savgol_filter(phi[lo:hi + 1], 41, 3, deriv=1, delta=dt))
-        ang = phi[lo:hi + 1]
-        order = np.argsort(ang)
-        return ang[order], speed[order]
+    def __init__(self, t, phi, free, k2, k3, rev, law, direction):
+        from scipy.signal import savgol_filter  # noqa: PLC0415
 
-    af, sf = speed_over_angle(k1, k2)
-    ar, sr = speed_over_angle(k3, k4)
-    grid = np.linspace(phi[k1], phi[k2], 200)
-    vf, vr = np.interp(grid, af, sf), np.interp(grid, ar, sr)
+        def speed_over_angle(a: int, b: int):
+            lo, hi = max(a, 0), min(b, len(t) - 1)
+            dt = float(np.median(np.diff(t[lo:hi])))
+            speed = np.abs(savgol_filter(phi[lo:hi + 1], 41, 3, deriv=1, delta=dt))
+            ang = phi[lo:hi + 1]
+            order = np.argsort(ang)
+            return ang[order], speed[order]
 
-    def D(v):
-        return law["d1"] * v + law["d2"] * v * v
+        af, sf = speed_over_angle(free.start, k2)
+        ar, sr = speed_over_angle(k3, rev.stop - 1)
+        phi2 = phi[k2]
+        self.grid = np.linspace(min(af.min(), ar.min()), max(af.max(), ar.max()), 400)
+        vf, vr = np.interp(self.grid, af, sf), np.interp(self.grid, ar, sr)
+        dD = law["d1"] * (vr - vf) + law["d2"] * (vr * vr - vf * vf)
+        # Cumulative integral from the stop phi2 back to each grid angle, along the stroke direction.
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * (dD[1:] + dD[:-1]) * np.diff(self.grid))])
+        self.cum, self.phi2, self.direction = cum, phi2, direction
 
-    dW = float(np.trapezoid(D(vr) - D(vf), direction * grid)) if len(grid) > 1 else 0.0
-    return dW, 0.5 * abs(dW)
+    def __call__(self, phi1: float) -> tuple[float, float]:
+        at = np.interp([phi1, self.phi2], self.grid, self.cum)
+        dW = float(self.direction * (at[1] - at[0]))
+        return dW, 0.5 * abs(dW)
 
 
 def _voltage_offset(t: np.ndarray, psi: np.ndarray, u: np.ndarray) -> float:
@@ -297,8 +580,8 @@ def _voltage_offset(t: np.ndarray, psi: np.ndarray, u: np.ndarray) -> float:
     return float(coef[0])
 
 
-def _electric_work(t: np.ndarray, u: np.ndarray, i: np.ndarray, R: float, L: float) -> float:
-    """Electric energy minus ohmic loss and the change of magnetic energy, J (the patent's form).
+def _electric_work_steps(t: np.ndarray, u: np.ndarray, i: np.ndarray, R: float, L: float) -> np.ndarray:
+    """Electric energy minus ohmic loss and the change of magnetic energy per sample, J (the patent's form).
 
     A drive holds its terminal voltage over each sample, so the current inside a sample is
     the exponential ``L di/dt = u - R i - k_e Omega`` with ``tau = L / R``; trapezoids on
@@ -314,7 +597,4 @@ def _electric_work(t: np.ndarray, u: np.ndarray, i: np.ndarray, R: float, L: flo
     d = i0 - i_ss
     mean = i_ss + d * tau / h * (1.0 - a)
     mean_sq = i_ss**2 + 2.0 * i_ss * d * tau / h * (1.0 - a) + d**2 * tau / (2.0 * h) * (1.0 - a * a)
-    electric = float(np.sum(u[1:] * mean * h))
-    ohmic = R * float(np.sum(mean_sq * h))
-    magnetic = 0.5 * L * (i[-1] ** 2 - i[0] ** 2)
-    return electric - ohmic - magnetic
+    return u[1:] * mean * h - R * mean_sq * h - 0.5 * L * (i1**2 - i0**2)

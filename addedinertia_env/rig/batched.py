@@ -200,6 +200,7 @@ class BatchedRig:
         self._X = np.zeros((len(STATE), n), dtype=dtype)  # the state block (rows: STATE)
         self._Xn = np.zeros_like(self._X)  # the next one (double buffer)
         self.water_rate = np.zeros(n, dtype=dtype)
+        self._w_prev = np.zeros(n, dtype=dtype)  # hull rate one physics step ago (forces.centred_rate)
         self.t = np.zeros(n)  # s, float64 always (phase timing)
         self.brake = np.zeros(n, dtype=bool)
         self._tmp = np.zeros(n, dtype=dtype)
@@ -251,6 +252,7 @@ class BatchedRig:
         """Environment ``k`` takes the state of ``source``'s environment ``j`` (same parameters)."""
         self._X[:, k] = source._X[:, j]
         self.water_rate[k] = source.water_rate[j]
+        self._w_prev[k] = source._w_prev[j]
         self.t[k] = source.t[j]
         self.brake[k] = source.brake[j]
         self.sensors.set_history(k, source.sensors.history(j))
@@ -289,6 +291,7 @@ class BatchedRig:
         X[I, sel] = 0.0
         X[U, sel] = self._k_t_env[sel] * X[OMEGA, sel]  # open circuit shows the back-EMF
         self.water_rate[sel] = 0.0
+        self._w_prev[sel] = 0.0
         self.t[sel] = 0.0
         self.sensors.reset(idx)
         self.brake[sel] = False
@@ -355,7 +358,9 @@ class BatchedRig:
                     np.multiply(self.k_t, X[OMEGA], out=X[U])
                 else:
                     np.copyto(X[U], self.k_t * X[OMEGA], where=~driven)
-            q_hull = forces.hull_extra_torque(X[PHI], X[W], self.water_rate, p)
+            w_mid = forces.centred_rate(X[W], self._w_prev)
+            self._w_prev[...] = X[W]
+            q_hull = forces.hull_extra_torque(X[PHI], w_mid, self.water_rate, p)
             np.add(q_hull, self._spring_offset, out=X[F1])
             X[F2] = forces.flywheel_friction_torque(X[OMEGA], p)
             if p.effects.fluid_memory is not None:
@@ -409,7 +414,7 @@ class BatchedRig:
     # --- bookkeeping ----------------------------------------------------------------------
     def state_nbytes(self) -> int:
         """Bytes of the per-environment state and work arrays (maps included)."""
-        arrays = [self._X, self._Xn, self.water_rate, self.t, self.brake, self._tmp, self._k_t_env]
+        arrays = [self._X, self._Xn, self.water_rate, self._w_prev, self.t, self.brake, self._tmp, self._k_t_env]
         total = sum(a.nbytes for a in arrays) + self._G_table.nbytes
         if self._G_env is not None:
             total += self._G_env.nbytes + self._kind_env.nbytes

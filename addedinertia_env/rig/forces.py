@@ -37,6 +37,19 @@ def true_torque_constant(p: RigParams) -> float:
     return p.motor.k_t * (tc.ratio if tc is not None else 1.0)
 
 
+def centred_rate(w, w_prev):
+    """The hull rate at the middle of the coming physics step, rad/s, extrapolated from the
+    rate now (``w``) and one step ago (``w_prev``).
+
+    The torques here are held over a physics step. Evaluated at the step's start, a damping
+    torque lags the motion by half a step: a decelerating stroke then dissipates more than
+    its exact mirror (the accelerating reverse stroke), a false asymmetry of about 0.02 % of
+    lambda66 in the energy method at 2 substeps per 1 ms sample. Evaluated at the step's
+    middle, the lag is gone to second order.
+    """
+    return 1.5 * w - 0.5 * w_prev
+
+
 def hydrodynamic_torque(w, water_rate, p: RigParams):
     """Linear + quadratic damping on the hull's rate relative to the water, N m."""
     v = w - water_rate

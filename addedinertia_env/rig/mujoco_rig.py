@@ -90,6 +90,7 @@ class TrueState:
     dissipated_flywheel: float  # J, cumulative work of rotor friction
     electric_energy: float  # J, cumulative integral of u i dt
     ohmic_loss: float  # J, cumulative integral of R i^2 dt
+    reaction_work_hull: float = 0.0  # J, cumulative work of the motor's reaction -(k_t i - M_f) on the hull
 
 
 class MujocoRig(SimulatedRigBase):
@@ -128,6 +129,8 @@ class MujocoRig(SimulatedRigBase):
         self.water_rate = 0.0
         self.motor_work = self.dissipated_hull = self.dissipated_flywheel = 0.0
         self.electric_energy = self.ohmic_loss = 0.0
+        self.reaction_work_hull = 0.0
+        self._w_prev = 0.0  # hull rate one physics step ago (forces.centred_rate)
         self.sensors.reset()
         self.set_brake(brake)
         return self._read()
@@ -151,7 +154,9 @@ class MujocoRig(SimulatedRigBase):
         for _ in range(p.physics_substeps):
             phi, w = d.qpos[self._hull_qpos], d.qvel[self._hull_dof]
             psi0, omega = d.qpos[self._fly_qpos], d.qvel[self._fly_dof]
-            q_hull = float(forces.hull_extra_torque(phi, w, self.water_rate, p))
+            w_mid = forces.centred_rate(w, self._w_prev)
+            self._w_prev = float(w)
+            q_hull = float(forces.hull_extra_torque(phi, w_mid, self.water_rate, p))
             q_fly = float(forces.flywheel_friction_torque(omega, p))
             d.qfrc_applied[self._hull_dof] = q_hull
             d.qfrc_applied[self._fly_dof] = q_fly
@@ -171,6 +176,7 @@ class MujocoRig(SimulatedRigBase):
             self.motor_work += torque * dpsi
             self.dissipated_hull += q_hull * dphi
             self.dissipated_flywheel += q_fly * dpsi
+            self.reaction_work_hull -= (torque + q_fly) * dphi
             if not passive:
                 # Exact integrals over the step with u held: int(u i) = u * mean(i);
                 # int(R i^2) from the exponential solution.
@@ -197,7 +203,8 @@ class MujocoRig(SimulatedRigBase):
                          i=self.i, u=self.u, water_rate=self.water_rate, energy=energy,
                          motor_work=self.motor_work, dissipated_hull=self.dissipated_hull,
                          dissipated_flywheel=self.dissipated_flywheel,
-                         electric_energy=self.electric_energy, ohmic_loss=self.ohmic_loss)
+                         electric_energy=self.electric_energy, ohmic_loss=self.ohmic_loss,
+                         reaction_work_hull=self.reaction_work_hull)
 
     # --- internals ------------------------------------------------------------------
     def _mean_flywheel_rate(self, omega0: float, i_guess: float, h: float) -> float:
