@@ -140,3 +140,26 @@ def test_unexpected_exception_is_a_bug_report_with_a_log(capsys, tmp_path, monke
 def test_deploy_bad_bench_url(capsys, tmp_path):
     _one_line_error(capsys, ["deploy", "--bench", "nosuchproto://x", "--controller", "lqr", "--out", tmp_path / "d"],
                     "nosuchproto://x")
+
+
+@pytest.mark.parametrize("block,key,value,limit", [
+    ("sensors", "sample_rate", 1e7, "20000"),
+    ("sensors", "sample_rate", 1e9, "20000"),
+    ("experiment", "hold_s", 1e5, "600"),
+])
+def test_unbounded_work_refused_up_front_with_the_limit(capsys, tmp_path, block, key, value, limit):
+    import yaml
+
+    data = yaml.safe_load((Path(__file__).resolve().parents[1] / "configs" / "rigs" / "wigley-2m.yaml").read_text())
+    data[block][key] = value
+    rig = tmp_path / "big.yaml"
+    rig.write_text(yaml.safe_dump(data))
+    rc = main(["simulate", "--rig", str(rig), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and str(rig) in err and limit in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_too_many_cycles_refused(capsys, tmp_path):
+    rc = main(["simulate", "--cycles", "100000", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "1000" in err

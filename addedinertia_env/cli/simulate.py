@@ -12,6 +12,9 @@ from ..simulate import OTHER_KINDS, effects_from_name, simulate_to_dir
 from .common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
 
 
+MAX_CYCLES = 1000  # records per call
+
+
 def register(sub) -> None:
     p = sub.add_parser("simulate", help="simulate experiments and write run records")
     p.add_argument("--rig", default="wigley-2m", help="rig preset name or YAML path")
@@ -30,6 +33,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    if args.cycles > MAX_CYCLES:
+        raise BadInput(f"--cycles {args.cycles}: expected at most {MAX_CYCLES} records per call (docs/RELIABILITY.md)")
     data = load_preset(args.rig)
     sensors = sensors_for_quality(args.sensors) if args.sensors else None
     rig = rig_from_mapping(data, effects=effects_from_name(args.effect, args.seed), sensors=sensors)

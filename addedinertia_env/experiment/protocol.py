@@ -55,6 +55,15 @@ class ExperimentPlan:
             if not (ok and math.isfinite(value)):
                 raise ValueError(f"ExperimentPlan.{name} = {value!r} is out of range "
                                  "(alpha: 0 < |alpha| < 1 rad; times: >= 0 s)")
+        for name, limit in MAX_DURATION_S.items():
+            if getattr(self, name) > limit:
+                raise ValueError(f"ExperimentPlan.{name} = {getattr(self, name)!r} s: expected at most {limit:g} s "
+                                 "(docs/RELIABILITY.md)")
+
+
+# Documented limits of one experiment's durations, s (docs/RELIABILITY.md): longer is refused up front.
+MAX_DURATION_S = {"hold_s": 600.0, "settle_s": 60.0, "tail_s": 60.0, "lead_s": 10.0, "stop_window_s": 10.0,
+                  "max_free_s": 600.0}
 
 
 class ExperimentError(RuntimeError):

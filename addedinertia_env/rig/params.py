@@ -71,6 +71,11 @@ class MotorParams:
         return self.L / self.R
 
 
+# Documented limits of simulated work (docs/RELIABILITY.md): beyond them a config is refused up front.
+SAMPLE_RATE_LIMITS = (100.0, 20_000.0)  # Hz; the spec's DAQs log at 250 Hz to 10 kHz
+MAX_PHYSICS_SUBSTEPS = 100  # integrator steps per sample
+
+
 @dataclass(frozen=True)
 class SensorParams:
     """Sampling and sensor imperfections (physics.md section 7)."""
@@ -88,6 +93,9 @@ class SensorParams:
     def __post_init__(self) -> None:
         _positive(self, "sample_rate")
         _non_negative(self, "phi_counts", "psi_counts", "current_noise", "voltage_noise")
+        if not SAMPLE_RATE_LIMITS[0] <= self.sample_rate <= SAMPLE_RATE_LIMITS[1]:
+            raise ValueError(f"SensorParams.sample_rate = {self.sample_rate!r} Hz: expected {SAMPLE_RATE_LIMITS[0]:g} "
+                             f"to {SAMPLE_RATE_LIMITS[1]:g} Hz (a DAQ logs at 250 Hz to 10 kHz; docs/RELIABILITY.md)")
 
     @property
     def dt(self) -> float:
@@ -116,6 +124,9 @@ class RigParams:
 
     def __post_init__(self) -> None:
         _positive(self, "brake_torque", "physics_substeps")
+        if self.physics_substeps > MAX_PHYSICS_SUBSTEPS:
+            raise ValueError(f"RigParams.physics_substeps = {self.physics_substeps!r}: expected at most "
+                             f"{MAX_PHYSICS_SUBSTEPS} integrator steps per sample")
         if isinstance(self.physics_substeps, bool) or int(self.physics_substeps) != self.physics_substeps:
             raise ValueError(f"RigParams.physics_substeps = {self.physics_substeps!r}: expected a whole number >= 1")
         object.__setattr__(self, "physics_substeps", int(self.physics_substeps))
