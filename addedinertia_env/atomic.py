@@ -8,6 +8,7 @@ permissions (0666 less the umask), not the 0600 of a bare temporary file.
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -18,6 +19,45 @@ def _default_mode() -> int:
     umask = os.umask(0)
     os.umask(umask)
     return 0o666 & ~umask
+
+
+_STALE = re.compile(r"^\.(?P<target>.+)\.pid(?P<pid>\d+)\.[A-Za-z0-9_]+\.[A-Za-z0-9]+$")
+
+
+def _temp_prefix(path: Path) -> str:
+    """Hidden temporary name beside ``path`` carrying the writer's process id (see :func:`remove_stale_temps`)."""
+    return f".{path.name}.pid{os.getpid()}."
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's live process
+        return True
+    return True
+
+
+def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
+    """Remove temporary files in ``folder`` left by writers that were killed (their process is gone).
+
+    A writer killed with SIGKILL cannot clean up; its temporary file names its process id,
+    so a later run removes it without touching a live writer's. Returns what was removed.
+    """
+    folder = Path(folder)
+    removed = []
+    if not folder.is_dir():
+        return removed
+    for p in folder.iterdir():
+        m = _STALE.match(p.name)
+        if m and p.is_file() and int(m["pid"]) != os.getpid() and not _alive(int(m["pid"])):
+            try:
+                p.unlink()
+                removed.append(p)
+            except OSError:
+                pass
+    return removed
 
 
 def atomic_write_texts(files: list[tuple[Path, str]]) -> None:
@@ -33,7 +73,7 @@ def atomic_write_texts(files: list[tuple[Path, str]]) -> None:
         for path, text in files:
             path = Path(path)
             path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+            fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent)
             temps.append((tmp, path))
             with os.fdopen(fd, "w", newline="") as f:
                 f.write(text)
@@ -59,7 +99,7 @@ def atomic_target(path: str | os.PathLike, suffix: str = ".tmp") -> Iterator[Pat
     """Yield a temporary path beside ``path`` to write to (e.g. ``savefig``); rename on success."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=suffix, dir=path.parent)
     os.close(fd)
     try:
         yield Path(tmp)

@@ -163,3 +163,22 @@ def test_too_many_cycles_refused(capsys, tmp_path):
     rc = main(["simulate", "--cycles", "100000", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert rc == 2 and "1000" in err
+
+
+def test_simulate_removes_temporary_files_of_killed_writers_only(capsys, tmp_path):
+    import os
+    import subprocess
+
+    out = tmp_path / "sim"
+    out.mkdir()
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    stale = out / f".run-0000.csv.pid{dead.pid}.abc123.tmp"
+    live = out / f".run-0000.csv.pid{os.getppid()}.xyz789.tmp"  # a live writer (our parent process)
+    stale.write_text("half a record")
+    live.write_text("being written")
+    assert main(["simulate", "--out", str(out), "--hold", "0.2"]) == 0
+    err = capsys.readouterr().err
+    assert not stale.exists() and str(stale) in err
+    assert live.exists()
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["run-0000.csv", "run-0000.json"]

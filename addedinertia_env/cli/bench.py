@@ -93,6 +93,10 @@ def run_bench(args) -> int:
     safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", args.controller)
     out = Path(args.out or f"out/bench/{suite.name}-{safe}.jsonl")
     key = {"controller": args.controller, "suite": suite.name, "split": args.split}
+    from ..atomic import remove_stale_temps  # noqa: PLC0415
+
+    for stale in remove_stale_temps(out.parent):
+        info(f"bench: removed {stale}, a temporary file of a killed earlier run")
     kept, notes = prepare_output(out, key, force=args.force)
     for note in notes:
         info(f"bench: {note}")

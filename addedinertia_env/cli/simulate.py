@@ -47,6 +47,10 @@ def run(args) -> int:
                            "onnx:PATH or module:factory")
         if ":" in args.controller:
             make_controller(args.controller)  # a policy or factory is loaded and checked before anything runs
+    from ..atomic import remove_stale_temps  # noqa: PLC0415
+
+    for stale in remove_stale_temps(args.out):
+        info(f"removed {stale}, a temporary file of a killed earlier run")
     paths = simulate_to_dir(rig, Path(args.out), controller=args.controller, plan=plan, seed=args.seed,
                             cycles=args.cycles, kind=args.kind)
     for p in paths:
