@@ -20,8 +20,16 @@ class ControllerContext:
     layout: ObservationLayout  # named access to observation entries
     reference: MirroredReference  # the mirrored free-stroke law, from the encoder
     inertia_prior: float  # kg m^2, J_hull + lambda66 seen at the free stroke's stop
-    dt: float  # s, control period
+    dt: float  # s, control period: the policy's (host's) period, 1 / policy_rate_hz
     hold_s: float  # s, duration of the brake hold before the reverse stroke
+    policy_rate_hz: float | None = None  # Hz, how often the controller acts (None: every board sample)
+    board_mode: str = "zoh"  # what the board does between actions: "zoh" (hold) or "pd" (board-side PD)
+    sample_dt: float | None = None  # s, the board's sample period (None: = dt)
+
+    @property
+    def board_dt(self) -> float:
+        """s, the period at which the board's inner loop runs."""
+        return self.sample_dt if self.sample_dt is not None else self.dt
 
     @property
     def i_max(self) -> float:

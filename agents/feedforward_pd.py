@@ -90,6 +90,16 @@ class StrokeController(Controller):
     def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:  # pragma: no cover
         raise NotImplementedError
 
+    # --- two-rate bench, board mode "pd" (addedinertia_env/experiment/two_rate.py) -------
+    def board_pd(self, obs: dict[str, float]) -> tuple[float, float, float]:
+        """Gains of the board-side PD, ``kp`` (A/rad) and ``kd`` (A/(rad/s)) on
+        ``phi_ref - phi`` and its rate, and the host's slowly varying correction (A) added to
+        the feed-forward knots; called once per host period in the reverse stroke.
+        Default: the loop at ``omega_c`` rad/s with damping ``zeta`` (10 rad/s, 1 if unset)."""
+        w, z = float(getattr(self, "omega_c", 10.0)), float(getattr(self, "zeta", 1.0))
+        scale = -self.J / self.ctx.k_t  # positive error (hull behind) needs negative current
+        return scale * w * w, scale * 2.0 * z * w, 0.0
+
     def current(self, obs: dict[str, float]) -> float:
         ctx = self.ctx
         if obs["is_hold"] > 0.5:

@@ -45,6 +45,21 @@ class LQR(StrokeController):
                       self.integral_weight / self.e_scale**2])
         self.K = lqr_gain(self.c / self.J, context.dt, q, 1.0)
         self.integral = 0.0
+        self._K_board = None
+
+    def board_pd(self, obs: dict[str, float]) -> tuple[float, float, float]:
+        """Two-rate, board mode "pd": the LQR's error and rate gains run on the board at its
+        sample period; the integral term stays on the host (updated each host period from
+        the encoder's tracking error) and rides on the feed-forward knots."""
+        if getattr(self, "_K_board", None) is None:
+            q = np.array([1.0 / self.e_scale**2, 1.0 / (self.e_scale * self.rate_ratio) ** 2,
+                          self.integral_weight / self.e_scale**2])
+            self._K_board = lqr_gain(self.c / self.J, self.ctx.board_dt, q, 1.0)
+        K = self._K_board
+        scale = -self.J / self.ctx.k_t
+        if obs["is_reverse"] > 0.5:
+            self.integral += obs["tracking_error"] * self.ctx.dt
+        return scale * K[0], scale * K[1], scale * K[2] * self.integral
 
     def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:
         self.integral += e * self.ctx.dt

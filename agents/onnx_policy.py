@@ -3,6 +3,11 @@
 The ONNX graph maps the raw observation to the network's action in [-1, 1] (observation
 normalisation is inside). Its metadata (``addedinertia.*``) says how to drive the rig:
 
+- ``policy_rate_hz``, ``board_mode``, ``sample_rate_hz``: the rate the policy acts at,
+  what the board does between its actions (``zoh``) and the board's sample rate in
+  training; ``deploy --host-rate-hz`` refuses a policy whose rate or mode the bench does
+  not match (cards without them: derived from ``action_repeat``; a residual policy's
+  base runs every sample, so it acts at the sample rate).
 - ``action_repeat``: rig samples per network evaluation. The benchmark calls
   :meth:`predict` every sample (1 kHz); the network runs on every ``action_repeat``-th
   call and its output is held in between, as in training. The counter restarts at
@@ -31,6 +36,7 @@ from addedinertia_env.task import OBSERVATION_FIELDS
 META_PREFIX = "addedinertia."
 MAX_POLICY_BYTES = 200_000_000  # a policy network for this task is well under 1 MB
 MAX_ACTION_REPEAT = 1000  # rig samples per network evaluation (1 Hz at a 1 kHz rig)
+DEFAULT_SAMPLE_RATE_HZ = 1000.0  # Hz, the board sample rate of policies whose card does not say
 
 
 class OnnxPolicyError(ValueError):
@@ -76,6 +82,11 @@ class OnnxPolicy:
         self.residual_scale = self._meta_number("residual_scale", "0", float, 0.0, 1.0)
         self.sample_rate_hz = (self._meta_number("sample_rate_hz", "0", float, 1.0, 1e6)
                                if self.metadata.get("sample_rate_hz") else None)
+        # The rate the policy acts at: a residual policy's base runs every sample in training.
+        fs = self.sample_rate_hz or DEFAULT_SAMPLE_RATE_HZ
+        derived = fs if self.residual_base else fs / self.action_repeat
+        self.policy_rate_hz = _optional_float(self.metadata.get("policy_rate_hz")) or derived
+        self.board_mode = self.metadata.get("board_mode", "") or "zoh"
         self.train_env_steps = _optional_int(self.metadata.get("train_env_steps"))
         self.train_cpu_minutes = _optional_float(self.metadata.get("train_cpu_minutes"))
         self.name = f"onnx:{self.path.name}"
@@ -151,11 +162,16 @@ class OnnxPolicy:
                                   f"parameters it was trained with ({e}); retrain the policy") from None
 
     def reset(self, context: Any = None) -> None:
-        """Start of an episode: restart the hold counter; reset the base controller with ``context``."""
+        """Start of an episode: restart the hold counter; reset the base controller with ``context``.
+
+        Called at the policy's own rate (a two-rate bench: ``context.policy_rate_hz``), the
+        network runs at every call: the board holds its action in between."""
         self._calls = 0
+        rate = getattr(context, "policy_rate_hz", None)
+        self._repeat = 1 if rate is not None and abs(rate - self.policy_rate_hz) < 1e-6 * rate else self.action_repeat
         self._held = np.zeros(1, dtype=np.float32)
         if context is not None and getattr(context, "dt", None):
-            self.check_rate(float(context.dt))
+            self.check_rate(float(getattr(context, "sample_dt", None) or context.dt))  # the board's sample period
         if self.base is not None:
             if context is None:
                 raise OnnxPolicyError(f"{self.path}: a residual policy on {self.residual_base!r} needs "
@@ -174,7 +190,7 @@ class OnnxPolicy:
         if obs.size != len(OBSERVATION_FIELDS):
             raise OnnxPolicyError(f"observation of size {obs.size}; expected {len(OBSERVATION_FIELDS)} "
                                   "(addedinertia_env.task.OBSERVATION_FIELDS)")
-        if self._calls % self.action_repeat == 0:
+        if self._calls % getattr(self, "_repeat", self.action_repeat) == 0:
             self._held = self.network(obs).reshape(-1)[:1].astype(np.float32)
         self._calls += 1
         if self.base is None:

@@ -20,6 +20,14 @@ Protocol choices (docs/PROTOCOL.md):
 * ``step(cmd)`` sends one COMMAND and returns the next SAMPLE. On a free-running board,
   samples that queued while the host was busy are skipped to the newest and counted as
   overruns.
+
+Two-rate mode (``host_rate_hz``; protocol version 2, docs/PROTOCOL.md section 9): the
+board runs the inner loop every sample and the host sends SEGMENTs at its own rate.
+``step(cmd)`` then returns the *next* board sample in order (none is skipped: every one
+is checked and recorded) and, once per host period, sends ``cmd`` as a zero-order-hold
+segment (the experiment's uncontrolled phases); ``step(None)`` only reads, the caller
+sends its own segments with :meth:`send_segment` (``experiment.two_rate.drive_two_rate``).
+``set_brake`` sends a segment at once. Samples arrive in SAMPLE_BATCH frames.
 """
 
 from __future__ import annotations
@@ -27,15 +35,17 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable
 
+from addedinertia_env.rig.board_loop import HORIZON_PERIODS, Segment, elapsed_us, zoh_segment
 from addedinertia_env.rig.known import KnownRig
 from addedinertia_env.rig.motor import MotorCommand
 from addedinertia_env.rig.sensors import Reading
 
 from . import messages as m
-from .framing import ClockUnwrapper
+from .framing import ClockUnwrapper, Frame
 from .lab import LabConfig, known_rig
 from .link import Link, LinkError
 from .safety import SafetyEnvelope, SafetyLimits, SafetyTrip
@@ -68,6 +78,13 @@ class LoopTiming:
     skipped_samples: int = 0  # stale samples dropped to catch up (free-running board)
     overruns: int = 0  # loop iterations longer than one sample period, + skipped samples
     lockstep_retries: int = 0
+    # Two-rate mode (host_rate_hz):
+    segment_intervals: list[float] = field(default_factory=list)  # s between successive segments sent
+    segment_slack_ms: list[float] = field(default_factory=list)  # deadline - estimated board time at sending
+    segments_sent: int = 0
+    samples_lost: int = 0  # board samples missing from the record (step gaps after RESET)
+    late_segments: int = 0  # the board's count: segments that reached it after their deadline
+    hold_samples: int = 0  # samples the board ran on a segment that had run out (within the grace)
 
 
 class BenchRig:
@@ -75,8 +92,12 @@ class BenchRig:
 
     def __init__(self, url: str, lab: LabConfig, watchdog_s: float | None = None, reset_timeout_s: float = 120.0,
                  limit_overrides: dict[str, float] | None = None,
-                 on_sample: Callable[[Reading, MotorCommand | None], None] | None = None):
+                 on_sample: Callable[[Reading, MotorCommand | None], None] | None = None,
+                 host_rate_hz: float | None = None):
         self.url = url
+        self.host_rate_hz = host_rate_hz
+        self.two_rate = host_rate_hz is not None
+        self.applied_command: MotorCommand | None = None  # two-rate: what the board applied (last sample)
         self.lab = lab
         self.reset_timeout_s = reset_timeout_s
         self.limit_overrides = limit_overrides or {}
@@ -107,10 +128,19 @@ class BenchRig:
         self.watchdog: Watchdog | None = None
         self.envelope: SafetyEnvelope | None = None
         self.limits: SafetyLimits | None = None
+        self._queued: deque = deque()  # two-rate: samples of a batch not yet handed out
+        self._newest_raw_us: int | None = None  # board time (u32) of the newest sample received
+        self._newest_wall = 0.0
+        self._seg_id = 0
+        self._zoh: tuple[MotorCommand, bool] | None = None
+        self._zoh_t0 = 0
+        self._last_segment_wall: float | None = None
 
     # --- connection ---------------------------------------------------------------------
     def connect(self) -> m.Caps:
         """HELLO -> CAPS; builds the rig block, the limits and the watchdog."""
+        if self.two_rate:
+            self.link.version = 2
         for _ in range(HELLO_TRIES):
             self.link.send(m.Hello())
             deadline = time.perf_counter() + 0.5
@@ -123,13 +153,23 @@ class BenchRig:
                 break
         if self.caps is None:
             raise LinkError(f"bench {self.url!r} did not answer HELLO with CAPS ({HELLO_TRIES} tries of 0.5 s); "
-                            "is the board powered and is this its port?")
+                            "is the board powered and is this its port?"
+                            + (" (two-rate mode sends a version-2 HELLO, which a version-1 board ignores: "
+                               "run without --host-rate-hz)" if self.two_rate else ""))
+        if self.two_rate and not self.caps.two_rate:
+            raise LinkError(f"bench {self.url!r} answered without the two-rate capability (CAPS version 1); "
+                            "run without --host-rate-hz")
         self.source = "emulator" if self.caps.flags & m.CAP_EMULATOR else "bench"
         self._known = known_rig(self.lab, self.caps)
         self.limits = self.lab.safety_limits(self.caps, **self.limit_overrides)
         self.envelope = SafetyEnvelope(self.limits, self.lab.constants["phi_neutral"])
         if self._watchdog_s is None:
             self._watchdog_s = LOCKSTEP_WATCHDOG_S if self.lockstep else REALTIME_WATCHDOG_S
+            if self.two_rate and not self.lockstep:
+                # The board's own bound for a silent host (a segment's horizon + its grace),
+                # never beyond its watchdog: samples come in batches and the board guards itself.
+                self._watchdog_s = min(HORIZON_PERIODS / self.host_rate_hz + 1e-3 * self.caps.grace_ms,
+                                       1e-3 * self.caps.watchdog_ms)
         if self.watchdog is None:
             self.watchdog = Watchdog(self._watchdog_s, self._watchdog_expired)
         return self.caps
@@ -196,14 +236,26 @@ class BenchRig:
 
     def set_brake(self, on: bool) -> None:
         self.brake_request = bool(on)
+        if self.two_rate:  # at once while zero-order-hold segments run; a planned segment has its own schedule
+            if self.armed and self._zoh is not None:
+                self._send_zoh(self._zoh[0])
+            return
         if not self.lockstep and self.armed:
             last = self.sent[-1] if self.sent else SentCommand(0.0, "passive", 0.0, True)
             self._send_command(MotorCommand(last.mode, last.value))
 
-    def step(self, cmd: MotorCommand) -> Reading:
+    def step(self, cmd: MotorCommand | None) -> Reading:
         self._raise_if_tripped()
         if not self.armed:
             raise self.stop("operator", "step() on a disarmed bench; call arm() after connect()")
+        if self.two_rate:
+            if cmd is not None:
+                cmd = self.envelope.clamp(cmd)
+                t_new = self._newest_raw_us if self._newest_raw_us is not None else 0
+                if self._zoh != (cmd, self.brake_request) or (
+                        elapsed_us(t_new, self._zoh_t0) >= self.host_period_us and self.poll() == 0):
+                    self._send_zoh(cmd)
+            return self._next_sample_two_rate()
         if self._last_sample_wall is not None:
             busy = time.perf_counter() - self._last_sample_wall
             self.timing.compute_s.append(busy)
@@ -211,6 +263,84 @@ class BenchRig:
                 self.timing.overruns += 1
         sent = self._send_command(self.envelope.clamp(cmd))
         return self._next_sample(sent)
+
+    # --- two-rate (protocol version 2) ------------------------------------------------------
+    @property
+    def host_period_us(self) -> int:
+        return int(round(1e6 / self.host_rate_hz))
+
+    def next_seg_id(self) -> int:
+        self._seg_id = (self._seg_id + 1) & 0xFFFF
+        return self._seg_id
+
+    def board_time_us(self, t: float) -> int:
+        """Board clock (u32, us) of record time ``t`` (s after RESET)."""
+        return (self._t0_us + int(round(t * 1e6))) & 0xFFFFFFFF
+
+    @property
+    def newest_board_us(self) -> int:
+        """Board time (u32) of the newest sample received, read or not."""
+        return self._newest_raw_us if self._newest_raw_us is not None else self.board_time_us(0.0)
+
+    def poll(self) -> int:
+        """Read what has arrived without waiting; returns the samples not yet handed out."""
+        while True:
+            got = self._recv(0.0, hold=True)
+            if got is None:
+                break
+        return len(self._queued)
+
+    def send_segment(self, seg: Segment) -> None:
+        """Send one SEGMENT (refused after a trip, like every command); timing is recorded."""
+        self._zoh = None
+        self._send_segment(seg)
+
+    def _send_zoh(self, cmd: MotorCommand) -> None:
+        t0 = self.newest_board_us
+        switch = None
+        self._send_segment(zoh_segment(self.next_seg_id(), cmd, self.brake_request, t0, self.host_period_us, switch))
+        self._zoh, self._zoh_t0 = (cmd, self.brake_request), t0
+
+    def _send_segment(self, seg: Segment) -> None:
+        with self._trip_lock:
+            if self.trip is not None:
+                raise self.trip
+            self.link.send(m.SegmentMsg(seg))
+        now = time.perf_counter()
+        t = self.timing
+        t.segments_sent += 1
+        if self._last_segment_wall is not None:
+            t.segment_intervals.append(now - self._last_segment_wall)
+        self._last_segment_wall = now
+        if self._newest_raw_us is not None:
+            board_now = self._newest_raw_us + int((now - self._newest_wall) * 1e6)
+            t.segment_slack_ms.append(elapsed_us(seg.deadline_us, board_now) * 1e-3)
+        value = seg.currents[0] if not seg.passive else 0.0
+        self.sent.append(SentCommand(now, "passive" if seg.passive else "current", float(value), seg.brake))
+        # The watchdog thread stays disarmed in two-rate mode: a stalled host sends no more
+        # segments, and the board holds the last one for its grace, then goes safe by itself
+        # (at most two host periods + the grace after the last segment). Link silence is
+        # still caught by the loop (_next_sample_two_rate), at the host watchdog time.
+
+    def _next_sample_two_rate(self) -> Reading:
+        """The next board sample in order (blocking up to the host watchdog); none is skipped."""
+        start = time.perf_counter()
+        deadline = start + self.watchdog_s
+        while not self._queued:
+            self._raise_if_tripped()
+            now = time.perf_counter()
+            if now >= deadline:
+                raise self.stop("link", f"no sample for {1e3 * (now - start):.1f} ms "
+                                        f"(watchdog {1e3 * self.watchdog_s:.0f} ms)")
+            self._recv(deadline - now, hold=True)
+        frame, msg = self._queued.popleft()
+        reading = self._accept(frame, msg)
+        now = time.perf_counter()
+        if self._last_sample_wall is not None:
+            self.timing.intervals.append(now - self._last_sample_wall)
+        self._last_sample_wall = now
+        self.watchdog.kick()
+        return reading
 
     # --- arming -------------------------------------------------------------------------
     def query(self) -> tuple[m.Sample, Reading]:
@@ -242,6 +372,8 @@ class BenchRig:
                 self.last_sample = None if not self.lockstep else msg  # free-running: samples skipped below
                 self._last_sample_seq = frame.seq
                 self.link.drain()
+                self._queued.clear()
+                self._zoh = None
                 self._last_sample_wall = None
                 return
         raise self.stop("link", "the board did not confirm ARM within 1 s")
@@ -337,13 +469,30 @@ class BenchRig:
             self.watchdog.arm(not (cmd.mode == "passive" and brake))
         return seq
 
-    def _recv(self, timeout_s: float, check_trip: bool = True):
+    def _recv(self, timeout_s: float, check_trip: bool = True, hold: bool = False):
+        """The next message (a SAMPLE_BATCH comes out as its samples, one per call, in order).
+        ``hold``: samples go to the queue for :meth:`_next_sample_two_rate` instead."""
+        if self._queued and not hold:
+            return self._queued.popleft()
         try:
             got = self.link.recv(timeout_s)
         except LinkError as e:
             if check_trip:
                 raise self.stop("link", str(e)) from None
             raise
+        if got is not None and isinstance(got[1], (m.SampleBatch, m.Sample)):
+            frame, msg = got
+            self._newest_wall = time.perf_counter()
+            if isinstance(msg, m.SampleBatch):
+                self.timing.late_segments = max(self.timing.late_segments, msg.late_segments)
+                items = msg.expand(frame.time_us, self.caps.sample_period_us)
+                self._newest_raw_us = items[-1][0]
+                self._queued.extend((Frame(m.SAMPLE, frame.seq, t_us, b"", frame.version), x) for t_us, x in items)
+                return self._queued.popleft() if not hold else got
+            self._newest_raw_us = frame.time_us
+            if hold and self.two_rate:
+                self._queued.append(got)
+                return got
         if got is not None and isinstance(got[1], m.Fault) and check_trip and self.armed:
             f = got[1]
             raise self.stop("board_fault", f"board fault {m.fault_names(f.code)} (detail {f.detail:g}); "
@@ -401,14 +550,24 @@ class BenchRig:
                                     f"missing, {self.timing.lockstep_retries} lock-step retries")
         if self.last_sample is not None:
             missing = (msg.step - self.last_sample.step - 1) & 0xFFFF
+            self.timing.samples_lost += missing
             if missing > lim.max_missed_in_row:
                 raise self.stop("link", f"{missing} samples missing in a row (limit {lim.max_missed_in_row})")
         reading = self._reading(frame, msg)
         self._check(reading, msg)
         self.last_sample = msg
+        if self.two_rate:
+            driven = msg.status & m.ST_DRIVE_ENABLED and math.isfinite(msg.i_cmd)
+            self.applied_command = MotorCommand("current", float(msg.i_cmd)) if driven else PASSIVE
+            if msg.status & m.ST_SEGMENT_HOLD:
+                self.timing.hold_samples += 1
         if self.on_sample is not None:
-            last = self.sent[-1]
-            self.on_sample(reading, MotorCommand(last.mode, last.value))
+            if self.two_rate:
+                applied = self.applied_command
+            else:
+                last = self.sent[-1]
+                applied = MotorCommand(last.mode, last.value)
+            self.on_sample(reading, applied)
             self._last_logged_t = reading.t
         return reading
 

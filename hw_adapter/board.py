@@ -5,6 +5,12 @@ back; :class:`~hw_adapter.emulator.EmulatorServer` moves bytes. It implements wh
 docs/PROTOCOL.md section 5 asks of real firmware: latched faults, the board watchdog,
 brake supervision, the safe state (drive passive, brake on) and its own limits, so the
 host's safety code is tested against a board that behaves like the real one should.
+
+Protocol version 2 (the two-rate bench, docs/PROTOCOL.md section 9): a host whose HELLO
+comes in a version-2 frame gets a version-2 CAPS; armed, the board then runs the inner
+loop of :mod:`addedinertia_env.rig.board_loop` at every tick on the newest valid
+SEGMENT (late ones counted and dropped; when they run out it holds for the grace, then
+goes safe by itself with fault SEGMENTS), and streams its samples in SAMPLE_BATCH frames.
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ import math
 import time
 from dataclasses import dataclass
 
+from addedinertia_env.rig.board_loop import DEFAULT_GRACE_US, DEFAULT_RATE_FILTER_HZ, MAX_KNOTS, BoardLoop
 from addedinertia_env.rig.motor import MotorCommand
 from addedinertia_env.rig.mujoco_rig import MujocoRig
 from addedinertia_env.rig.params import RigParams
@@ -34,6 +41,9 @@ class BoardLimits:
     brake_response_ms: int = 20  # ms the brake may take to follow a request
     overcurrent_factor: float = 1.25  # measured |i| above this x i_max -> fault
     angle_limit: float = 0.8  # rad from the calibrated neutral: the hull's end switches
+    grace_ms: int = DEFAULT_GRACE_US // 1000  # version 2: ms a segment that ran out is held, then safe state
+    batch_samples: int = 5  # version 2: samples per SAMPLE_BATCH
+    rate_filter_hz: int = int(DEFAULT_RATE_FILTER_HZ)  # version 2: corner of the pd mode's rate estimate
 
 
 @dataclass(frozen=True)
@@ -75,6 +85,14 @@ class Board:
         self.log = FaultLog()
         self.commands: list[ReceivedCommand] = []
         self.outbox: list = []  # FAULT messages raised outside handle() (watchdog, link)
+        self.version = 1  # protocol version of the session (the HELLO's frame version)
+        self.loop = BoardLoop(self.period_us, params.motor.i_max, self.limits.grace_ms * 1000,
+                              float(self.limits.rate_filter_hz))
+        self.on_segments = False  # version 2: the loop drives (a SEGMENT came since ARM); else COMMANDs do
+        self.applied = PASSIVE  # the command applied over the last period
+        self.segments_received = 0
+        self._batch: list[m.Sample] = []
+        self._batch_t0 = 0
 
     # --- clocks -------------------------------------------------------------------------
     @property
@@ -88,19 +106,27 @@ class Board:
         return self.clock_base_us + int(round(self.rig.time * 1e6))
 
     def caps(self) -> m.Caps:
-        mo = self.params.motor
+        mo, lim = self.params.motor, self.limits
         flags = m.CAP_EMULATOR | m.CAP_TWIST_ACTUATOR | (m.CAP_LOCKSTEP if self.lockstep else 0)
-        return m.Caps(FIRMWARE_VERSION, flags, self.period_us, self.phi_counts, self.psi_counts, mo.i_max, mo.u_max,
-                      self.limits.watchdog_ms, self.limits.brake_response_ms, self.board_id)
+        if self.version < 2:
+            return m.Caps(FIRMWARE_VERSION, flags, self.period_us, self.phi_counts, self.psi_counts, mo.i_max,
+                          mo.u_max, lim.watchdog_ms, lim.brake_response_ms, self.board_id)
+        return m.Caps(FIRMWARE_VERSION, flags | m.CAP_TWO_RATE, self.period_us, self.phi_counts, self.psi_counts,
+                      mo.i_max, mo.u_max, lim.watchdog_ms, lim.brake_response_ms, self.board_id, lim.batch_samples,
+                      MAX_KNOTS, sum(m.BOARD_MODE_BITS.values()), lim.grace_ms, lim.rate_filter_hz)
 
     # --- messages -----------------------------------------------------------------------
-    def handle(self, msg, seq: int = 0) -> list:
-        """Answer one message from the host (``seq``: its frame's sequence number)."""
+    def handle(self, msg, seq: int = 0, version: int = 1) -> list:
+        """Answer one message from the host (``seq``, ``version``: its frame's sequence number and version)."""
         t = msg.type
         if t == m.HELLO:
+            self.version = version
+            self._batch = []
             return [self.caps()]
+        if t == m.SEGMENT:
+            return self._segment(msg)
         if t == m.QUERY:
-            return [self.sample(self.last_reading)]
+            return self._flush_batch() + [self.sample(self.last_reading)]
         if t == m.HEARTBEAT:
             return [m.Empty(m.HEARTBEAT, msg.reason)]
         if t == m.RESET:
@@ -109,7 +135,7 @@ class Board:
             return self._arm()
         if t == m.DISARM:
             self.go_safe(m.F_HOST_STOP if msg.reason else 0, float(msg.reason))
-            return self._flush() + [self.sample(self.last_reading)]
+            return self._flush() + self._flush_batch() + [self.sample(self.last_reading)]
         if t == m.COMMAND:
             return self._command(msg, seq)
         return []  # CAPS, SAMPLE, FAULT from a host: ignored
@@ -123,6 +149,9 @@ class Board:
         self.cmd_seq = 0
         self.step_count = 0
         self._mismatch_since = None
+        self.loop.restart()
+        self.on_segments = False
+        self._batch = []
         self.last_reading = self.rig.reset(phi0=msg.phi0, psi0=msg.psi0, omega0=msg.omega0, brake=msg.brake)
         return self.sample(self.last_reading, extra_status=m.ST_RESET_DONE)
 
@@ -133,7 +162,9 @@ class Board:
             return [m.Fault(m.F_BRAKE, self.fault_bits, math.nan), self.sample(self.last_reading)]
         self.armed = True
         self.last_command_wall = time.monotonic()
-        return [self.sample(self.last_reading)]
+        self.loop.restart()
+        self.on_segments = False
+        return self._flush_batch() + [self.sample(self.last_reading)]
 
     def _command(self, msg: m.Command, seq: int) -> list:
         self.commands.append(ReceivedCommand(self.board_t, msg.mode, msg.value, msg.brake, self.armed))
@@ -143,15 +174,42 @@ class Board:
             self.cmd = MotorCommand(msg.mode, max(-limit, min(limit, msg.value)) if msg.mode != "passive" else 0.0)
             self.brake_request = msg.brake
             self.cmd_seq = seq
+            self.on_segments = False  # a COMMAND (the host's safe stop, a version-1 host) overrides the loop
         if self.lockstep:
-            return self._flush() + [self.tick()] + self._flush()
+            return self._flush() + self._flush_batch() + [self.tick()] + self._flush()
         return []
 
+    def _segment(self, msg: m.SegmentMsg) -> list:
+        """Version 2: offer the segment to the loop (late ones are counted and dropped).
+        Lock-step: then run the samples up to the segment's deadline (one host period)."""
+        seg = msg.segment
+        self.segments_received += 1
+        self.commands.append(ReceivedCommand(self.board_t, "segment", seg.currents[0], seg.brake, self.armed))
+        if self.armed:
+            self.last_command_wall = time.monotonic()
+            if self.loop.offer(seg, self.time_us):
+                self.on_segments = True
+        if not self.lockstep:
+            return []
+        out = self._flush()
+        ticks = max(1, -(-((seg.deadline_us - self.time_us + 2**31) % 2**32 - 2**31) // self.period_us))
+        for _ in range(min(ticks, 1000)):
+            out += self.stream(self.tick()) + self._flush()
+        return out + self._flush_batch()
     # --- the sample period --------------------------------------------------------------
     def tick(self) -> m.Sample:
-        """One sample period under the latched command (safe state when disarmed)."""
+        """One sample period under the latched command or, version 2, the inner loop (safe state when disarmed)."""
+        hold = False
+        if self.armed and self.on_segments:
+            out = self.loop.command(self.time_us, self.last_reading.phi)
+            if out.starved:
+                self.go_safe(m.F_SEGMENTS, (self.time_us - self.loop.segment.end_us) * 1e-3)
+            else:
+                self.cmd, self.brake_request, hold = out.command, out.brake, out.hold
+                self.cmd_seq = out.seg_id
         cmd = self.cmd if self.armed else PASSIVE
         request = self.brake_request if self.armed else True
+        self.applied = cmd
         stuck = self.faults_plan.active("stuck_brake", self.board_t) > 0
         if request != self.rig.brake:
             if stuck:
@@ -171,7 +229,26 @@ class Board:
             self.log.add("fault_onset", time.monotonic(), self.board_t, fault="glitch")
         self.last_reading = r
         self._log_safe()
-        return self.sample(r, phi_offset=phi_offset)
+        return self.sample(r, phi_offset=phi_offset, extra_status=m.ST_SEGMENT_HOLD if hold else 0)
+
+    def stream(self, sample: m.Sample) -> list:
+        """What a free-running board sends for the sample of one tick: the SAMPLE itself
+        (version 1), or a SAMPLE_BATCH once ``batch_samples`` have gathered (version 2)."""
+        if self.version < 2:
+            return [sample]
+        if not self._batch:
+            self._batch_t0 = self.time_us
+        self._batch.append(sample)
+        if len(self._batch) >= self.limits.batch_samples:
+            return self._flush_batch()
+        return []
+
+    def _flush_batch(self) -> list:
+        """The samples gathered so far as one SAMPLE_BATCH (none if none)."""
+        if not self._batch:
+            return []
+        b, self._batch = self._batch, []
+        return [m.SampleBatch(b[0].step, self.loop.late_segments, b[-1].cmd_seq, tuple(b), time_us=self._batch_t0)]
 
     def _supervise(self, r: Reading, request: bool) -> None:
         lim, p = self.limits, self.params
@@ -200,6 +277,7 @@ class Board:
     def go_safe(self, bit: int = 0, detail: float = math.nan) -> None:
         """Drive passive and brake on now; latch ``bit`` and queue a FAULT message."""
         self.armed = False
+        self.on_segments = False
         self.cmd = PASSIVE
         self.brake_request = True
         if not (self.faults_plan.active("stuck_brake", self.board_t) > 0):
@@ -241,5 +319,6 @@ class Board:
         psi_count = int(round(r.psi / (2 * math.pi) * self.psi_counts))
         psi_wrapped = (psi_count + 2**31) % 2**32 - 2**31  # a free-running i32 counter
         phi_count = max(-2**31, min(2**31 - 1, phi_count))
+        i_cmd = self.applied.value if self.applied.mode == "current" else 0.0
         return m.Sample(phi_count, psi_wrapped, float(r.i), float(r.u), bool(r.brake), status, self.fault_bits,
-                        self.cmd_seq, self.step_count)
+                        self.cmd_seq, self.step_count, i_cmd)

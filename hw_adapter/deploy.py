@@ -13,6 +13,7 @@ stops the run in the safe state; the record is kept with ``experiment.status =
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from dataclasses import asdict, dataclass
@@ -36,6 +37,7 @@ from .safety import SafetyTrip
 
 EXIT_OK = 0
 EXIT_IDENTIFY_FAILED = 1  # the run completed but lambda66 could not be identified
+EXIT_BAD_INPUT = 2  # refused before arming: a policy whose rate or board mode the bench does not match
 EXIT_ABORTED = 3  # stopped in the safe state: fault, trip, failed arming check
 EXIT_NO_BENCH = 4  # the bench did not answer; nothing was moved
 PASSIVE = MotorCommand("passive", 0.0)
@@ -55,6 +57,43 @@ class DeployOptions:
     alpha: float | None = None
     reset_timeout_s: float = 120.0
     rtt_pings: int = 20
+    host_rate_hz: float | None = None  # two-rate mode: the host acts (sends segments) at this rate
+    board_mode: str | None = None  # two-rate: "zoh" or "pd" (None: the controller's own, else zoh)
+
+
+def rate_mismatch(controller: Any, caps: m.Caps, host_rate_hz: float | None, board_mode: str | None) -> str | None:
+    """Why ``controller`` cannot run on this bench at this host rate (None if it can).
+
+    A controller that declares a policy rate (an exported policy: ``policy_rate_hz``,
+    ``board_mode``, ``sample_rate_hz`` from its card) must run at exactly that rate with
+    the board doing what it did in training; the classical controllers adapt to any rate.
+    """
+    rate = getattr(controller, "policy_rate_hz", None)
+    name = getattr(controller, "name", type(controller).__name__)
+    if host_rate_hz is not None and not caps.two_rate:
+        return f"--host-rate-hz {host_rate_hz:g}: the board has no two-rate mode (protocol version 1)"
+    mode = board_mode or getattr(controller, "board_mode", None) or "zoh"
+    if host_rate_hz is not None and not caps.supports(mode):
+        return f"board mode {mode!r}: the board runs only {[k for k, b in m.BOARD_MODE_BITS.items() if caps.board_modes & b]}"
+    if host_rate_hz is not None and not 2e3 / caps.watchdog_ms <= host_rate_hz <= caps.sample_rate:
+        return (f"--host-rate-hz {host_rate_hz:g}: expected {2e3 / caps.watchdog_ms:g} .. {caps.sample_rate:g} Hz "
+                f"(a segment at least every half board watchdog, {caps.watchdog_ms} ms; at most the sample rate)")
+    if rate is None:
+        return None
+    trained_fs = getattr(controller, "sample_rate_hz", None)
+    if trained_fs is not None and abs(trained_fs - caps.sample_rate) > 1e-6 * trained_fs:
+        return (f"policy {name} was trained on a board sampling at {trained_fs:g} Hz; this bench samples at "
+                f"{caps.sample_rate:g} Hz")
+    bench_rate = host_rate_hz if host_rate_hz is not None else caps.sample_rate
+    if host_rate_hz is None and rate < caps.sample_rate:
+        return None  # single-rate host at the board's rate: the policy holds its own action (as in training)
+    declared = getattr(controller, "board_mode", "zoh")
+    if abs(rate - bench_rate) > 1e-6 * rate or (board_mode is not None and board_mode != declared):
+        return (f"policy {name} acts at {rate:g} Hz with board mode {declared!r} (its card); the bench would run "
+                f"it at {bench_rate:g} Hz with board mode {mode!r}: run with --host-rate-hz {rate:g}"
+                + ("" if rate < caps.sample_rate else " (a policy at the sample rate needs the single-rate host: "
+                   "omit --host-rate-hz)"))
+    return None
 
 
 def loop_stats(intervals: list[float], dt: float, lockstep: bool) -> dict[str, float | None]:
@@ -102,9 +141,12 @@ def arm_checks(rig: BenchRig, plan, pings: int) -> list[dict[str, Any]]:
                 break
     if pings:
         rtt_p99 = float(np.percentile(rtts, 99)) if rtts else math.inf
-        add("link_round_trip", len(rtts) == pings and rtt_p99 < rig.watchdog_s / 2,
-            f"{len(rtts)}/{pings} echoes, p99 {1e3 * rtt_p99:.2f} ms (must be < half the watchdog, "
-            f"{1e3 * rig.watchdog_s / 2:.1f} ms)")
+        # Single-rate: a command per sample must beat half the watchdog. Two-rate: a segment
+        # must reach the board within one host period (its deadline).
+        bound, what = ((1.0 / rig.host_rate_hz, "one host period") if rig.two_rate
+                       else (rig.watchdog_s / 2, "half the watchdog"))
+        add("link_round_trip", len(rtts) == pings and rtt_p99 < bound,
+            f"{len(rtts)}/{pings} echoes, p99 {1e3 * rtt_p99:.2f} ms (must be < {what}, {1e3 * bound:.1f} ms)")
     return checks
 
 
@@ -136,12 +178,24 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
     plan = opts.lab.plan(hold_s=opts.hold_s, alpha=opts.alpha)
     summary: dict[str, Any] = {"bench": opts.bench, "controller": opts.controller, "dry_run": opts.dry_run,
                                "lambda66": None, "ci95": None, "record": None, "safe_stop": False}
+    if opts.host_rate_hz is not None:
+        summary["host_rate_hz"] = opts.host_rate_hz
     try:
-        rig = BenchRig(opts.bench, opts.lab, watchdog_s=opts.watchdog_s, reset_timeout_s=opts.reset_timeout_s)
+        rig = BenchRig(opts.bench, opts.lab, watchdog_s=opts.watchdog_s, reset_timeout_s=opts.reset_timeout_s,
+                       host_rate_hz=opts.host_rate_hz)
         rig.connect()
     except LinkError as e:
         summary.update(status=f"aborted: link: {e}", exit_status=EXIT_NO_BENCH)
         return summary, EXIT_NO_BENCH
+    refusal = rate_mismatch(controller, rig.caps, opts.host_rate_hz, opts.board_mode)
+    if refusal is not None:  # before anything is armed: nothing moved
+        rig.close()
+        summary.update(status=f"refused: {refusal}", exit_status=EXIT_BAD_INPUT, refused=refusal)
+        return summary, EXIT_BAD_INPUT
+    if opts.host_rate_hz is not None:
+        from addedinertia_env.experiment.two_rate import default_board_mode  # noqa: PLC0415
+
+        summary["board_mode"] = opts.board_mode or default_board_mode(controller)
     summary.update(source=rig.source, watchdog_ms=1e3 * rig.watchdog_s, limits=asdict(rig.limits))
     recorder: IncrementalRecord | None = None
     exp: Experiment | None = None
@@ -165,7 +219,12 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
                             "experiment": {"kind": "reverse-symmetric", **asdict(plan), "controller": opts.controller,
                                            "bench": opts.bench}})
             rig.on_sample = recorder.append
-            _run(exp, rig, controller)
+            gc.collect()
+            gc.disable()  # no collector pauses in the control loop (re-enabled below)
+            try:
+                _run(exp, rig, controller, opts.host_rate_hz, summary.get("board_mode"))
+            finally:
+                gc.enable()
     except SafetyTrip as trip:
         status = f"aborted: {trip.reason}"
     except ExperimentError as e:
@@ -208,10 +267,16 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
     return summary, exit_status
 
 
-def _run(exp: Experiment, rig: BenchRig, controller: Any) -> None:
-    """The loop of ``run_experiment``, on the bench."""
+def _run(exp: Experiment, rig: BenchRig, controller: Any, host_rate_hz: float | None = None,
+         board_mode: str | None = None) -> None:
+    """The loop of ``run_experiment``, on the bench (two-rate: ``drive_two_rate``)."""
     exp.start()
-    drive(exp, controller)
+    if host_rate_hz is None:
+        drive(exp, controller)
+    else:
+        from addedinertia_env.experiment.two_rate import drive_two_rate  # noqa: PLC0415
+
+        drive_two_rate(exp, controller, host_rate_hz, board_mode)
     rig.disarm()
 
 
@@ -221,6 +286,15 @@ def _timing(rig: BenchRig) -> dict[str, Any]:
     compute = np.asarray(t.compute_s) if t.compute_s else np.zeros(1)
     sent_current = [abs(c.value) for c in rig.sent if c.mode == "current"]
     sent_voltage = [abs(c.value) for c in rig.sent if c.mode == "voltage"]
+    if rig.two_rate:
+        periods = np.asarray(t.segment_intervals) if t.segment_intervals else np.full(1, np.nan)
+        slack = np.asarray(t.segment_slack_ms) if t.segment_slack_ms else np.full(1, np.nan)
+        out.update(host_rate_hz=rig.host_rate_hz, segments_sent=t.segments_sent,
+                   host_period_p50_ms=1e3 * float(np.median(periods)),
+                   host_period_p99_ms=1e3 * float(np.percentile(periods, 99)),
+                   segment_slack_p1_ms=float(np.percentile(slack, 1)),
+                   deadline_misses=int(np.sum(slack < 0)), late_segments=t.late_segments,
+                   board_hold_samples=t.hold_samples, samples_lost=t.samples_lost)
     out.update(overruns=t.overruns, skipped_samples=t.skipped_samples, lockstep_retries=t.lockstep_retries,
                host_compute_p99_ms=1e3 * float(np.percentile(compute, 99)),
                commands_sent=len(rig.sent), commands_clamped=rig.envelope.clamped if rig.envelope else 0,

@@ -116,7 +116,9 @@ class EmulatorServer:
             nonlocal last_due, order
             now = time.monotonic()
             bt = board.board_t
-            data = encode_frame(msg.type, self._seq, board.time_us, msg.pack())
+            stamp = getattr(msg, "time_us", -1)  # a SAMPLE_BATCH carries its first sample's time
+            data = encode_frame(msg.type, self._seq, stamp if stamp >= 0 else board.time_us, msg.pack(),
+                                version=board.version)
             self._seq = (self._seq + 1) & 0xFFFF
             plan = board.faults_plan
             if plan.active("drop", bt) and self.rng.random() < plan.active("drop", bt):
@@ -161,7 +163,7 @@ class EmulatorServer:
                         continue
                     if msg.type == m.HELLO:
                         streaming = True
-                    for reply in board.handle(msg, frame.seq):
+                    for reply in board.handle(msg, frame.seq, frame.version):
                         send(reply)
             now = time.monotonic()
             if self.realtime and now >= next_tick:
@@ -172,7 +174,8 @@ class EmulatorServer:
                 for msg in board.pending():
                     send(msg)
                 if streaming:
-                    send(sample)
+                    for out in board.stream(sample):  # version 2: batched
+                        send(out)
                 next_tick += period
                 if now - next_tick > 10 * period:  # the emulator itself fell behind
                     self.board_overruns += 1

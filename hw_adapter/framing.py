@@ -4,10 +4,10 @@ A frame is a 12-byte little-endian header, a payload and a CRC-32::
 
     offset size field
     0      2    sync        0xA5 0x5A
-    2      1    version     PROTOCOL_VERSION (1)
+    2      1    version     1 or 2 (SUPPORTED_VERSIONS; 2 adds the two-rate messages)
     3      1    type        message type (see :mod:`hw_adapter.messages`)
     4      2    seq         sender's frame counter, u16, +1 per frame sent, wraps
-    6      2    length      payload length in bytes, 0..MAX_PAYLOAD
+    6      2    length      payload length in bytes, 0..64 (version 1), 0..240 (version 2)
     8      4    time_us     sender's clock in microseconds, u32, wraps every 71.6 min
     12     n    payload
     12+n   4    crc32       CRC-32 (zlib / IEEE 802.3) of bytes 0 .. 12+n-1
@@ -25,11 +25,14 @@ import zlib
 from dataclasses import dataclass, field
 
 SYNC = b"\xa5\x5a"
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 1  # the version a frame gets unless told otherwise
+SUPPORTED_VERSIONS = (1, 2)
 HEADER = struct.Struct("<2sBBHHI")  # sync, version, type, seq, length, time_us
 CRC = struct.Struct("<I")
-MAX_PAYLOAD = 64  # bytes: the largest message (CAPS) is 44
-MAX_FRAME = HEADER.size + MAX_PAYLOAD + CRC.size  # 80 bytes
+MAX_PAYLOAD = 64  # bytes in a version-1 frame: the largest message (CAPS) is 44
+MAX_PAYLOAD_V2 = 240  # bytes in a version-2 frame: a SAMPLE_BATCH of 9 samples is 224
+PAYLOAD_LIMITS = {1: MAX_PAYLOAD, 2: MAX_PAYLOAD_V2}
+MAX_FRAME = HEADER.size + MAX_PAYLOAD_V2 + CRC.size  # 256 bytes: the parser's buffer bound
 
 
 class FrameError(ValueError):
@@ -47,13 +50,16 @@ class Frame:
     version: int = PROTOCOL_VERSION
 
 
-def encode_frame(msg_type: int, seq: int, time_us: int, payload: bytes = b"") -> bytes:
+def encode_frame(msg_type: int, seq: int, time_us: int, payload: bytes = b"", version: int = PROTOCOL_VERSION) -> bytes:
     """Bytes of one frame; ``seq`` and ``time_us`` are taken modulo their field width."""
-    if len(payload) > MAX_PAYLOAD:
-        raise FrameError(f"payload of {len(payload)} bytes; at most {MAX_PAYLOAD} fit in a frame")
+    if version not in SUPPORTED_VERSIONS:
+        raise FrameError(f"protocol version {version}: expected one of {SUPPORTED_VERSIONS}")
+    if len(payload) > PAYLOAD_LIMITS[version]:
+        raise FrameError(f"payload of {len(payload)} bytes; at most {PAYLOAD_LIMITS[version]} fit in a "
+                         f"version-{version} frame")
     if not 0 <= msg_type <= 0xFF:
         raise FrameError(f"message type {msg_type}: expected 0..255")
-    head = HEADER.pack(SYNC, PROTOCOL_VERSION, msg_type, seq & 0xFFFF, len(payload), time_us & 0xFFFFFFFF)
+    head = HEADER.pack(SYNC, version, msg_type, seq & 0xFFFF, len(payload), time_us & 0xFFFFFFFF)
     body = head + payload
     return body + CRC.pack(zlib.crc32(body) & 0xFFFFFFFF)
 
@@ -96,7 +102,7 @@ class FrameParser:
         if len(buf) < HEADER.size:
             return HEADER.size - len(buf)
         length = buf[6] | (buf[7] << 8)
-        if length > MAX_PAYLOAD:
+        if length > PAYLOAD_LIMITS.get(buf[2], -1):
             return 1
         return max(1, HEADER.size + length + CRC.size - len(buf))
 
@@ -128,11 +134,11 @@ class FrameParser:
             if len(buf) < HEADER.size:
                 return out
             _, version, msg_type, seq, length, time_us = HEADER.unpack_from(buf)
-            if version != PROTOCOL_VERSION:
+            if version not in SUPPORTED_VERSIONS:
                 st.bad_version += 1
                 self._skip_one()
                 continue
-            if length > MAX_PAYLOAD:
+            if length > PAYLOAD_LIMITS[version]:
                 st.bad_length += 1
                 self._skip_one()
                 continue

@@ -53,6 +53,7 @@ class Link:
         self._t0 = time.perf_counter()
         self._timeout: float | None = open_timeout_s
         self.closed = False
+        self.version = 1  # protocol version of the frames sent (2: the two-rate bench)
 
     # --- sending -----------------------------------------------------------------------
     def send(self, msg: Message) -> int:
@@ -62,7 +63,8 @@ class Link:
                 raise LinkError(f"bench link {self.url!r} is closed")
             seq = self._seq
             self._seq = (self._seq + 1) & 0xFFFF
-            data = encode_frame(msg.type, seq, int((time.perf_counter() - self._t0) * 1e6), msg.pack())
+            data = encode_frame(msg.type, seq, int((time.perf_counter() - self._t0) * 1e6), msg.pack(),
+                                version=self.version)
             try:
                 self.port.write(data)
             except (serial.SerialException, OSError) as e:

@@ -1,8 +1,11 @@
-"""Messages of bench protocol version 1: payload layouts (docs/PROTOCOL.md section 3).
+"""Messages of bench protocol versions 1 and 2: payload layouts (docs/PROTOCOL.md sections 3, 9).
 
-Every payload is a fixed little-endian ``struct`` layout. :func:`decode` turns a
+Every payload is a little-endian ``struct`` layout. :func:`decode` turns a
 :class:`~hw_adapter.framing.Frame` into one of the dataclasses below, or raises
 :class:`MessageError` (unknown type, wrong payload length, a field out of range).
+Version 2 (the two-rate bench) adds SEGMENT (host -> board: the set-point profile for
+the next samples), SAMPLE_BATCH (board -> host: several samples in one frame) and a
+longer CAPS; every version-1 message keeps its layout in a version-2 frame.
 """
 
 from __future__ import annotations
@@ -10,6 +13,8 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass
+
+from addedinertia_env.rig.board_loop import MAX_KNOTS, Segment
 
 from .framing import Frame
 
@@ -24,9 +29,12 @@ SAMPLE = 0x07  # board -> host
 FAULT = 0x08  # board -> host
 HEARTBEAT = 0x09  # both ways
 QUERY = 0x0A  # host -> board: answer with one SAMPLE of the present state, no step
+SEGMENT = 0x0B  # host -> board, version 2: set-point profile with a deadline
+SAMPLE_BATCH = 0x0C  # board -> host, version 2: consecutive samples in one frame
 
 TYPE_NAMES = {HELLO: "HELLO", CAPS: "CAPS", RESET: "RESET", ARM: "ARM", DISARM: "DISARM", COMMAND: "COMMAND",
-              SAMPLE: "SAMPLE", FAULT: "FAULT", HEARTBEAT: "HEARTBEAT", QUERY: "QUERY"}
+              SAMPLE: "SAMPLE", FAULT: "FAULT", HEARTBEAT: "HEARTBEAT", QUERY: "QUERY", SEGMENT: "SEGMENT",
+              SAMPLE_BATCH: "SAMPLE_BATCH"}
 
 # Drive modes in COMMAND (u8); the names are MotorCommand's.
 MODE_CODES = {"passive": 0, "current": 1, "voltage": 2}
@@ -38,6 +46,7 @@ ST_RESET_DONE = 1 << 1  # set in the SAMPLE that answers RESET once the hull is 
 ST_RESET_PENDING = 1 << 2  # RESET accepted, hull not yet placed (real bench: operator twisting)
 ST_BRAKE_REQUESTED = 1 << 3  # the brake request the board is applying
 ST_DRIVE_ENABLED = 1 << 4  # drive bridge enabled (current or voltage mode)
+ST_SEGMENT_HOLD = 1 << 5  # version 2: the segment ran out; the board holds it within the grace
 
 # Fault bits (u16) in SAMPLE.faults and FAULT.faults; latched until RESET.
 F_WATCHDOG = 1 << 0  # no valid COMMAND within the board watchdog time while armed
@@ -50,14 +59,19 @@ F_ENCODER = 1 << 6
 F_HOST_STOP = 1 << 7  # the host stopped the run (DISARM with a reason)
 F_BAD_FRAMES = 1 << 8  # more rejected frames than the board tolerates
 F_DRIVE = 1 << 9  # motor driver reports a fault
+F_SEGMENTS = 1 << 10  # version 2: the last segment ran out and the grace passed with no new one
 FAULT_NAMES = {F_WATCHDOG: "watchdog", F_LINK: "link", F_OVERCURRENT: "overcurrent", F_OVERVOLTAGE: "overvoltage",
                F_ANGLE_LIMIT: "angle_limit", F_BRAKE: "brake", F_ENCODER: "encoder", F_HOST_STOP: "host_stop",
-               F_BAD_FRAMES: "bad_frames", F_DRIVE: "drive"}
+               F_BAD_FRAMES: "bad_frames", F_DRIVE: "drive", F_SEGMENTS: "segments"}
 
 # CAPS.flags bits.
 CAP_EMULATOR = 1 << 0  # the board is the simulated bench
 CAP_LOCKSTEP = 1 << 1  # one SAMPLE per COMMAND (emulator --fast); else free-running at the sample rate
 CAP_TWIST_ACTUATOR = 1 << 2  # RESET moves the hull by itself; else an operator does
+CAP_TWO_RATE = 1 << 3  # version 2: the board runs the inner loop on SEGMENTs
+
+# Board modes (CAPS v2 ``board_modes`` bits): what the board does between host actions.
+BOARD_MODE_BITS = {"zoh": 1 << 0, "pd": 1 << 1}
 
 
 class MessageError(ValueError):
@@ -104,19 +118,42 @@ class Caps:
     watchdog_ms: int  # ms, board watchdog while armed
     brake_response_ms: int  # ms, time the brake takes to follow a request
     board_id: str = ""
+    # Version 2 only (absent from a version-1 CAPS): the two-rate inner loop.
+    batch_samples: int = 0  # samples per SAMPLE_BATCH while streaming (0: version-1 board)
+    max_knots: int = 0  # knots per SEGMENT
+    board_modes: int = 0  # BOARD_MODE_BITS the board runs
+    grace_ms: int = 0  # ms the board holds a segment that ran out before it goes safe
+    rate_filter_hz: int = 0  # Hz, corner of the board's rate estimate (pd mode)
+    v2_layout = struct.Struct("<BBBxHH")
 
     def pack(self) -> bytes:
-        return self.layout.pack(self.firmware_version, self.flags, self.sample_period_us, self.phi_counts,
-                                self.psi_counts, self.i_max, self.u_max, self.watchdog_ms, self.brake_response_ms,
-                                self.board_id.encode("ascii", "replace")[:16])
+        v1 = self.layout.pack(self.firmware_version, self.flags, self.sample_period_us, self.phi_counts,
+                              self.psi_counts, self.i_max, self.u_max, self.watchdog_ms, self.brake_response_ms,
+                              self.board_id.encode("ascii", "replace")[:16])
+        if not self.batch_samples:
+            return v1
+        return v1 + self.v2_layout.pack(self.batch_samples, self.max_knots, self.board_modes, self.grace_ms,
+                                        self.rate_filter_hz)
 
     @classmethod
     def unpack(cls, b: bytes) -> "Caps":
-        fw, flags, period, pc, sc, i_max, u_max, wd, br, bid = cls.layout.unpack(b)
+        fw, flags, period, pc, sc, i_max, u_max, wd, br, bid = cls.layout.unpack(b[:cls.layout.size])
         if period == 0 or pc == 0 or sc == 0 or not (_finite(i_max, u_max) and i_max > 0 and u_max > 0):
             raise MessageError(f"CAPS with period {period} us, counts {pc}/{sc}, i_max {i_max}, u_max {u_max}: "
                                "expected positive values")
-        return cls(fw, flags, period, pc, sc, i_max, u_max, wd, br, bid.rstrip(b"\0").decode("ascii", "replace"))
+        extra = cls.v2_layout.unpack(b[cls.layout.size:]) if len(b) > cls.layout.size else (0, 0, 0, 0, 0)
+        if len(b) > cls.layout.size and not (1 <= extra[0] <= SampleBatch.MAX and 1 <= extra[1]):
+            raise MessageError(f"CAPS v2 with batch_samples {extra[0]}, max_knots {extra[1]}: expected "
+                               f"1..{SampleBatch.MAX} and >= 1")
+        return cls(fw, flags, period, pc, sc, i_max, u_max, wd, br, bid.rstrip(b"\0").decode("ascii", "replace"),
+                   *extra)
+
+    @property
+    def two_rate(self) -> bool:
+        return bool(self.batch_samples)
+
+    def supports(self, board_mode: str) -> bool:
+        return bool(self.board_modes & BOARD_MODE_BITS.get(board_mode, 0))
 
     @property
     def sample_rate(self) -> float:
@@ -195,8 +232,9 @@ class Sample:
     brake: bool  # brake sensed engaged
     status: int  # ST_* bits
     faults: int  # F_* bits, latched
-    cmd_seq: int  # seq of the last COMMAND applied (0 before any)
+    cmd_seq: int  # seq of the last COMMAND applied (0 before any); in a batch: the segment in force
     step: int = 0  # u16 board sample counter since RESET (wraps)
+    i_cmd: float = math.nan  # A, version 2 batches: the current applied over the period ending at this sample
 
     def pack(self) -> bytes:
         return self.layout.pack(self.phi_count, self.psi_count, self.current, self.voltage, 1 if self.brake else 0,
@@ -224,21 +262,122 @@ class Fault:
         return cls(*cls.layout.unpack(b))
 
 
+@dataclass(frozen=True)
+class SegmentMsg:
+    """Version 2, host -> board: one :class:`~addedinertia_env.rig.board_loop.Segment` on the wire.
+
+    Layout: u16 seg_id, u8 flags (bit 0 brake at t0, bit 1 brake switch valid, bit 2 pd:
+    reference knots follow, bit 3 end passive, bit 4 passive), u8 n knots (1..8), u32
+    t0_us, u32 duration_us, u32 deadline_us, u32 brake_switch_us, u32 knot_us, f32 kp
+    (A/rad), f32 kd (A/(rad/s)), then n f32 current knots (A) and, in pd mode, n f32
+    reference knots (rad, encoder frame): 32 + 4 n or 32 + 8 n bytes.
+    """
+
+    type = SEGMENT
+    head = struct.Struct("<HBBIIIIIff")
+    segment: Segment
+
+    def pack(self) -> bytes:
+        g = self.segment
+        flags = ((1 if g.brake else 0) | (2 if g.brake_switch_us is not None else 0)
+                 | (4 if g.phi_refs is not None else 0) | (8 if g.end_passive else 0) | (16 if g.passive else 0))
+        knots = list(g.currents) + list(g.phi_refs or ())
+        return self.head.pack(g.seg_id & 0xFFFF, flags, len(g.currents), g.t0_us & 0xFFFFFFFF, g.duration_us,
+                              g.deadline_us & 0xFFFFFFFF, (g.brake_switch_us or 0) & 0xFFFFFFFF, g.knot_us, g.kp,
+                              g.kd) + struct.pack(f"<{len(knots)}f", *knots)
+
+    @classmethod
+    def unpack(cls, b: bytes) -> "SegmentMsg":
+        if len(b) < cls.head.size:
+            raise MessageError(f"SEGMENT payload of {len(b)} bytes; expected at least {cls.head.size}")
+        seg_id, flags, n, t0, duration, deadline, switch, knot_us, kp, kd = cls.head.unpack_from(b)
+        pd = bool(flags & 4)
+        want = cls.head.size + 4 * n * (2 if pd else 1)
+        if not 1 <= n <= MAX_KNOTS or len(b) != want:
+            raise MessageError(f"SEGMENT with {n} knots in {len(b)} bytes: expected 1..{MAX_KNOTS} knots "
+                               f"and {want} bytes")
+        knots = struct.unpack_from(f"<{n * (2 if pd else 1)}f", b, cls.head.size)
+        try:
+            seg = Segment(seg_id, t0, duration, deadline, knot_us, tuple(knots[:n]), tuple(knots[n:]) if pd else None,
+                          kp, kd, bool(flags & 1), switch if flags & 2 else None, bool(flags & 8), bool(flags & 16))
+        except ValueError as e:
+            raise MessageError(f"SEGMENT {seg_id}: {e}") from None
+        return cls(seg)
+
+
+@dataclass(frozen=True)
+class SampleBatch:
+    """Version 2, board -> host: ``count`` consecutive samples, the first at the frame's
+    ``time_us``, the next ones one sample period apart.
+
+    Layout: u16 first_step, u8 count (1..9), u8 reserved, u16 late_segments (the board's
+    count so far), u16 seg_id (the segment in force at the last sample), then per sample
+    i32 phi_count, i32 psi_count, f32 current (A), f32 voltage (V), f32 i_cmd (A, the
+    current the board applied over the period that ends at that sample; 0 when passive), u8 brake, u8 status,
+    u16 faults: 8 + 24 count bytes.
+    """
+
+    type = SAMPLE_BATCH
+    head = struct.Struct("<HBxHH")
+    item = struct.Struct("<iifffBBH")
+    MAX = 9
+    first_step: int
+    late_segments: int
+    seg_id: int
+    samples: tuple[Sample, ...]
+    time_us: int = -1  # board time of the first sample (the frame's time_us; not in the payload)
+
+    def pack(self) -> bytes:
+        out = [self.head.pack(self.first_step & 0xFFFF, len(self.samples), self.late_segments & 0xFFFF,
+                              self.seg_id & 0xFFFF)]
+        for x in self.samples:
+            i_cmd = 0.0 if not math.isfinite(x.i_cmd) else x.i_cmd
+            out.append(self.item.pack(x.phi_count, x.psi_count, x.current, x.voltage, i_cmd, 1 if x.brake else 0,
+                                      x.status, x.faults))
+        return b"".join(out)
+
+    @classmethod
+    def unpack(cls, b: bytes) -> "SampleBatch":
+        if len(b) < cls.head.size:
+            raise MessageError(f"SAMPLE_BATCH payload of {len(b)} bytes; expected at least {cls.head.size}")
+        first, n, late, seg_id = cls.head.unpack_from(b)
+        if not 1 <= n <= cls.MAX or len(b) != cls.head.size + n * cls.item.size:
+            raise MessageError(f"SAMPLE_BATCH of {n} samples in {len(b)} bytes: expected 1..{cls.MAX} samples "
+                               f"and {cls.head.size + n * cls.item.size} bytes")
+        samples = []
+        for k in range(n):
+            phi, psi, i, u, i_cmd, brake, status, faults = cls.item.unpack_from(b, cls.head.size + k * cls.item.size)
+            samples.append(Sample(phi, psi, i, u, bool(brake & 1), status, faults, seg_id, (first + k) & 0xFFFF,
+                                  i_cmd))
+        return cls(first, late, seg_id, tuple(samples))
+
+    def expand(self, time_us: int, period_us: int) -> list[tuple[int, Sample]]:
+        """``(time_us, sample)`` of each sample, the first at the frame's ``time_us`` (u32)."""
+        return [((time_us + k * period_us) & 0xFFFFFFFF, x) for k, x in enumerate(self.samples)]
+
+
 _DECODERS = {HELLO: Hello.unpack, CAPS: Caps.unpack, RESET: Reset.unpack, COMMAND: Command.unpack,
              SAMPLE: Sample.unpack, FAULT: Fault.unpack}
+_V2_DECODERS = {SEGMENT: SegmentMsg.unpack, SAMPLE_BATCH: SampleBatch.unpack}
 _EMPTY = (ARM, DISARM, HEARTBEAT, QUERY)
 PAYLOAD_SIZES = {HELLO: Hello.layout.size, CAPS: Caps.layout.size, RESET: Reset.layout.size,
                  COMMAND: Command.layout.size, SAMPLE: Sample.layout.size, FAULT: Fault.layout.size,
                  **{t: Empty.layout.size for t in _EMPTY}}
+CAPS_V2_SIZE = Caps.layout.size + Caps.v2_layout.size
 
-Message = Hello | Caps | Reset | Empty | Command | Sample | Fault
+Message = Hello | Caps | Reset | Empty | Command | Sample | Fault | SegmentMsg | SampleBatch
 
 
 def decode(frame: Frame) -> Message:
     """The message in ``frame``; :class:`MessageError` if it is not a valid one."""
+    v2 = getattr(frame, "version", 1) >= 2
+    if v2 and frame.type in _V2_DECODERS:
+        return _V2_DECODERS[frame.type](frame.payload)
     size = PAYLOAD_SIZES.get(frame.type)
     if size is None:
-        raise MessageError(f"unknown message type 0x{frame.type:02x}")
+        raise MessageError(f"unknown message type 0x{frame.type:02x} (version {getattr(frame, 'version', 1)})")
+    if v2 and frame.type == CAPS:
+        size = CAPS_V2_SIZE
     if len(frame.payload) != size:
         raise MessageError(f"{TYPE_NAMES[frame.type]} payload of {len(frame.payload)} bytes; expected {size}")
     try:

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hw_adapter import messages as m
-from hw_adapter.framing import HEADER, MAX_FRAME, MAX_PAYLOAD, SYNC, FrameParser, encode_frame
+from hw_adapter.framing import HEADER, MAX_FRAME, MAX_PAYLOAD, MAX_PAYLOAD_V2, SYNC, FrameParser, encode_frame
 
 # derandomize: the same examples on every run, so CI is reproducible. To explore further,
 # run these tests by hand with derandomize off and more examples.
@@ -50,8 +50,8 @@ def feed_checked(parser: FrameParser, data: bytes, chunks: list[int]):
         pos += n
         assert parser.buffered < MAX_FRAME
         for f in frames:
-            assert f.version == 1 and len(f.payload) <= MAX_PAYLOAD
-            raw = encode_frame(f.type, f.seq, f.time_us, f.payload)
+            assert f.version in (1, 2) and len(f.payload) <= (MAX_PAYLOAD if f.version == 1 else MAX_PAYLOAD_V2)
+            raw = encode_frame(f.type, f.seq, f.time_us, f.payload, version=f.version)
             assert zlib.crc32(raw[:-4]) == struct.unpack("<I", raw[-4:])[0]
             try:
                 m.decode(f)

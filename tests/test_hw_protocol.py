@@ -12,7 +12,7 @@ import pytest
 from addedinertia_env.rig.motor import MotorCommand
 from hw_adapter import messages as m
 from hw_adapter.faults import FaultSpecError, parse_faults
-from hw_adapter.framing import (HEADER, MAX_FRAME, MAX_PAYLOAD, ClockUnwrapper, FrameError, FrameParser, encode_frame,
+from hw_adapter.framing import (HEADER, MAX_FRAME, MAX_PAYLOAD, MAX_PAYLOAD_V2, ClockUnwrapper, FrameError, FrameParser, encode_frame,
                                 seq_gap)
 from hw_adapter.link import Link
 from hw_adapter.safety import SafetyEnvelope, SafetyLimits, SafetyTrip
@@ -90,7 +90,7 @@ def test_parser_rejects_bad_crc_version_and_length():
     bad_crc = bytearray(good)
     bad_crc[20] ^= 0x10
     bad_version = bytearray(good)
-    bad_version[2] = 2
+    bad_version[2] = 3
     bad_length = bytearray(good)
     bad_length[6:8] = struct.pack("<H", MAX_PAYLOAD + 1)
     parser = FrameParser()
@@ -229,4 +229,4 @@ def test_watchdog_fires_once_when_not_kicked_and_never_when_paused():
 
 
 def test_max_frame_bound():
-    assert MAX_FRAME == HEADER.size + MAX_PAYLOAD + 4
+    assert MAX_FRAME == HEADER.size + MAX_PAYLOAD_V2 + 4

@@ -1,12 +1,14 @@
 """``addedinertia deploy``: one experiment on a bench (real or emulated) through ``hw_adapter``.
 
 Exit status: 0 complete (or a clean dry run), 1 complete but lambda66 not identified,
-2 bad input, 3 aborted in the safe state (fault, trip, failed arming check; the partial
+2 bad input (also: a policy whose rate or board mode the bench does not match, refused
+before arming), 3 aborted in the safe state (fault, trip, failed arming check; the partial
 record is kept, ``experiment.status`` says why), 4 the bench did not answer.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from .common import BadInput, emit_json, info, non_negative_float
@@ -32,6 +34,11 @@ def register(sub) -> None:
                    help="link silence that stops the run, ms (default 20; 1000 against a lock-step emulator)")
     p.add_argument("--reset-timeout", type=non_negative_float, default=120.0,
                    help="how long to wait for the hull to be placed at the twist angle, s")
+    p.add_argument("--host-rate-hz", type=float, default=None,
+                   help="two-rate mode (protocol version 2): the board runs the inner loop every sample, the host "
+                        "acts and sends time-stamped segments at this rate, Hz (an exported policy: its card's rate)")
+    p.add_argument("--board-mode", choices=("zoh", "pd"), default=None,
+                   help="two-rate: what the board does between host actions (default: the policy's card, else zoh)")
     p.add_argument("--dry-run", action="store_true", help="connect, arming checks, warm-up at zero current; no motion")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -63,6 +70,10 @@ def run(args) -> int:
     if args.watchdog_ms is not None and not 0 < args.watchdog_ms <= 1000:
         raise BadInput(f"--watchdog-ms {args.watchdog_ms}: expected 0 < ms <= 1000")
     _check_url(args.bench)
+    if args.host_rate_hz is not None and not (math.isfinite(args.host_rate_hz) and 0 < args.host_rate_hz <= 20_000):
+        raise BadInput(f"--host-rate-hz {args.host_rate_hz}: expected 0 < Hz <= 20000 (at most the board's sample rate)")
+    if args.board_mode is not None and args.host_rate_hz is None:
+        raise BadInput(f"--board-mode {args.board_mode}: only with --host-rate-hz (the two-rate mode)")
     lab = load_lab(args.lab)
     try:
         lab.plan(hold_s=args.hold, alpha=args.alpha)
@@ -75,7 +86,8 @@ def run(args) -> int:
     opts = DeployOptions(bench=args.bench, controller=name, lab=lab, out=Path(args.out), run_id=args.run_id,
                          dry_run=args.dry_run, warmup_s=args.warmup,
                          watchdog_s=None if args.watchdog_ms is None else args.watchdog_ms * 1e-3,
-                         hold_s=args.hold, alpha=args.alpha, reset_timeout_s=args.reset_timeout)
+                         hold_s=args.hold, alpha=args.alpha, reset_timeout_s=args.reset_timeout,
+                         host_rate_hz=args.host_rate_hz, board_mode=args.board_mode)
     summary, status = deploy(opts, controller)
     if args.json:
         emit_json(summary)
@@ -89,6 +101,9 @@ def run(args) -> int:
                   f"{summary['overruns']} overruns")
     if summary.get("record"):
         info(f"record {summary['record']} (+ .json)")
+    if summary.get("refused"):
+        info(f"addedinertia deploy: refused before arming: {summary['refused']}")
+        return status
     if status != 0:
         info(f"addedinertia deploy: {summary['status']}")
     return status

@@ -90,6 +90,7 @@ class Experiment:
         self.saturated_steps = 0
         self.controlled_steps = 0
         self.t_brake = self.t_release = float("nan")
+        self.log_command = PASSIVE  # the command applied over the last sample period
 
     # --- phases that run by themselves -------------------------------------------------
     def start(self) -> None:
@@ -143,15 +144,17 @@ class Experiment:
     def needs_control(self) -> bool:
         return not self.done and self.phase in ("hold", "reverse")
 
-    def step(self, cmd: MotorCommand) -> Reading:
-        """One sample under the controller's command (hold or reverse phase)."""
+    def step(self, cmd: MotorCommand | None) -> Reading:
+        """One sample under the controller's command (hold or reverse phase). ``None``: a
+        two-rate rig's board applies the segment it has (``rig.send_segment``)."""
         if not self.needs_control:
             raise ExperimentError(f"step() called in phase {self.phase!r}; call start() first, and stop when done")
         p = self.plan
         self.controlled_steps += 1
-        if cmd.mode == "current" and abs(cmd.value) >= self.known.current_limit:
-            self.saturated_steps += 1
         r = self._advance(cmd, self.phase)
+        applied = self.log_command
+        if applied.mode == "current" and abs(applied.value) >= self.known.current_limit:
+            self.saturated_steps += 1
         if self.phase == "hold" and r.t >= self.reference.t_begin - 0.5 * self.rig.dt:
             self.rig.set_brake(False)
             self.phase = "reverse"
@@ -163,9 +166,12 @@ class Experiment:
         return r
 
     # --- bookkeeping -----------------------------------------------------------------
-    def _advance(self, cmd: MotorCommand, phase: str) -> Reading:
+    def _advance(self, cmd: MotorCommand | None, phase: str) -> Reading:
         r = self.rig.step(cmd)
-        self._log_reading(r, cmd, phase)
+        # A two-rate rig's board decides the command itself: log what it applied.
+        applied = getattr(self.rig, "applied_command", None)
+        self.log_command = applied if applied is not None else (cmd if cmd is not None else PASSIVE)
+        self._log_reading(r, self.log_command, phase)
         return r
 
     def _log_reading(self, r: Reading, cmd: MotorCommand | None, phase: str = "idle") -> None:

@@ -144,11 +144,18 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
     graph = onnx.load(str(tmp))
     residual = train_card.get("residual") or {}
     cost = train_card.get("cost") or {}
+    repeat = int(train_card.get("action_repeat", 1))
+    sample_rate = float(train_card.get("sample_rate_hz") or 1000.0)
+    # A residual policy's base controller runs at every sample: the policy acts at the sample rate.
+    policy_rate = sample_rate if residual else sample_rate / repeat
     meta = {
         "version": __version__,
         "algo": train_card.get("algo", ""),
         "env_id": train_card.get("env_id", ""),
-        "action_repeat": str(int(train_card.get("action_repeat", 1))),
+        "action_repeat": str(repeat),
+        "sample_rate_hz": repr(sample_rate),
+        "policy_rate_hz": repr(policy_rate),
+        "board_mode": str(train_card.get("board_mode") or "zoh"),
         "residual_base": residual.get("base", "") if residual else "",
         "residual_scale": str(float(residual.get("scale", 0.0))) if residual else "0",
         "residual_base_params": json.dumps(residual.get("base_params") or {}) if residual else "{}",
@@ -175,6 +182,9 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
         "opset": OPSET,
         "metadata": meta,
         "action_repeat": int(meta["action_repeat"]),
+        "policy_rate_hz": policy_rate,  # Hz: the rate the policy acts at (deploy --host-rate-hz must match)
+        "board_mode": meta["board_mode"],  # what the board does between actions
+        "sample_rate_hz": sample_rate,
         "residual": residual or None,
         "observation_fields": list(OBSERVATION_FIELDS),
         "parity_max_abs_diff": parity,

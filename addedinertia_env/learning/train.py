@@ -131,6 +131,7 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
         "env_seeds": [seed + k for k in range(cfg.n_envs)],
         "eval_seed": cfg.eval["seed"],
         "action_repeat": effective_action_repeat(cfg.env_kwargs),
+        "board_mode": "zoh",  # the environment holds each action (zero-order hold): the board mode of a two-rate bench
         "observation_fields": list(OBSERVATION_FIELDS),
         "residual": cfg.residual if cfg.residual.get("enabled") else None,
         "command": command,
