@@ -296,6 +296,7 @@ class BenchRig:
         self._send_segment(seg)
 
     def _send_zoh(self, cmd: MotorCommand) -> None:
+        self.poll()  # t0 = the freshest board time known, so the segment is not late on arrival
         t0 = self.newest_board_us
         switch = None
         self._send_segment(zoh_segment(self.next_seg_id(), cmd, self.brake_request, t0, self.host_period_us, switch))

@@ -90,9 +90,9 @@ def rate_mismatch(controller: Any, caps: m.Caps, host_rate_hz: float | None, boa
     declared = getattr(controller, "board_mode", "zoh")
     if abs(rate - bench_rate) > 1e-6 * rate or (board_mode is not None and board_mode != declared):
         return (f"policy {name} acts at {rate:g} Hz with board mode {declared!r} (its card); the bench would run "
-                f"it at {bench_rate:g} Hz with board mode {mode!r}: run with --host-rate-hz {rate:g}"
-                + ("" if rate < caps.sample_rate else " (a policy at the sample rate needs the single-rate host: "
-                   "omit --host-rate-hz)"))
+                f"it at {bench_rate:g} Hz with board mode {mode!r}: "
+                + (f"run with --host-rate-hz {rate:g}" if rate < caps.sample_rate else
+                   "omit --host-rate-hz (a policy at the sample rate needs the single-rate host)"))
     return None
 
 

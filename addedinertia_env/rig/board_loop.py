@@ -254,8 +254,10 @@ class TwoRateSimRig:
     """
 
     def __init__(self, rig: Any, host_rate_hz: float, grace_us: int = DEFAULT_GRACE_US,
-                 rate_filter_hz: float = DEFAULT_RATE_FILTER_HZ):
+                 rate_filter_hz: float = DEFAULT_RATE_FILTER_HZ, latency_samples: int = 0):
         self.rig = rig
+        self.latency_samples = int(latency_samples)  # samples a segment takes to reach the board (a bench's link)
+        self._in_flight: list[Segment] = []
         self.source = getattr(rig, "source", "sim")
         self.dt_us = int(round(rig.dt * 1e6))
         self.host_period_us = int(round(1e6 / host_rate_hz))
@@ -309,6 +311,9 @@ class TwoRateSimRig:
         if cmd is not None and (self._zoh != (cmd, self.brake_request)
                                 or elapsed_us(self.now_us, self._zoh_t0) >= self.host_period_us):
             self._send_zoh(cmd)
+        while self._in_flight and elapsed_us(self.now_us, self._in_flight[0].t0_us) >= \
+                self.latency_samples * self.dt_us:
+            self.loop.offer(self._in_flight.pop(0), self.now_us)
         out = self.loop.command(self.now_us, self.last.phi)
         if out.starved:
             self.starved = True
@@ -325,7 +330,13 @@ class TwoRateSimRig:
 
     def send_segment(self, seg: Segment) -> None:
         self._zoh = None
-        self.loop.offer(seg, self.now_us)
+        self._deliver(seg)
+
+    def _deliver(self, seg: Segment) -> None:
+        if self.latency_samples:
+            self._in_flight.append(seg)
+        else:
+            self.loop.offer(seg, self.now_us)
 
     def poll(self) -> int:
         """Samples waiting to be read (none: the simulator is in step with the host)."""
@@ -334,5 +345,5 @@ class TwoRateSimRig:
     def _send_zoh(self, cmd: MotorCommand) -> None:
         t0 = self.now_us
         seg = zoh_segment(self.next_seg_id(), cmd, self.brake_request, t0, self.host_period_us)
-        self.loop.offer(seg, t0)
+        self._deliver(seg)
         self._zoh, self._zoh_t0 = (cmd, self.brake_request), t0
