@@ -90,12 +90,16 @@ def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
         raise ConfigError(f"{where}: {e}") from None
 
 
-HULL_KEYS = ("J_hull", "added_inertia", "lambda66", "b1", "b2", "damping", "name")
+HULL_KEYS = ("J_hull", "added_inertia", "lambda66", "b1", "b2", "damping", "name", "geometry")
 
 
 def _hull(d: dict[str, Any], where: str) -> HullParams:
     _only_keys(d, set(HULL_KEYS), where)
     out: dict[str, Any] = {}
+    if "geometry" in d:  # the analytic hull shape, for `addedinertia hull` (addedinertia_env/hull)
+        from ..hull.presets import shape_from_mapping  # noqa: PLC0415 - hull imports this module
+
+        shape_from_mapping(d["geometry"], f"{where}.geometry")
     if "name" in d:
         out["name"] = str(d["name"])
     J = d.get("J_hull", HullParams.J_hull)
@@ -117,10 +121,10 @@ def _hull(d: dict[str, Any], where: str) -> HullParams:
             raise ConfigError(f"{where}.added_inertia = {ai!r}: expected a mapping with 'model'")
         model = ai.get("model")
         if model == "given":
-            _only_keys(ai, {"model", "value"}, f"{where}.added_inertia")
+            _only_keys(ai, {"model", "value", "source"}, f"{where}.added_inertia")
             out["lambda66"] = _num(ai, "value", f"{where}.added_inertia")
         elif model == "lamb-spheroid":
-            _only_keys(ai, {"model", "length", "beam", "immersion"}, f"{where}.added_inertia")
+            _only_keys(ai, {"model", "length", "beam", "immersion", "source"}, f"{where}.added_inertia")
             immersion = ai.get("immersion", "half")
             if immersion not in ("half", "full"):
                 raise ConfigError(f"{where}.added_inertia.immersion = {immersion!r}: expected 'half' or 'full'")

@@ -1,0 +1,49 @@
+"""The hull of a rig preset: its ``hull.geometry`` block as a :class:`HullShape`.
+
+A preset names its analytic hull so that its hydrodynamics can be computed from the
+shape (``addedinertia hull PRESET``)::
+
+    hull:
+      geometry: {shape: wigley, length: 2.0, beam: 0.2, draft: 0.125}   # metres
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..rig.presets import ConfigError, load_preset, load_rig
+from .geometry import HullShape
+
+GEOMETRY_KEYS = ("shape", "length", "beam", "draft")
+
+
+def shape_from_mapping(block: Any, where: str) -> HullShape:
+    """A :class:`HullShape` from a ``geometry`` mapping; ConfigError naming the field otherwise."""
+    if not isinstance(block, dict):
+        raise ConfigError(f"{where} = {block!r}: expected a mapping with keys {list(GEOMETRY_KEYS)}")
+    unknown = sorted(set(block) - set(GEOMETRY_KEYS))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(GEOMETRY_KEYS)}")
+    try:
+        return HullShape(**block)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{where}: {e}") from None
+
+
+def preset_hull(name: str) -> tuple[HullShape, dict[str, Any]]:
+    """(shape, facts) of preset ``name``: facts hold the swing frequency (rad/s) and lambda66 in use."""
+    data = load_preset(name)
+    where = f"{data['_path']}: hull.geometry"
+    block = (data.get("hull") or {}).get("geometry")
+    if block is None:
+        raise ConfigError(f"{data['_path']}: hull.geometry missing; expected e.g. "
+                          "{shape: wigley, length: 2.0, beam: 0.2, draft: 0.125} to compute its hydrodynamics")
+    shape = shape_from_mapping(block, where)
+    rig = load_rig(name)
+    ai = (data.get("hull") or {}).get("added_inertia") or {}
+    facts = {"preset": data.get("name", name), "path": data["_path"],
+             "swing_omega": 2.0 * 3.141592653589793 / rig.natural_period,
+             "swing_period": rig.natural_period,
+             "lambda66": rig.hull.lambda66, "J_hull": rig.hull.J_hull,
+             "lambda66_source": ai.get("source") or ai.get("model") or "given"}
+    return shape, facts

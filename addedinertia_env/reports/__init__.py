@@ -1,0 +1,1 @@
+"""Generators of docs/*.md: each run as ``python -m addedinertia_env.reports.<name>``."""

@@ -1,0 +1,263 @@
+"""Write docs/HYDRODYNAMICS.md and its figures: BEM against Lamb, the shipped hulls, stability.
+
+    python -m addedinertia_env.reports.hydrodynamics            # from the caches (seconds)
+    python -m addedinertia_env.reports.hydrodynamics --solve    # re-solve everything (Capytaine; ~10 min on 2 cores)
+
+Without ``--solve`` nothing is solved: the Lamb convergence study is read from
+``configs/hull/lamb_check.json`` and each preset's study from ``configs/rigs/PRESET.bem.json``.
+With ``--solve`` those files are rewritten first (the presets' as
+``addedinertia hull PRESET --solve --write-cache`` would).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_target, atomic_write_text
+from ..hull import stability as stab
+from ..hull.geometry import HullShape, quarter_mesh
+from ..hull.presets import preset_hull
+from ..hull.study import cache_path, read_cache, study, summary, write_cache
+from ..machine import machine_line
+from ..rig import hydro
+from ..rig.presets import CONFIG_DIR
+
+LAMB_FILE = CONFIG_DIR / "hull" / "lamb_check.json"
+RATIOS = (3.0, 5.0, 7.0, 10.0)
+PANELS = (100, 400, 1600, 6400)
+PRESETS = ("wigley-2m", "spheroid-7")
+COMMAND = "python -m addedinertia_env.reports.hydrodynamics"
+
+
+def solve_lamb_check(progress=print) -> dict:
+    """Deeply submerged spheroids (length 2 m) at several resolutions, direct and indirect BEM."""
+    from ..hull.bem import require_capytaine, solve_yaw  # noqa: PLC0415
+
+    cpt = require_capytaine()
+    rows = []
+    for ratio in RATIOS:
+        shape = HullShape("spheroid", 2.0, 2.0 / ratio)
+        lamb = hydro.spheroid_added_yaw_inertia(2.0, 2.0 / ratio, "full")
+        for n in PANELS:
+            r = solve_yaw(quarter_mesh(shape, n, "deep"), [], floating=False)
+            row = {"ratio": ratio, "panels": r["mesh"]["panels"], "lamb": lamb, "method": "direct",
+                   "A66": r["zero_frequency"]["A66"], "seconds": r["seconds"]}
+            rows.append(row)
+            progress(f"L/B {ratio:g}, {row['panels']} panels: {100 * (row['A66'] / lamb - 1):+.2f} % in {r['seconds']:.1f} s")
+        for n in PANELS[1:3]:  # the solver's default (indirect, source) formulation, for the choice
+            q = quarter_mesh(shape, n, "deep")
+            mesh = cpt.ReflectionSymmetricMesh(cpt.ReflectionSymmetricMesh(cpt.Mesh(q.vertices, q.faces), plane="xOz"),
+                                               plane="yOz")
+            body = cpt.FloatingBody(mesh=mesh, dofs=cpt.rigid_body_dofs(rotation_center=(0, 0, 0))).with_only_dofs(["Yaw"])
+            t0 = time.perf_counter()
+            res = cpt.BEMSolver(method="indirect").solve(
+                cpt.RadiationProblem(body=body, radiating_dof="Yaw", omega=1.0, free_surface=math.inf), keep_details=False)
+            rows.append({"ratio": ratio, "panels": mesh.nb_faces, "lamb": lamb, "method": "indirect",
+                         "A66": float(np.real(res.added_mass["Yaw"])), "seconds": time.perf_counter() - t0})
+    return {"capytaine_version": cpt.__version__, "machine": machine_line(),
+            "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "rows": rows}
+
+
+def lamb_figure(data: dict, path: Path) -> Path:
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    for i, ratio in enumerate(RATIOS):
+        for method, style in (("direct", "-o"), ("indirect", "--s")):
+            rows = [r for r in data["rows"] if r["ratio"] == ratio and r["method"] == method]
+            if rows:
+                ax.loglog([r["panels"] for r in rows], [abs(r["A66"] / r["lamb"] - 1) * 100 for r in rows], style,
+                          color=f"C{i}", label=f"L/B {ratio:g}, {method}")
+    ax.axhline(3.0, color="k", lw=0.8, ls=":", label="3 %")
+    ax.set_xlabel("panels on the whole spheroid")
+    ax.set_ylabel("|A66 / Lamb - 1| [%]")
+    ax.set_title("Deeply submerged prolate spheroid in yaw: BEM vs Lamb", fontsize=10)
+    ax.legend(fontsize=7, ncol=2)
+    fig.text(0.01, 0.005, f"{COMMAND}; Capytaine {data['capytaine_version']}; {data['machine']}", fontsize=6, color="0.3")
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    with atomic_target(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _pct(x, digits=2) -> str:
+    return "n/a" if x is None else f"{100 * x:+.{digits}f} %"
+
+
+def _num(x, spec=".3f") -> str:
+    return "n/a" if x is None else format(x, spec)
+
+
+def build(root: Path, solve: bool = False, progress=print) -> str:
+    """The markdown text (figures written under ``root/docs/figures``)."""
+    figdir = root / "docs" / "figures"
+    if solve:
+        write_lamb = solve_lamb_check(progress)
+        atomic_write_text(LAMB_FILE, json.dumps(write_lamb, indent=1) + "\n")
+        for name in PRESETS:
+            shape, facts = preset_hull(name)
+            d = study(shape, swing_omega=facts["swing_omega"], progress=progress)
+            d["preset"], d["command"] = name, f"addedinertia hull {name} --solve --write-cache"
+            write_cache(cache_path(name), d)
+    lamb = json.loads(LAMB_FILE.read_text())
+    lamb_figure(lamb, figdir / "hull_lamb_convergence.png")
+    L = []
+    L += ["# Hull hydrodynamics from geometry", "",
+          "Generated by a command; do not edit by hand. To regenerate from the cached BEM results (seconds):", "",
+          "```", COMMAND, "```", "",
+          f"and to re-solve everything first (Capytaine, `pip install 'addedinertia[hull]'`; about 10 min on 2 cores): "
+          f"`{COMMAND} --solve`.", "",
+          f"- Machine of this page: {machine_line()}; BEM results made with Capytaine {lamb['capytaine_version']} "
+          f"on {lamb['machine']}.",
+          "- Per hull: `addedinertia hull PRESET [--json] [--plot FILE] [--stability]` prints the same numbers "
+          "from the cache in about a second (without Capytaine installed).", ""]
+    L += ["## How each number is obtained", "",
+          "- **BEM**: Capytaine's constant-panel solver, *direct* (potential) boundary-integral formulation. "
+          "The meshes are generated from the hull's analytic shape (`addedinertia_env/hull/geometry.py`): the quarter "
+          "`x >= 0, y >= 0`, solved with both reflection symmetries (4 times cheaper), cosine-spaced towards the ends. "
+          "Every mesh is checked before solving: closed (free edges only on the waterline and symmetry planes), "
+          "consistently oriented with outward normals (displaced volume from the divergence theorem > 0), no panel "
+          "lying in a symmetry plane or the waterplane (an internal lid), none above the waterline.",
+          "- **Zero frequency** (`omega = 0`): the free surface becomes a rigid lid (`dphi/dz = 0`), i.e. half the "
+          "double body in unbounded fluid. It is solved in *infinite depth*: Capytaine's finite-depth Green "
+          "function refuses `kh < 0.1`, and panel codes lose accuracy at low `kh` in general -- exactly where this "
+          "rig lives (swing periods 3-6 s in a tank 1-2 m deep). The tank bottom is instead measured at the swing "
+          "frequency, where `kh` is large enough (table below).",
+          "- **Infinite frequency** (`omega = inf`): `phi = 0` on the free surface.",
+          "- **Deeply submerged**: no free surface at all (unbounded fluid), Lamb's problem.",
+          "- **Irregular frequencies**: the first one is estimated from the waterplane and draft; sweep frequencies "
+          "above 80 % of it are flagged and, when the sweep reaches them, a lid inside the hull below the waterline "
+          "moves them out of range (extended boundary-integral method). Frequencies where waves are shorter than 8 "
+          "panel radii are flagged too.",
+          "- **Convergence**: every study is made at two resolutions (400 and 1,600 panels); the limits and the "
+          "swing value also at 6,400, with Richardson extrapolation from the three (observed order).",
+          "- **Lamb**: the ellipsoid with the hull's semi-axes `(L/2, B/2, T)` turning about the vertical, halved "
+          "for the free surface (for the spheroid preset it is exactly Lamb's spheroid). **Strip theory**: "
+          "zero-frequency sections `a22(x) = rho pi T(x)^2 / 2`, `lambda66 = integral x^2 a22 dx`, no end correction.",
+          "- **Retardation function** (Cummins): `K(t) = (2/pi) integral B66(omega) cos(omega t) d omega` over the "
+          "sweep with an `omega^-3` tail; checked by rebuilding A66(omega) from K and A66(inf) (Ogilvie).", ""]
+    # Lamb table
+    L += ["## BEM against Lamb: deeply submerged prolate spheroid", "",
+          "Length 2 m, unbounded fluid; error = BEM / Lamb - 1. The *direct* formulation is the one used "
+          "everywhere; the solver's default *indirect* (source) formulation is shown for the choice.", "",
+          "| L/B | Lamb (kg m^2) | " + " | ".join(f"{n} panels" for n in PANELS) + " | indirect 400 | indirect 1600 | seconds at 1600 |",
+          "|---|---|" + "---|" * len(PANELS) + "---|---|---|"]
+    for ratio in RATIOS:
+        rows = [r for r in lamb["rows"] if r["ratio"] == ratio]
+        d = [r for r in rows if r["method"] == "direct"]
+        ind = [r for r in rows if r["method"] == "indirect"]
+        sec = [r["seconds"] for r in d if abs(r["panels"] - 1600) < 200]
+        L.append(f"| {ratio:g} | {d[0]['lamb']:.3f} | " + " | ".join(_pct(r["A66"] / r["lamb"] - 1) for r in d)
+                 + " | " + " | ".join(_pct(r["A66"] / r["lamb"] - 1) for r in ind) + f" | {_num(sec[0] if sec else None, '.1f')} |")
+    L += ["", "![BEM vs Lamb convergence](figures/hull_lamb_convergence.png)", "",
+          "The default test run checks L/B 3, 5, 7, 10 at 400 panels against 3 % "
+          "(`tests/test_hull.py::test_bem_deep_spheroid_within_3_percent_of_lamb`); the slow run at 3,200 "
+          "panels against 0.5 %.", ""]
+    # Shipped hulls
+    L += ["## The shipped hulls: Lamb, strip theory and BEM side by side", "",
+          "lambda66 in kg m^2, floating at the waterline. *Preset* is the value the simulated rig uses as truth "
+          "(`hull.added_inertia` in `configs/rigs/PRESET.yaml`, with its `source`). BEM values at the fine "
+          "resolution; *extrapolated* from three resolutions.", "",
+          "| preset | preset lambda66 (source) | Lamb | strip theory | BEM A66(0) | extrapolated A66(0) | "
+          "BEM A66(swing) | swing period | free-surface effect at swing | BEM A66(inf) | A66(inf)/A66(0) |",
+          "|---|---|---|---|---|---|---|---|---|---|---|"]
+    summaries = {}
+    for name in PRESETS:
+        shape, facts = preset_hull(name)
+        data = read_cache(cache_path(name), shape)
+        s = summary(data, swing_omega=facts["swing_omega"])
+        summaries[name] = (s, facts, data)
+        ex = (s["convergence"]["extrapolated"].get("A66_zero") or {}).get("value")
+        L.append(f"| {name} | {facts['lambda66']:.3f} ({facts['lambda66_source']}) | {s['estimates']['lamb_ellipsoid']:.3f} | "
+                 f"{s['estimates']['strip_theory']:.3f} | {s['A66_zero']:.3f} ({s['resolution']['panels']} panels) | "
+                 f"{_num(ex)} | {s['A66_swing']:.3f} | {facts['swing_period']:.2f} s | "
+                 f"{_pct(s['free_surface_effect_at_swing'])} | {s['A66_inf']:.3f} | {s['A66_inf'] / s['A66_zero']:.3f} |")
+    L += ["", "### Convergence with resolution", "",
+          "| preset | panels | A66(0) | A66(swing) | A66(inf) | seconds (3 solves) |", "|---|---|---|---|---|---|"]
+    for name, (s, facts, data) in summaries.items():
+        for lv in s["convergence"]["levels"]:
+            L.append(f"| {name} | {lv['panels']} | {lv['A66_zero']:.4f} | {_num(lv['A66_swing'], '.4f')} | "
+                     f"{_num(lv['A66_inf'], '.4f')} | {lv['seconds']:.1f} |")
+        ex = s["convergence"]["extrapolated"]
+        parts = [f"{k} {v['value']:.4f} (order {v['order']:.2f})" for k, v in ex.items() if v.get("value")]
+        L.append(f"| {name} | extrapolated | " + "; ".join(parts) + " | | | |")
+    L += ["", "### Tank bottom at the swing frequency", "",
+          "A66 at the swing frequency in water of finite depth, relative to deep water (finite-depth Green function; "
+          "`kh` is above 0.1 here).", "",
+          "| preset | depth (m) | depth / draft | A66 (kg m^2) | change vs deep water |", "|---|---|---|---|---|"]
+    for name, (s, facts, data) in summaries.items():
+        for r in s.get("tank_bottom_at_swing", {}).get("rows", []):
+            L.append(f"| {name} | {r['water_depth']:.3f} | {r['depth_over_draft']:.1f} | {_num(r['A66'])} | "
+                     f"{_pct(r['change_vs_deep_water'])} |")
+    L += ["", "### Radiation damping and memory", "",
+          "| preset | frequency range (rad/s) | 1st irregular freq. (rad/s) | flagged | B66 at swing (N m s) | "
+          "K(0) (N m) | memory (|K| < 5 % after, s) | tail share of integral B66 | Ogilvie check (max rel. error) |",
+          "|---|---|---|---|---|---|---|---|---|"]
+    for name, (s, facts, data) in summaries.items():
+        rt = s["retardation"]
+        fr = s["frequency_range"]
+        L.append(f"| {name} | {fr[0]:.2f} - {fr[1]:.1f} | {s['irregular_frequency']:.1f} | {len(s['flagged_omegas'])} | "
+                 f"{s['B66_swing']:.2e} | {rt['K0']:.1f} | {rt['memory_time_5pct']:.2f} | {100 * rt['tail_fraction']:.1f} % | "
+                 f"{100 * rt['ogilvie_max_rel_error']:.1f} % |")
+    for name, (s, facts, data) in summaries.items():
+        from ..hull.figures import plot_study  # noqa: PLC0415
+
+        plot_study(data, figdir / f"hull_{name}.png", swing_omega=facts["swing_omega"],
+                   caption=f"{COMMAND}  (also: addedinertia hull {name} --plot FILE); BEM: Capytaine "
+                           f"{data['capytaine_version']}, {data['machine']}")
+        L += ["", f"![{name}: A66, B66 and K(t)](figures/hull_{name}.png)"]
+    L += ["", "Wave radiation damping at the swing frequency is nil to the BEM's precision (|B66| below 1e-3 N m s, "
+          "sometimes slightly negative: noise, clipped to 0 for K(t)); the wave memory dies within about a second. "
+          "The slow fluid memory the rig sees (vortices, `fluid_memory`) is viscous and outside potential flow.", ""]
+    # Stability
+    s, facts, data = summaries["wigley-2m"]
+    shape = HullShape(**data["hull"])
+    ship = stab.Ship(shape.length, shape.beam, float(shape.draft), shape.block_coefficient(), 0.2 * math.sqrt(9.81 * shape.length))
+    added = {"lambda22": s["A22_zero"], "lambda26": s["A26_zero"], "lambda66": s["A66_zero"]}
+    res = stab.stability(ship, added, (0.9 * s["A66_zero"], 1.1 * s["A66_zero"]))
+    n, c = res["nominal"], res["with_clarke_added_masses"]
+    L += ["## From lambda66 to the ship: course stability (wigley-2m at Fn 0.2)", "",
+          "`addedinertia hull wigley-2m --stability [--lambda66-range LO HI | --from-record RUN.csv] --json`. "
+          "Linear sway-yaw model; added masses from the BEM at zero frequency, `Y_v, Y_r, N_v, N_r` from Clarke, "
+          "Gedling & Hine (1983); Hurwitz on `A s^2 + B s + C`. `--from-record` takes lambda66 and its 95 % interval "
+          "from run records (the energy method by default) and scales them to zero frequency by the BEM's "
+          "A66(0)/A66(swing).", "",
+          "| added masses | lambda22 (kg) | lambda26 (kg m) | lambda66 (kg m^2) | C (Hurwitz) | stable | roots (1/s) | time constants (s) |",
+          "|---|---|---|---|---|---|---|---|"]
+    for label, r in (("BEM", n), ("Clarke (1983) regression", c), ("BEM, lambda66 -10 %", res["lambda66_range"]["at_ends"][0]),
+                     ("BEM, lambda66 +10 %", res["lambda66_range"]["at_ends"][1])):
+        L.append(f"| {label} | {r['lambda22']:.2f} | {r['lambda26']:.3f} | {r['lambda66']:.3f} | {r['hurwitz']['C']:.1f} | "
+                 f"{r['hurwitz']['stable']} | {', '.join(f'{x['re']:.3f}' for x in r['roots'])} | "
+                 f"{', '.join(f'{t:.3f}' for t in r['time_constants'])} |")
+    span = res["lambda66_range"]["time_constants_span"]
+    L += ["", f"The criterion `C = det N` holds no inertia, so lambda66 cannot make this hull course-unstable; "
+          f"a +-10 % lambda66 moves the slow time constant over {span[0][0]:.3f} .. {span[0][1]:.3f} s and the fast one over "
+          f"{span[1][0]:.3f} .. {span[1][1]:.3f} s. This is what a measured lambda66 and its interval change for the ship.", ""]
+    return "\n".join(L) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog=COMMAND, description=__doc__.split("\n")[0])
+    p.add_argument("--solve", action="store_true", help="re-solve the Lamb check and the presets' caches (Capytaine)")
+    p.add_argument("--out", default="docs/HYDRODYNAMICS.md")
+    args = p.parse_args(argv)
+    root = Path(__file__).resolve().parents[2]
+    text = build(root, solve=args.solve, progress=lambda m: print(m, file=sys.stderr, flush=True))
+    atomic_write_text(root / args.out if not Path(args.out).is_absolute() else Path(args.out), text)
+    print(f"wrote {args.out}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
