@@ -270,3 +270,53 @@ def test_bem_rigid_lid_halves_the_double_body():
     floating = solve_yaw(quarter_mesh(s, 400, "floating"), [1.57], floating=True)
     assert floating["zero_frequency"]["A66"] == pytest.approx(estimates.lamb_estimate(s, floating=True), rel=0.03)
     assert floating["infinite_frequency"]["A66"] < floating["zero_frequency"]["A66"] < floating["A66"][0]
+
+
+# --- the prior in use -------------------------------------------------------------------
+
+def test_bem_prior_replaces_the_stroke_estimate_in_the_controller_context():
+    import dataclasses
+
+    from addedinertia_env.experiment.protocol import Experiment
+    from addedinertia_env.hull.presets import bem_lambda66
+    from addedinertia_env.rig.mujoco_rig import MujocoRig
+    from addedinertia_env.rig.params import SensorParams
+    from addedinertia_env.rig.presets import load_preset, plan_from_preset, rig_from_mapping
+
+    data = load_preset("wigley-2m")
+    params = rig_from_mapping(data, sensors=SensorParams.ideal())
+    plan = plan_from_preset(data)
+    lam = bem_lambda66("wigley-2m", "swing")
+    priors = []
+    for p in (plan, dataclasses.replace(plan, lambda66_prior=lam)):
+        exp = Experiment(MujocoRig(params, seed=0), p)
+        exp.start()
+        priors.append(exp.inertia_prior)
+    J_true = params.hull.J_hull + params.hull.lambda66
+    assert priors[1] == pytest.approx(params.hull.J_hull + lam)
+    # both priors are within a few percent of the truth; they differ (they are not the same number)
+    assert abs(priors[0] / J_true - 1) < 0.05 and abs(priors[1] / J_true - 1) < 0.05 and priors[0] != priors[1]
+    with pytest.raises(ValueError, match="lambda66_prior"):
+        dataclasses.replace(plan, lambda66_prior=-1.0)
+
+
+@needs_capytaine
+def test_user_mesh_round_trip_and_lid_refused(capsys, tmp_path):
+    from addedinertia_env.hull.geometry import gdf_text
+
+    q = quarter_mesh(WIGLEY, 100, "floating")
+    good = tmp_path / "wigley.gdf"
+    good.write_text(gdf_text(q))
+    code, out, err = run_cli(capsys, "hull", good, "--json")
+    assert code == 0, err
+    obj = json.loads(out)
+    assert obj["mesh_check"]["symmetry_planes"] and obj["resolution"]["panels"] == 4 * len(q.faces)
+    assert obj["A66_inf"] < obj["A66_zero"] < obj["A66_swing"]
+    # the same quarter with a panel lying in the centreplane: an internal lid under symmetry
+    n = len(q.vertices)
+    v = np.vstack([q.vertices, [[0.1, 0.0, -0.01], [0.2, 0.0, -0.01], [0.2, 0.0, -0.05], [0.1, 0.0, -0.05]]])
+    f = np.vstack([q.faces, [[n, n + 1, n + 2, n + 3]]])
+    lidded = tmp_path / "lidded.gdf"
+    lidded.write_text(gdf_text(type(q)(v, f, q.nx, q.nz, q.shape, q.submergence)))
+    code, out, err = run_cli(capsys, "hull", lidded, "--json")
+    assert code == 2 and "internal lid" in err and out == ""

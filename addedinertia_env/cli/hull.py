@@ -40,6 +40,8 @@ def register(sub) -> None:
     p.add_argument("--from-record", metavar="RUN.csv", nargs="+", default=None,
                    help="take lambda66 and its 95 %% interval from run record(s) (implies --stability)")
     p.add_argument("--method", default="energy", help="identification method for --from-record (default energy)")
+    p.add_argument("--export-mesh", metavar="FILE.gdf", default=None,
+                   help="write a preset's generated quarter mesh (fine resolution, or --panels FINE) in WAMIT GDF format")
     p.set_defaults(func=run)
 
 
@@ -49,7 +51,10 @@ def _study_for(args) -> tuple[dict, dict]:
     from ..hull.bem import CapytaineMissing  # noqa: PLC0415
 
     target = args.hull
-    is_mesh = Path(target).suffix.lower() not in ("", ".yaml", ".yml") and Path(target).exists()
+    suffix = Path(target).suffix.lower()
+    is_mesh = suffix not in ("", ".yaml", ".yml")
+    if is_mesh and not Path(target).is_file():
+        raise BadInput(f"{target}: no such mesh file; expected a rig preset name or a mesh file Capytaine reads")
     if is_mesh:
         return _study_mesh(args), {"preset": None, "swing_omega": args.swing_omega or 1.57}
     from ..hull.presets import preset_hull  # noqa: PLC0415
@@ -110,6 +115,9 @@ def _study_mesh(args) -> dict:
 def run(args) -> int:
     from ..hull import study as st  # noqa: PLC0415
 
+    if args.export_mesh:
+        _export(args)
+
     data, facts = _study_for(args)
     if data.get("hull") is None:
         out = _mesh_summary(data)
@@ -131,6 +139,19 @@ def run(args) -> int:
     else:
         print("\n".join(_lines(out)))
     return 0
+
+
+def _export(args) -> None:
+    from ..atomic import atomic_write_text  # noqa: PLC0415
+    from ..hull import study as st  # noqa: PLC0415
+    from ..hull.geometry import gdf_text, quarter_mesh  # noqa: PLC0415
+    from ..hull.presets import preset_hull  # noqa: PLC0415
+
+    shape, facts = preset_hull(args.hull)
+    n = args.panels[1] if args.panels else st.DEFAULT_PANELS[1]
+    q = quarter_mesh(shape, n, "deep" if args.deep else "floating")
+    atomic_write_text(args.export_mesh, gdf_text(q, f"{facts['preset']} {q.submergence}, {q.nb_faces_full} panels"))
+    info(f"mesh written to {args.export_mesh} ({q.nb_faces_full} panels, quarter with both symmetries)")
 
 
 def _mesh_summary(data: dict) -> dict:
@@ -199,9 +220,10 @@ def _lines(out: dict) -> list[str]:
         ch = conv["relative_change_coarse_to_fine"]
         lines.append(f"  convergence {conv['coarse_panels']} -> {conv['fine_panels']} panels: A66(0) "
                      f"{_fmt(100 * ch['A66_zero'], '+.2f')} %, A66(swing) {_fmt(ch['A66_swing'] and 100 * ch['A66_swing'], '+.2f')} %")
-        ex = (conv.get("extrapolated") or {}).get("A66_zero") or {}
-        if ex.get("value"):
-            lines.append(f"  extrapolated A66(0) = {ex['value']:.4g} kg m^2 (observed order {ex['order']:.2f})")
+        b = out.get("best") or {}
+        if b:
+            lines.append("  best estimates: " + ", ".join(
+                f"{k} {v['value']:.4g} ({v['how']})" for k, v in b.items() if v.get("value") is not None))
     if out.get("free_surface_effect_at_swing") is not None:
         lines.append(f"  free-surface effect at the swing frequency: {100 * out['free_surface_effect_at_swing']:+.2f} %")
     est = out.get("estimates")

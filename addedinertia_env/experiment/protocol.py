@@ -45,16 +45,22 @@ class ExperimentPlan:
     lead_s: float = 0.05  # s, the fitted stroke starts this long before the neutral crossing
     stop_window_s: float = 0.05  # s, quadratic fit window that predicts the stop
     max_free_s: float = 30.0  # s, give up if the hull never stops
+    #: kg m^2: when given, the controller's inertia prior is ``J_hull + lambda66_prior`` (e.g. the
+    #: BEM's A66 at the swing frequency, addedinertia_env.hull) instead of the free stroke's
+    #: stop estimate ``-c (phi2 - phi_n) / f''(t2)``
+    lambda66_prior: float | None = None
 
     def __post_init__(self) -> None:
         checks = {"alpha": self.alpha != 0 and abs(self.alpha) < 1.0, "hold_s": self.hold_s >= 0,
                   "settle_s": self.settle_s >= 0, "tail_s": self.tail_s >= 0, "lead_s": self.lead_s > 0,
                   "stop_window_s": self.stop_window_s > 0, "max_free_s": self.max_free_s > 0}
+        if self.lambda66_prior is not None:
+            checks["lambda66_prior"] = self.lambda66_prior > 0
         for name, ok in checks.items():
             value = getattr(self, name)
             if not (ok and math.isfinite(value)):
                 raise ValueError(f"ExperimentPlan.{name} = {value!r} is out of range "
-                                 "(alpha: 0 < |alpha| < 1 rad; times: >= 0 s)")
+                                 "(alpha: 0 < |alpha| < 1 rad; times: >= 0 s; lambda66_prior > 0 kg m^2)")
         for name, limit in MAX_DURATION_S.items():
             if getattr(self, name) > limit:
                 raise ValueError(f"ExperimentPlan.{name} = {getattr(self, name)!r} s: expected at most {limit:g} s "
@@ -123,6 +129,8 @@ class Experiment:
         phi = np.asarray(self.log.columns["phi"])
         self.law = fit_stroke(t, phi, t_cross - p.lead_s, self.t_brake)
         self.inertia_prior = self.law.inertia_prior(self.known.c_torsion, phi_n)
+        if p.lambda66_prior is not None:  # a prior from the hull's geometry (BEM) instead
+            self.inertia_prior = self.known.J_hull + float(p.lambda66_prior)
         self.reference = MirroredReference(self.law, t_begin=self.t_brake + p.hold_s)
         self.phase = "hold" if p.hold_s > 0 else "reverse"
         if self.phase == "reverse":

@@ -17,7 +17,8 @@ why (they are recorded in every result):
 * **Deeply submerged** bodies: no free surface at all (``free_surface = inf``), the
   unbounded-fluid problem of Lamb's closed forms.
 * **Irregular frequencies**: the first one is estimated (Capytaine's formula for a box of
-  the waterplane's size and the draft); frequencies above 80 % of it are flagged, and when
+  the waterplane's size and the draft); frequencies above 80 % of it (of the one with the
+  lid, when a lid is added) are flagged, and when
   the range reaches them a lid is added inside the hull below the waterline (Capytaine's
   extended boundary-integral method), which moves them out of range.
 * Symmetric meshes (the generated quarter hulls) are solved as such, which is four times
@@ -184,9 +185,11 @@ def solve_yaw(source, omegas, *, floating: bool = True, water_depth: float = mat
         body.first_irregular_frequency_estimate(g=g))}
     w_mesh = math.sqrt(2.0 * math.pi * g / float(plain.minimal_computable_wavelength))
     out["mesh_omega_limit"] = w_mesh
+    # with a lid the irregular frequencies move up: flag against the one that applies
+    w_eff = out["lid"]["irregular_frequency_with_lid"] if lid_z is not None else w_irr
     out["flagged_omegas"] = (
-        [{"omega": w, "reason": f"above 80 % of the first irregular frequency {w_irr:.3g} rad/s"
-          + (" (lid added)" if lid_z is not None else "")} for w in finite if w > 0.8 * w_irr]
+        [{"omega": w, "reason": f"above 80 % of the first irregular frequency {w_eff:.3g} rad/s"
+          + (" (with the lid)" if lid_z is not None else "")} for w in finite if w > 0.8 * w_eff]
         + [{"omega": w, "reason": f"waves shorter than 8 panel radii (mesh valid to {w_mesh:.3g} rad/s)"}
            for w in finite if w > w_mesh])
 

@@ -218,3 +218,16 @@ def full_mesh(q: QuarterMesh) -> tuple[np.ndarray, np.ndarray]:
         vs = [V, m]
         fs = [F, reversed_faces(F) + len(V)]
     return np.vstack(vs), np.vstack(fs)
+
+
+def gdf_text(q: QuarterMesh, title: str = "addedinertia hull mesh") -> str:
+    """The quarter mesh in WAMIT's GDF format (both symmetry flags set), m, g = 9.81.
+
+    Capytaine, WAMIT and most panel codes read it; every panel is written as 4 vertices
+    (triangles repeat their last one).
+    """
+    lines = [title, "1.0 9.81", "1 1", f"{len(q.faces)}"]
+    for face in q.faces:
+        for v in q.vertices[face]:
+            lines.append(f"{v[0]:.9f} {v[1]:.9f} {v[2]:.9f}")
+    return "\n".join(lines) + "\n"

@@ -47,3 +47,20 @@ def preset_hull(name: str) -> tuple[HullShape, dict[str, Any]]:
              "lambda66": rig.hull.lambda66, "J_hull": rig.hull.J_hull,
              "lambda66_source": ai.get("source") or ai.get("model") or "given"}
     return shape, facts
+
+
+def bem_lambda66(name: str, at: str = "swing") -> float:
+    """The BEM's best lambda66 of preset ``name`` from its cache (kg m^2), no solver needed.
+
+    ``at``: ``'swing'`` (A66 at the rig's undamped swing frequency: what the rig measures),
+    ``'zero'`` (rigid-lid limit) or ``'infinite'``. Best: extrapolated from three
+    resolutions when they converge monotonically, else the finest.
+    """
+    from .study import cache_path, read_cache, summary  # noqa: PLC0415
+
+    shape, facts = preset_hull(name)
+    s = summary(read_cache(cache_path(facts["preset"]), shape), swing_omega=facts["swing_omega"], kernel=False)
+    key = {"swing": "A66_swing", "zero": "A66_zero", "infinite": "A66_inf"}.get(at)
+    if key is None:
+        raise ValueError(f"at = {at!r}: expected 'swing', 'zero' or 'infinite'")
+    return float(s["best"][key]["value"])

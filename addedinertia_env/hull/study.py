@@ -155,6 +155,19 @@ def summary(data: dict[str, Any], *, swing_omega: float | None = None, kernel: b
         "estimates": {"lamb_ellipsoid": estimates.lamb_estimate(shape, floating),
                       "strip_theory": estimates.strip_theory_estimate(shape) if floating else None},
     }
+    # best estimates: Richardson-extrapolated where the three levels converge monotonically,
+    # else the finest level (then the spread of the levels says how converged it is)
+    levels = data.get("convergence", {}).get("levels", [])
+    best = {}
+    for key in ("A66_zero", "A66_inf", "A66_swing"):
+        ex = (data.get("convergence", {}).get(key) or {}).get("value")
+        vals = [lv[key] for lv in levels if lv.get(key) is not None]
+        spread = (max(vals) - min(vals)) / abs(vals[-1]) if len(vals) >= 2 else None
+        best[key] = {"value": ex if ex is not None else (vals[-1] if vals else out[key]),
+                     "how": "extrapolated" if ex is not None else (
+                         f"finest level, {levels[-1]['panels']} panels" if vals else "fine sweep"),
+                     "levels_spread": spread}
+    out["best"] = best
     if floating and out["A66_swing"] is not None:
         out["free_surface_effect_at_swing"] = out["A66_swing"] / out["A66_zero"] - 1.0
         out["irregular_frequency"] = fine["irregular_frequency"]

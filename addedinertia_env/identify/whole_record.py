@@ -32,11 +32,14 @@ from ..record import RunRecord
 from .common import IdentificationError, Result
 
 
-def identify_whole_record(records: list[RunRecord], effect: str | None = None) -> Result:
+def identify_whole_record(records: list[RunRecord], effect: str | None = None,
+                          lambda66_start: float | None = None) -> Result:
     """lambda66 (kg m^2) with a 95 % interval and the Cramer-Rao bound, from reverse-symmetric runs.
 
     ``effect``: fit the nominal model extended by this candidate (a word of the effect
     vocabulary, e.g. the cause ``discover`` named); default the nominal model.
+    ``lambda66_start`` (kg m^2): the fit's starting value for lambda66 (e.g. the BEM's A66
+    at the swing frequency, ``addedinertia hull``); default the model's generic start.
     """
     from ..discover.fit import fit_model  # noqa: PLC0415
     from ..discover.model import CANDIDATES, GrayBoxModel  # noqa: PLC0415
@@ -52,7 +55,13 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None) -
     except DiscoveryInputError as e:
         raise IdentificationError(str(e)) from None
     model = GrayBoxModel(data, effect)
-    fit = fit_model(model)
+    x0 = None
+    if lambda66_start is not None:
+        if not (math.isfinite(lambda66_start) and lambda66_start > 0):
+            raise IdentificationError(f"lambda66_start = {lambda66_start!r}: expected a finite number > 0 (kg m^2)")
+        x0 = model.start()
+        x0[model.names.index("lambda66")] = float(lambda66_start)
+    fit = fit_model(model, x0)
     lam = fit.params["lambda66"]
     sigma = math.sqrt(max(fit.covariance(inflate=True)[0, 0], 0.0))
     sigma_white = math.sqrt(max(fit.covariance(inflate=False)[0, 0], 0.0))
@@ -71,7 +80,9 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None) -
                            "params": fit.params, "stderr": fit.stderr(), "n_runs": len(data.runs),
                            "residual_rms": fit.hull_rms, "residual_excess": s["hull_excess"],
                            "flywheel_excess": s["flywheel_excess"], "lag1": s["lag1"],
-                           "converged": fit.success})
+                           "converged": fit.success,
+                           "lambda66_start": float((model.start() if x0 is None else x0)[model.names.index("lambda66")]),
+                           "n_evals": fit.n_evals})
 
 
 def _rows_of_run(model, run: int) -> np.ndarray:
