@@ -13,7 +13,7 @@ from agents.registry import DEFAULT_CONTROLLER
 from .experiment.protocol import ExperimentPlan
 from .experiment.runner import run_experiment
 from .record import RunRecord, write_record
-from .rig.effects import Effects
+from .rig.effects import Effects, draw_effect
 from .rig.mujoco_rig import MujocoRig
 from .rig.params import RigParams
 
@@ -57,8 +57,6 @@ def simulate_to_dir(rig_params: RigParams, out: str | Path, controller: str = DE
 
 def effects_from_name(name: str | None, seed: int = 0) -> Effects:
     """``None``/``none`` -> no effect; an effect name -> that effect at a seeded realistic size."""
-    from .rig.effects import draw_effect  # noqa: PLC0415
-
     if not name or name == "none":
         return Effects()
     return draw_effect(name, np.random.default_rng(np.random.SeedSequence([seed, 7919])))

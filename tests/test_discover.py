@@ -1,7 +1,7 @@
 """Discovery: an effect hidden in simulated records must be found blind, with a positive gain.
 
 Each dataset is the standard one (addedinertia_env.discover.dataset: twists 0.05 and
-0.10 rad x holds 0.5 and 5 s) with one effect drawn from REALISTIC_RANGES by the seed.
+0.10 rad x holds 0.5 and 5 s) with one effect drawn from its realistic range (rig/effects/) by the seed.
 The diagnosis never sees the truth; only the assertions read the simulator's effect.
 Every effect and `none` runs by default on one seed; more seeds are marked slow. The
 detection table in docs/DISCOVERY.md covers 10 seeds per effect.

@@ -6,7 +6,7 @@ from agents.registry import DEFAULT_CONTROLLER
 
 from pathlib import Path
 
-from ..rig.effects import DIAGNOSIS_WORDS
+from ..rig.effects import effect_names
 from ..rig.presets import SENSOR_QUALITY, load_preset, plan_from_preset, rig_from_mapping, sensors_for_quality
 from ..simulate import OTHER_KINDS, effects_from_name, simulate_to_dir
 from .common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
@@ -25,7 +25,7 @@ def register(sub) -> None:
     p.add_argument("--cycles", type=positive_int, default=1, help="repeated experiments (one record each)")
     p.add_argument("--kind", default="reverse-symmetric", choices=["reverse-symmetric", *OTHER_KINDS])
     p.add_argument("--sensors", choices=SENSOR_QUALITY, default=None, help="sensor set (default: the preset's)")
-    p.add_argument("--effect", default="none", choices=[w for w in DIAGNOSIS_WORDS if w != "unexplained"],
+    p.add_argument("--effect", default="none", choices=["none", *effect_names()],
                    help="hide one effect in the simulated truth (seeded size)")
     p.add_argument("--out", default="out/sim", help="folder for the records")
     p.add_argument("--json", action="store_true")

@@ -4,7 +4,7 @@
 
 (``make detection-table``.) For every effect of the vocabulary and for ``none``, seeds
 0..N-1 each simulate the standard dataset (:mod:`.dataset`) with that effect hidden at a
-size drawn from ``REALISTIC_RANGES``; :func:`.diagnose.discover` runs blind on the records;
+size drawn from its realistic range (``rig/effects/``); :func:`.diagnose.discover` runs blind on the records;
 only the scoring here reads the truth. The table replaces the block between the markers
 ``<!-- detection-table:begin -->`` and ``<!-- detection-table:end -->`` of the output file
 (or the whole file if it has no markers). Simulated records are cached under ``--cache``

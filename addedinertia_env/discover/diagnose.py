@@ -26,7 +26,8 @@ import numpy as np
 from ..record import RunRecord
 from . import residuals as resid
 from .fit import Fit, bic, effective_n, fit_model
-from .model import CANDIDATES, NO_EFFECT_VALUE, GrayBoxModel
+from ..rig.effects import registry
+from .model import GrayBoxModel, candidates as candidate_names
 from .prepare import Prepared, prepare
 
 
@@ -44,16 +45,10 @@ class Thresholds:
     top_k_heldout: int = 3  # candidates that get the held-out check (best by BIC)
     unexplained_excess: float = 3.0  # residual RMS / noise floor, either channel, that is "structure"
     unexplained_lag1: float = 0.8  # and residuals this correlated
-    # Smallest fitted size called an effect: clear of the rig's known imperfections
-    # (current gain error 0.5 %, half-sample hold lag 0.5 ms, physics.md sections 7, 8).
-    min_size: dict = field(default_factory=lambda: {
-        "torque": 0.01,  # N m (a third of the smallest realistic 0.03; 0.5 % of the spring torque at 0.05 rad)
-        "beta": 0.03,  # -
-        "k3": 1.0,  # 1/rad^2 (1 % stiffening at 0.1 rad)
-        "offset": 1.0e-3,  # rad
-        "delay": 0.002,  # s (four times the zero-order hold's half sample)
-        "ratio": 0.015,  # |ratio - 1| (three times the current sensor's gain error)
-    })
+    # Smallest fitted size called an effect, per size parameter: clear of the rig's known
+    # imperfections (current gain error 0.5 %, half-sample hold lag 0.5 ms, physics.md
+    # sections 7, 8). Each effect's file states its own (``min_size`` in the registry).
+    min_size: dict = field(default_factory=lambda: {s.size_param: s.min_size for s in registry.specs()})
 
 
 @dataclass
@@ -126,8 +121,8 @@ class Diagnosis:
 
 def _physical_size(cause: str, params: dict[str, float]) -> tuple[str, float]:
     """The parameter that measures an effect's size, and its departure from 'no effect'."""
-    name = CANDIDATES[cause][-1].name if cause == "fluid_memory" else CANDIDATES[cause][0].name
-    return name, params[name] - NO_EFFECT_VALUE[name]
+    spec = registry.get(cause)
+    return spec.size_param, params[spec.size_param] - spec.param(spec.size_param).neutral
 
 
 def _start_for(model: GrayBoxModel, nominal: Fit) -> np.ndarray:
@@ -171,7 +166,7 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
     data = prepare([r.without_truth() for r in records])
     nominal = fit_model(GrayBoxModel(data))
     candidates = []
-    for cause in CANDIDATES:
+    for cause in candidate_names():
         if progress:
             progress(cause)
         model = GrayBoxModel(data, cause)

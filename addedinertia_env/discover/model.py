@@ -32,13 +32,16 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..rig import forces
+from ..rig.effects import registry
 from .prepare import STEP_SAMPLES, Prepared, double_integral
 
-NOMINAL_PARAMS = ("lambda66", "b1", "b2")
+NOMINAL_PARAMS = registry.NOMINAL_PARAM_NAMES
 
 
 @dataclass(frozen=True)
 class ParamSpec:
+    """One fitted parameter: name, unit, start value, bounds and typical size (same unit)."""
+
     name: str
     unit: str
     start: float
@@ -53,28 +56,36 @@ NOMINAL_SPECS = (
     ParamSpec("b2", "N m s^2", 50.0, -50.0, 1e4, 10.0),
 )
 
-# One or two parameters per effect of the vocabulary (run-record.md), with the value
-# that means "no effect" as the nominal model's fixed value.
-CANDIDATES: dict[str, tuple[ParamSpec, ...]] = {
-    "bearing_coulomb": (ParamSpec("torque", "N m", 0.02, 0.0, 2.0, 0.01),),
-    "fluid_memory": (ParamSpec("tau", "s", 10.0, 0.3, 300.0, 1.0), ParamSpec("beta", "-", 0.15, 0.0, 0.95, 0.05)),
-    "spring_stiffening": (ParamSpec("k3", "1/rad^2", 0.0, -100.0, 100.0, 1.0),),
-    "neutral_offset": (ParamSpec("offset", "rad", 0.0, -0.2, 0.2, 1e-3),),
-    "sensor_delay": (ParamSpec("delay", "s", 0.002, -0.01, 0.05, 1e-3),),
-    "torque_constant": (ParamSpec("ratio", "-", 1.0, 0.5, 1.5, 0.01),),
-}
-NO_EFFECT_VALUE = {"torque": 0.0, "beta": 0.0, "k3": 0.0, "offset": 0.0, "delay": 0.0, "ratio": 1.0}
+
+
+def candidate_specs(effect: str) -> tuple[ParamSpec, ...]:
+    """The fitted parameters of a candidate effect, from the effect registry."""
+    return tuple(ParamSpec(p.name, p.unit, p.fit.start, p.fit.low, p.fit.high, p.fit.scale)
+                 for p in registry.get(effect).params)
+
+
+def candidates() -> tuple[str, ...]:
+    """Every registered effect is a discovery candidate (registry order)."""
+    return registry.effect_names()
+
+
+def no_effect_value(name: str) -> float:
+    """The fixed value of an effect parameter in a model without that effect (its ``neutral``)."""
+    for spec in registry.specs():
+        if name in spec.param_names:
+            return spec.param(name).neutral
+    raise KeyError(name)
 
 
 class GrayBoxModel:
     """Nominal model (``effect=None``) or nominal + one candidate effect, on prepared data."""
 
     def __init__(self, data: Prepared, effect: str | None = None):
-        if effect is not None and effect not in CANDIDATES:
-            raise ValueError(f"unknown candidate {effect!r}; expected one of {', '.join(CANDIDATES)}")
+        if effect is not None and effect not in candidates():
+            raise ValueError(f"unknown candidate {effect!r}; expected one of {', '.join(candidates())}")
         self.data = data
         self.effect = effect
-        self.specs = NOMINAL_SPECS + (CANDIDATES[effect] if effect else ())
+        self.specs = NOMINAL_SPECS + (candidate_specs(effect) if effect else ())
         self.names = tuple(s.name for s in self.specs)
         self._free = [r.free for r in data.runs]
         self._rev = [r.reverse for r in data.runs]
@@ -100,23 +111,28 @@ class GrayBoxModel:
     def _column(self, thetas: np.ndarray, name: str) -> np.ndarray:
         if name in self.names:
             return thetas[:, self.names.index(name)]
-        return np.full(len(thetas), NO_EFFECT_VALUE[name])
+        return np.full(len(thetas), no_effect_value(name))
 
     def _namespace(self, thetas: np.ndarray) -> SimpleNamespace:
         """A parameter object :mod:`..rig.forces` understands, with one row per parameter set."""
         col = lambda n: self._column(thetas, n)[:, None]  # noqa: E731 - (P, 1) broadcasts over segments
-        e = self.effect
         d = self.data
-        effects = SimpleNamespace(
-            bearing_coulomb=SimpleNamespace(torque=col("torque")) if e == "bearing_coulomb" else None,
-            fluid_memory=SimpleNamespace(tau=col("tau"), beta=col("beta")) if e == "fluid_memory" else None,
-            spring_stiffening=SimpleNamespace(k3=col("k3")) if e == "spring_stiffening" else None,
-            neutral_offset=SimpleNamespace(offset=col("offset")) if e == "neutral_offset" else None,
-        )
+        effects = SimpleNamespace()
+        if self.effect is not None:
+            names = registry.get(self.effect).param_names
+            setattr(effects, self.effect, SimpleNamespace(**{n: col(n) for n in names}))
+        effects._hooked = registry.hook_table(effects)
         return SimpleNamespace(hull=SimpleNamespace(b1=col("b1"), b2=col("b2")),
                                spring=SimpleNamespace(c=d.c, phi_neutral=d.phi_neutral), effects=effects)
 
     # --- inputs -------------------------------------------------------------------------
+    @staticmethod
+    def _motor_input_params(ns: SimpleNamespace, P: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per parameter set: the current channel's lag (s) and the torque-constant ratio (-)."""
+        delays = np.broadcast_to(np.ravel(forces.channel_delay(ns)), (P,))
+        ratios = np.broadcast_to(np.ravel(forces.torque_constant_ratio(ns)), (P,))
+        return delays, ratios
+
     def _inputs(self, delay: float, ratio: float):
         """Hull input torque per step for every segment, and flywheel accelerations, cached."""
         key = (float(delay), float(ratio))
@@ -160,22 +176,21 @@ class GrayBoxModel:
     def hull_prediction(self, thetas: np.ndarray) -> np.ndarray:
         """Model hull angle at every step boundary of every segment, (P, n_hull)."""
         P = len(thetas)
-        delays, ratios = self._column(thetas, "delay"), self._column(thetas, "ratio")
-        inputs = [self._inputs(delays[p], ratios[p])[0] for p in range(P)]
         ns = self._namespace(thetas)
+        delays, ratios = self._motor_input_params(ns, P)
+        inputs = [self._inputs(delays[p], ratios[p])[0] for p in range(P)]
         J = (self.data.J_hull + thetas[:, 0])[:, None]
         nf = len(self._free)
         segs = self._free + self._rev
         u = _stack([inp for inp in inputs])
         phi0 = np.array([s.phi[0] for s in segs])[None, :].repeat(P, 0)
         ends = np.array([s.steps for s in segs])
-        if self.effect != "fluid_memory":  # strokes independent: one pass over all of them
+        if not forces.has_water_memory(ns):  # strokes independent: one pass over all of them
             phi, _ = _integrate(phi0, np.zeros_like(phi0), u, J, ns, self.data, ends)
         else:  # the water state carries from the free stroke, through the hold, to the reverse
             phi = np.empty((P, len(segs), u.shape[2] + 1))
             free_phi, water_end = _integrate(phi0[:, :nf], np.zeros((P, nf)), u[:, :nf], J, ns, self.data, ends[:nf])
-            tau = self._column(thetas, "tau")[:, None]
-            water0 = water_end * np.exp(-self._hold[None, :] / tau)
+            water0 = forces.water_rate_after_rest(water_end, self._hold[None, :], ns)
             n_rev = int(ends[nf:].max())
             rev_phi, _ = _integrate(phi0[:, nf:], water0, u[:, nf:, :n_rev], J, ns, self.data, ends[nf:])
             phi[:, :nf] = free_phi
@@ -184,7 +199,7 @@ class GrayBoxModel:
         return np.concatenate(parts, axis=1)
 
     def flywheel_residuals(self, thetas: np.ndarray) -> np.ndarray:
-        delays, ratios = self._column(thetas, "delay"), self._column(thetas, "ratio")
+        delays, ratios = self._motor_input_params(self._namespace(thetas), len(thetas))
         rows = []
         for p in range(len(thetas)):
             fly = self._inputs(delays[p], ratios[p])[1]
@@ -245,7 +260,7 @@ def _integrate(phi0, water0, u, J, ns, data: Prepared, ends: np.ndarray):
     h = STEP_SAMPLES * data.dt
     c = data.c
     neutral = forces.true_neutral(ns)
-    memory = ns.effects.fluid_memory is not None
+    memory = forces.has_water_memory(ns)
 
     def deriv(phi, w, r, torque):
         acc = (-c * (phi - neutral) + forces.hull_extra_torque(phi, w, r, ns) + torque) / J

@@ -144,7 +144,7 @@ def render(rows: list[HullRow], info: dict[str, Any]) -> str:
            "- Sensors: `realistic` (physics.md section 7: 17-bit hull and 14-bit motor encoders, current noise "
            "10 mA rms, offset 3 mA, gain error 0.5 %, 1 kHz). "
            + (f"Hidden effect in every hull: `{info['effect']}` (size drawn per hull from "
-              "`rig/effects.py` REALISTIC_RANGES)." if info.get("effect") else "No hidden effects."),
+              "its realistic range in `rig/effects/`)." if info.get("effect") else "No hidden effects."),
            f"- Controller for the energy method's reverse stroke: `{info['controller']}`.",
            "- One record per method and hull; errors relative to the true lambda66.", "",
            "## Summary", "",

@@ -42,14 +42,14 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
     at the swing frequency, ``addedinertia hull``); default the model's generic start.
     """
     from ..discover.fit import fit_model  # noqa: PLC0415
-    from ..discover.model import CANDIDATES, GrayBoxModel  # noqa: PLC0415
+    from ..discover.model import GrayBoxModel, candidates  # noqa: PLC0415
     from ..discover.prepare import DiscoveryInputError, prepare  # noqa: PLC0415
     from ..discover.residuals import summary  # noqa: PLC0415
 
     if effect in ("none", ""):
         effect = None
-    if effect is not None and effect not in CANDIDATES:
-        raise IdentificationError(f"effect {effect!r}: expected 'none' or one of {', '.join(CANDIDATES)}")
+    if effect is not None and effect not in candidates():
+        raise IdentificationError(f"effect {effect!r}: expected 'none' or one of {', '.join(candidates())}")
     try:
         data = prepare(records)
     except DiscoveryInputError as e:

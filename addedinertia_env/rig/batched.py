@@ -363,7 +363,7 @@ class BatchedRig:
             q_hull = forces.hull_extra_torque(X[PHI], w_mid, self.water_rate, p)
             np.add(q_hull, self._spring_offset, out=X[F1])
             X[F2] = forces.flywheel_friction_torque(X[OMEGA], p)
-            if p.effects.fluid_memory is not None:
+            if forces.has_water_memory(p):
                 self.water_rate += h * forces.water_rate_derivative(X[W], self.water_rate, p)
             Xn = self._Xn
             if G is not None:

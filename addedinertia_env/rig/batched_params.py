@@ -14,10 +14,10 @@ physics (hull, spring, motor, effects) is shared, which lets the rig use one pro
 matrix for the whole batch. Sensor parameters are always arrays.
 
 An effect that is on in some environments and off in others is stored with a *neutral*
-value in the environments where it is off (a value for which the effect's force is
-exactly zero: no bearing torque, ``k3 = 0``, zero offset, water memory with ``beta = 0``,
-``k_t`` ratio 1, zero delay). An effect off everywhere is ``None``, as in
-:class:`~addedinertia_env.rig.effects.Effects`, so it costs nothing.
+value in the environments where it is off (each parameter's ``neutral`` in the effect
+registry: a value for which the effect's force is exactly zero, such as no bearing torque,
+``k3 = 0``, water memory with ``beta = 0``, ``k_t`` ratio 1). An effect off everywhere is
+``None``, as in :class:`~addedinertia_env.rig.effects.Effects`, so it costs nothing.
 """
 
 from __future__ import annotations
@@ -28,18 +28,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .effects import EFFECT_NAMES
+from .effects import registry
 from .params import RigParams
-
-# Per effect: field -> value at which the effect does nothing.
-NEUTRAL_EFFECT_VALUES: dict[str, dict[str, float]] = {
-    "bearing_coulomb": {"torque": 0.0},
-    "fluid_memory": {"tau": 1.0, "beta": 0.0},  # water_rate starts at 0 and stays 0
-    "spring_stiffening": {"k3": 0.0},
-    "neutral_offset": {"offset": 0.0},
-    "sensor_delay": {"delay": 0.0},
-    "torque_constant": {"ratio": 1.0},
-}
 
 _GROUPS = ("hull", "spring", "motor", "sensors")
 # Parameters that must be equal across a batch (they set the common clock).
@@ -96,15 +86,15 @@ class BatchedParams:
             setattr(self, group, ns)
         self.brake_torque = np.asarray([r.brake_torque for r in rigs], dtype=self.dtype)
         self.effects = SimpleNamespace()
-        for effect in EFFECT_NAMES:
-            present = [getattr(r.effects, effect) for r in rigs]
+        for spec in registry.specs():
+            present = [getattr(r.effects, spec.name) for r in rigs]
             if all(e is None for e in present):
-                setattr(self.effects, effect, None)
+                setattr(self.effects, spec.name, None)
                 continue
-            neutral = NEUTRAL_EFFECT_VALUES[effect]
             ns = SimpleNamespace(**{k: self._column([v if e is None else getattr(e, k) for e in present])
-                                    for k, v in neutral.items()})
-            setattr(self.effects, effect, ns)
+                                    for k, v in spec.neutral_values().items()})
+            setattr(self.effects, spec.name, ns)
+        self.effects._hooked = registry.hook_table(self.effects)  # read every physics step
 
     def _column(self, values: list, shared_ok: bool = True):
         """A dtype scalar if all values are equal (and sharing is allowed), else an array."""
@@ -143,8 +133,8 @@ class BatchedParams:
         total = self.brake_torque.nbytes
         for group in _GROUPS:
             total += sum(np.asarray(v).nbytes for v in vars(getattr(self, group)).values())
-        for effect in EFFECT_NAMES:
-            ns = getattr(self.effects, effect)
+        for spec in registry.specs():
+            ns = getattr(self.effects, spec.name, None)
             if ns is not None:
                 total += sum(np.asarray(v).nbytes for v in vars(ns).values())
         return total

@@ -20,6 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
+from . import forces
 from .batched_params import BatchedParams
 from .sensors import Reading
 
@@ -63,8 +64,8 @@ class BatchedSensors:
             if len(self.rngs) != n:
                 raise ValueError(f"BatchedSensors: {len(self.rngs)} generators for {n} environments; "
                                  "give one per environment or a single Generator")
-        delay = params.effects.sensor_delay
-        self.delay_samples = None if delay is None else params.per_env(delay.delay).astype(float) * params.sample_rate
+        self.delay_samples = (params.per_env(forces.channel_delay(params)).astype(float) * params.sample_rate
+                              if forces.has_channel_delay(params) else None)  # hidden lag, samples
         if self.delay_samples is not None:
             size = int(math.ceil(float(np.max(self.delay_samples)))) + 2
             self._hist = np.zeros((2, size, n))  # (u, i) x ring position x env

@@ -10,31 +10,67 @@ Split of the equations of motion (physics.md section 2)::
 
 * inertia (mass matrix, with lambda66 as the hull joint's armature) and the *linear*
   torsion spring live in the engine, evaluated at every integrator stage;
-* everything else (hydrodynamic damping with optional fluid memory, bearing and motor
-  friction, spring stiffening) is computed here and held over one physics step.
+* everything else (hydrodynamic damping with optional fluid memory, motor friction, and
+  each hidden effect's terms, read from the effect registry ``effects/``) is computed here
+  and held over one physics step.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .effects.registry import active_params
+from .friction import DRY_FRICTION_RATE_SCALE
 from .params import RigParams
 
-# Smoothing rate scale for dry friction, rad/s. Below this speed the friction torque is
-# proportional to speed; 1e-3 rad/s is well under one hull-encoder count per 50 ms.
-DRY_FRICTION_RATE_SCALE = 1e-3
+__all__ = ["DRY_FRICTION_RATE_SCALE", "channel_delay", "flywheel_friction_torque", "has_channel_delay",
+           "has_water_memory", "hull_extra_torque", "hydrodynamic_torque", "kinetic_energy", "potential_energy",
+           "torque_constant_ratio", "true_neutral", "true_torque_constant", "water_rate_after_rest", "water_rate_derivative"]
+
+
+def _sum(hook: str, active, *args):
+    """Sum of ``hook`` over the active effects (floats or arrays); ``None`` when none is on."""
+    total = None
+    for spec, e in active:
+        term = getattr(spec, hook)(e, *args)
+        total = term if total is None else total + term
+    return total
 
 
 def true_neutral(p: RigParams) -> float:
-    """The torsion rod's real neutral angle, rad (calibrated value + hidden offset)."""
-    off = p.effects.neutral_offset
-    return p.spring.phi_neutral + (off.offset if off is not None else 0.0)
+    """The torsion rod's real neutral angle, rad (calibrated value + hidden offsets)."""
+    active = active_params(p.effects, "neutral_shift")
+    shift = _sum("neutral_shift", active) if active else None
+    return p.spring.phi_neutral + (shift if shift is not None else 0.0)
+
+
+def torque_constant_ratio(p: RigParams):
+    """True / data-sheet torque constant, - (1 without a torque-constant effect)."""
+    ratio = None
+    for spec, e in active_params(p.effects, "torque_ratio"):
+        ratio = spec.torque_ratio(e) if ratio is None else ratio * spec.torque_ratio(e)
+    return ratio if ratio is not None else 1.0
 
 
 def true_torque_constant(p: RigParams) -> float:
-    """The motor's real torque constant, N m/A (data sheet x hidden ratio)."""
-    tc = p.effects.torque_constant
-    return p.motor.k_t * (tc.ratio if tc is not None else 1.0)
+    """The motor's real torque constant, N m/A (data sheet x hidden ratios)."""
+    return p.motor.k_t * torque_constant_ratio(p)
+
+
+def channel_delay(p: RigParams):
+    """Lag of the current and voltage channel behind the encoders, s (0 without a delay effect)."""
+    delay = _sum("channel_delay", active_params(p.effects, "channel_delay"))
+    return delay if delay is not None else 0.0
+
+
+def has_channel_delay(p: RigParams) -> bool:
+    """Whether any effect delays the current and voltage channel."""
+    return bool(active_params(p.effects, "channel_delay"))
+
+
+def has_water_memory(p: RigParams) -> bool:
+    """Whether any effect carries a water-rate state (the engines then integrate it)."""
+    return bool(active_params(p.effects, "water_rate_derivative"))
 
 
 def centred_rate(w, w_prev):
@@ -57,15 +93,14 @@ def hydrodynamic_torque(w, water_rate, p: RigParams):
 
 
 def hull_extra_torque(phi, w, water_rate, p: RigParams):
-    """All hull torques not native to the engine (everything but the linear spring), N m."""
+    """All hull torques not native to the engine (everything but the linear spring), N m:
+    the damping and each active effect's ``hull_torque``."""
     q = hydrodynamic_torque(w, water_rate, p)
-    bc = p.effects.bearing_coulomb
-    if bc is not None:
-        q = q - bc.torque * np.tanh(w / DRY_FRICTION_RATE_SCALE)
-    st = p.effects.spring_stiffening
-    if st is not None:
+    active = active_params(p.effects, "hull_torque")
+    if active:
         d = phi - true_neutral(p)
-        q = q - p.spring.c * st.k3 * d**3
+        for spec, e in active:
+            q = q + spec.hull_torque(e, d, w, p)
     return q
 
 
@@ -76,20 +111,26 @@ def flywheel_friction_torque(omega, p: RigParams):
 
 
 def water_rate_derivative(w, water_rate, p: RigParams):
-    """d(water_rate)/dt of the fluid-memory model (physics.md section 6); 0 when off."""
-    fm = p.effects.fluid_memory
-    if fm is None:
+    """d(water_rate)/dt, rad/s^2, of the effects with a water state (physics.md section 6); 0 when off."""
+    active = active_params(p.effects, "water_rate_derivative")
+    if not active:
         return 0.0 * water_rate
-    return (fm.beta * w - water_rate) / fm.tau
+    return _sum("water_rate_derivative", active, w, water_rate)
+
+
+def water_rate_after_rest(water_rate, seconds, p: RigParams):
+    """The water rate, rad/s, after ``seconds`` with the hull held still (the brake hold)."""
+    for spec, e in active_params(p.effects, "water_rate_after_rest"):
+        water_rate = spec.water_rate_after_rest(e, water_rate, seconds)
+    return water_rate
 
 
 def potential_energy(phi, p: RigParams):
     """Torsion rod energy, J (including hidden stiffening)."""
     d = phi - true_neutral(p)
     e = 0.5 * p.spring.c * d**2
-    st = p.effects.spring_stiffening
-    if st is not None:
-        e = e + 0.25 * p.spring.c * st.k3 * d**4
+    for spec, eff in active_params(p.effects, "spring_energy"):
+        e = e + spec.spring_energy(eff, d, p)
     return e
 
 

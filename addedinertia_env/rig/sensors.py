@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import forces
 from .params import RigParams
 
 
@@ -41,8 +42,7 @@ class Sensors:
     def __init__(self, params: RigParams, rng: np.random.Generator):
         self.p = params
         self.rng = rng
-        delay = params.effects.sensor_delay
-        self.delay_samples = (delay.delay * params.sensors.sample_rate) if delay is not None else 0.0
+        self.delay_samples = forces.channel_delay(params) * params.sensors.sample_rate  # hidden lag, samples
         self._history: deque[tuple[float, float]] = deque(maxlen=int(math.ceil(self.delay_samples)) + 2)
 
     def reset(self) -> None:

@@ -1,0 +1,5 @@
+"""Smoothing of dry friction, shared by the hull bearing effect and the motor's rotor friction."""
+
+# Smoothing rate scale for dry friction, rad/s. Below this speed the friction torque is
+# proportional to speed; 1e-3 rad/s is well under one hull-encoder count per 50 ms.
+DRY_FRICTION_RATE_SCALE = 1e-3
