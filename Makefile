@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: leaderboard-realistic demo test test-slow test-all bench leaderboard policy accuracy-table perf clean detection-table
+.PHONY: leaderboard-realistic leaderboard-hard tune-hard demo test test-slow test-all bench leaderboard policy accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -29,9 +29,11 @@ test-all: $(STAMP)
 	$(BIN)/python -m pytest -q -m ''
 
 # Controller benchmark (docs/LEADERBOARD.md, docs/CONTROLLERS.md): every controller on the
-# held-out test split of standard-v0, then the ranking with figures.
+# held-out test split of standard-v0, then the ranking with figures. `oracle` and `zero`
+# are the reference rows (truth-based tracking: the floor; 0 A: no control).
 BENCH_SUITE ?= standard-v0
-BENCH_CONTROLLERS ?= pd feedforward-pd pid lqr ilc mpc
+BENCH_CONTROLLERS ?= oracle zero pd feedforward-pd pid lqr ilc mpc
+BENCH_SEEDS ?=
 BENCH_JOBS ?= 2
 LEADERBOARD_DOC ?= docs/LEADERBOARD.md
 # Learned policies (docs/LEARNING.md), run as onnx:PATH on the same suite, split and seeds.
@@ -45,11 +47,11 @@ bench: $(STAMP)
 leaderboard: $(STAMP)
 	for c in $(BENCH_CONTROLLERS); do \
 	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller $$c --jobs $(BENCH_JOBS) \
-	    --out out/bench/$(BENCH_SUITE)-$$c.jsonl || exit 1; \
+	    $(if $(BENCH_SEEDS),--seeds $(BENCH_SEEDS)) --out out/bench/$(BENCH_SUITE)-$$c.jsonl || exit 1; \
 	done
 	for p in $(LEARNED_POLICIES); do \
 	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller onnx:$$p --jobs $(BENCH_JOBS) \
-	    --out out/bench/$(BENCH_SUITE)-onnx-$$(basename $$p .onnx).jsonl || exit 1; \
+	    $(if $(BENCH_SEEDS),--seeds $(BENCH_SEEDS)) --out out/bench/$(BENCH_SUITE)-onnx-$$(basename $$p .onnx).jsonl || exit 1; \
 	done
 	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format md --out $(LEADERBOARD_DOC) \
 	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
@@ -78,3 +80,15 @@ perf: $(STAMP)
 # docs/LEADERBOARD_realistic.md: the same controllers on realistic-v0 (realistic sensors everywhere).
 leaderboard-realistic:
 	$(MAKE) leaderboard BENCH_SUITE=realistic-v0 LEADERBOARD_DOC=docs/LEADERBOARD_realistic.md
+
+# docs/LEADERBOARD_hard.md: hard-v0, the suite where control matters (configs/suites/hard-v0.yaml).
+leaderboard-hard:
+	$(MAKE) leaderboard BENCH_SUITE=hard-v0 LEADERBOARD_DOC=docs/LEADERBOARD_hard.md
+
+# Re-tune every classical controller on hard-v0's tuning split with one budget
+# (configs/controllers/tuned-hard-v0.yaml; about 25 min on 2 shared cores).
+TUNE_BUDGET ?= --candidates 8 --scenarios 8 --seed 0
+tune-hard: $(STAMP)
+	for c in feedforward-pd pid lqr mpc ilc; do \
+	  $(BIN)/addedinertia bench tune --suite hard-v0 --controller $$c $(TUNE_BUDGET) --jobs $(BENCH_JOBS) || exit 1; \
+	done

@@ -17,6 +17,7 @@ import numpy as np
 from .config_io import read_yaml
 
 from .experiment.protocol import ExperimentPlan
+from .rig.control_loop import ControlLoop, LoopRig
 from .rig.effects import Effects
 from .rig.params import RigParams
 from .rig.presets import CONFIG_DIR, ConfigError, load_preset, plan_from_preset, rig_from_mapping, sensors_for_quality
@@ -34,6 +35,17 @@ class Scenario:
     sensor_seed: np.random.SeedSequence
     controller_seed: np.random.SeedSequence
     sensor_quality: str
+    loop: ControlLoop | None = None  # the control loop's delay, command rate, quantisation (None: ideal)
+
+
+def build_rig(scenario: Scenario, seed: int | np.random.SeedSequence | None = None) -> Any:
+    """The simulated rig of ``scenario`` (MuJoCo), seen through its control loop if it has one.
+
+    ``seed`` seeds the sensor noise (default: the scenario's own sensor stream)."""
+    from .rig.mujoco_rig import MujocoRig  # noqa: PLC0415 - MuJoCo only where a rig is built
+
+    rig = MujocoRig(scenario.rig, seed=scenario.sensor_seed if seed is None else seed)
+    return rig if scenario.loop is None or scenario.loop.ideal else LoopRig(rig, scenario.loop)
 
 
 def load_ranges(path: str | Path | None = None) -> dict[str, Any]:

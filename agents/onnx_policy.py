@@ -165,10 +165,16 @@ class OnnxPolicy:
         """Start of an episode: restart the hold counter; reset the base controller with ``context``.
 
         Called at the policy's own rate (a two-rate bench: ``context.policy_rate_hz``), the
-        network runs at every call: the board holds its action in between."""
+        network runs at every call: the board holds its action in between. Called every
+        ``k`` samples otherwise (a drive with a slower set-point rate: ``context.dt`` is
+        ``k`` samples of ``context.sample_dt``), it runs every ``max(1, action_repeat // k)``
+        calls, i.e. every ``action_repeat`` samples as in training."""
         self._calls = 0
         rate = getattr(context, "policy_rate_hz", None)
         self._repeat = 1 if rate is not None and abs(rate - self.policy_rate_hz) < 1e-6 * rate else self.action_repeat
+        sample_dt = getattr(context, "sample_dt", None)
+        if self._repeat > 1 and sample_dt and getattr(context, "dt", None):
+            self._repeat = max(1, self.action_repeat // max(1, int(round(context.dt / sample_dt))))
         self._held = np.zeros(1, dtype=np.float32)
         if context is not None and getattr(context, "dt", None):
             self.check_rate(float(getattr(context, "sample_dt", None) or context.dt))  # the board's sample period

@@ -40,8 +40,15 @@ def _load(spec: str) -> Callable[..., Any]:
     return obj
 
 
+REFERENCE_ROWS = ("oracle", "zero")  # benchmark references (addedinertia_env/bench/runner.py), not controllers
+
+
 def make_controller(name: str, **kwargs: Any) -> Any:
     """A controller from its name; see the module docstring for the accepted forms."""
+    if name in REFERENCE_ROWS:
+        raise UnknownController(f"{name!r} is a reference row of the simulated benchmark suites "
+                                f"(`addedinertia bench run --suite NAME --controller {name}`); it cannot drive "
+                                "a bench or an experiment")
     if name in CLASSICAL:
         return _load(CLASSICAL[name])(**kwargs)
     if name.startswith("onnx:"):

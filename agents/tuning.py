@@ -3,12 +3,16 @@
 Procedure (docs/CONTROLLERS.md): a seeded random search over the controller's
 ``KNOBS`` (log-uniform or uniform in each documented range). Candidate 0 is the
 controller's hand-set ``DEFAULTS``; every candidate is scored on the same scenarios of
-the suite's *tuning* split (never the test split), and the score is the median
-``|lambda66 error|`` with a failed identification counted as 100 %. Every controller
+the suite's *tuning* split (never the test split), and the score is the benchmark's
+ranked one, paired with the oracle: the median over the scenarios of the control error
+``|e_candidate - e_oracle|`` (``e`` the relative lambda66 error of the energy method as
+written, the oracle run once on the same scenarios and sensor noise), with a failed
+identification counted as 100 %. Every controller
 gets the same budget: the same number of candidates times the same scenarios (ILC runs
 its learning cycles inside each scenario, as in the benchmark; only the scored last
 cycle differs from the others). The winner is written to ``configs/controllers/tuned.yaml``
-with the command that produced it; controllers read it by default.
+(or to the suite's own file, its ``tuned:`` key) with the command that produced it;
+controllers read it by default.
 
 Command: ``addedinertia bench tune --suite standard-v0 --controller NAME``.
 """
@@ -71,6 +75,18 @@ def score(abs_errors: list[float | None]) -> float:
     return float(np.median(vals)) if vals else math.inf
 
 
+def control_errors(rows: list[dict], oracle_rows: list[dict]) -> list[float | None]:
+    """``e_row - e_oracle`` per scenario (None where the row failed); ``e_row`` alone where
+    the oracle failed on that scenario."""
+    out: list[float | None] = []
+    for r, o in zip(rows, oracle_rows):
+        if r.get("rel_error") is None:
+            out.append(None)
+        else:
+            out.append(r["rel_error"] - (o["rel_error"] if o.get("rel_error") is not None else 0.0))
+    return out
+
+
 def tune(controller: str, suite: str = "standard-v0", candidates: int = 8, scenarios: int = 8,
          seed: int = 0, jobs: int = 2, progress: bool = True) -> dict[str, Any]:
     """Random search (see module doc); returns ``{"params", "score", "trials"}``."""
@@ -89,17 +105,20 @@ def tune(controller: str, suite: str = "standard-v0", candidates: int = 8, scena
     scen = s.scenarios("tuning")[:scenarios]
     cands = sample_candidates(knobs, candidates, seed)
     defaults = {k: v for k, v in cls.DEFAULTS.items() if k in knobs}
-    tasks = [s.task(sc, controller, {**defaults, **cand}, tuned=False) for cand in cands for sc in scen]
+    oracle = [s.task(sc, "oracle") for sc in scen]
+    tasks = oracle + [s.task(sc, controller, {**defaults, **cand}, tuned=False) for cand in cands for sc in scen]
     rows = run_tasks(tasks, jobs=jobs, progress=progress, desc=f"tune {controller}")
+    oracle_rows, rows = rows[:len(scen)], rows[len(scen):]
     trials = []
     for k, cand in enumerate(cands):
         chunk = rows[k * len(scen):(k + 1) * len(scen)]
         full = {**defaults, **cand}
-        trials.append({"params": full, "score": score([r["abs_rel_error"] for r in chunk]),
-                       "median_energy_J": float(np.median([r["energy_J"] for r in chunk]))})
+        trials.append({"params": full, "score": score(control_errors(chunk, oracle_rows)),
+                       "median_energy_J": float(np.median([r["energy_J"] or 0.0 for r in chunk]))})
     best = min(trials, key=lambda t: (t["score"], t["median_energy_J"]))
     return {"params": best["params"], "score": best["score"], "trials": trials,
-            "budget": {"candidates": candidates, "scenarios": len(scen), "episodes": len(tasks)}}
+            "budget": {"candidates": candidates, "scenarios": len(scen), "episodes": len(tasks)},
+            "tuned_path": str(s.tuned_path or TUNED_PATH)}
 
 
 def write_tuned(name: str, result: dict[str, Any], command: str, path: Path | None = None) -> Path:

@@ -137,7 +137,8 @@ def test_leaderboard_cli_formats(tmp_path, capsys):
     assert (tmp_path / "figures" / "lb-error-energy.png").stat().st_size > 1000
     html = tmp_path / "lb.html"
     assert main(["bench", "leaderboard", str(f), "--format", "html", "--out", str(html)]) == 0
-    assert "data:image/png;base64," in html.read_text()
+    page = html.read_text()
+    assert "<svg" in page and "<table id='leaderboard'" in page and "http" not in page.split("<body>")[1]
     bad = tmp_path / "bad.jsonl"
     bad.write_text('{"controller": "x"}\n')
     assert main(["bench", "leaderboard", str(bad)]) == 2

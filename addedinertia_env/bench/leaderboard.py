@@ -1,7 +1,11 @@
-"""Rank controllers from benchmark rows: median |error|, IQM, bootstrap interval, failures, energy.
+"""Rank controllers from benchmark rows: paired control error, median |error|, IQM, bootstrap intervals.
 
-Statistics per controller, over its episodes (rows), on ``|rel_error|``:
+Statistics per controller, over its episodes (rows):
 
+* the ranked score: with ``oracle`` rows, the median control error ``|e - e_oracle|``
+  paired by scenario (:mod:`.paired`); else the median ``|rel_error|``. ``rel_error`` is
+  the energy method as written; ``rel_error_corrected`` (the default, model-corrected
+  identification) is summarised beside it;
 * a failed episode (``rel_error`` null) counts as an infinite error, so failures rank
   a controller down rather than vanish from its median;
 * ``median`` and its 95 % bootstrap interval: percentile interval of the medians of
@@ -10,13 +14,12 @@ Statistics per controller, over its episodes (rows), on ``|rel_error|``:
   Agarwal et al. 2021, "Deep RL at the edge of the statistical precipice");
 * ``failure_rate``, median ``energy_J`` and median ``tracking_rms_rad``.
 
-Controllers are ranked by median, then IQM, then failure rate.
+Ranking and the tie rule: :mod:`.ranking`; the verdict: :mod:`.verdict`; rendering:
+:mod:`.render`.
 """
 
 from __future__ import annotations
 
-import base64
-import html
 import json
 import math
 from pathlib import Path
@@ -88,119 +91,62 @@ def bootstrap_median_ci(x: np.ndarray, n_boot: int = 2000, level: float = 0.95, 
             float(np.quantile(meds, 1.0 - a, method="inverted_cdf")))
 
 
+def _kind(rows: list[dict]) -> str:
+    """``reference``, ``learned`` or ``classical`` (rows' ``entry_kind``; older rows: a training cost)."""
+    kinds = {r.get("entry_kind") for r in rows} - {None}
+    if kinds:
+        return sorted(kinds)[0] if len(kinds) == 1 else "mixed"
+    if rows and rows[0]["controller"] in ("oracle", "zero"):
+        return "reference"
+    learned = any(r.get("train_env_steps") is not None or r.get("train_cpu_minutes") is not None for r in rows)
+    return "learned" if learned else "classical"
+
+
+def _median_or_nan(values: list) -> float:
+    vals = [v for v in values if v is not None]
+    return float(np.median(vals)) if vals else math.nan
+
+
 def summarise(rows: list[dict], n_boot: int = 2000, seed: int = 0) -> list[dict[str, Any]]:
-    """One ranked entry per controller (see module doc)."""
+    """One entry per controller, ranked (module doc of :mod:`.ranking`)."""
+    from . import paired  # noqa: PLC0415
+    from .ranking import rank  # noqa: PLC0415
+
     by: dict[str, list[dict]] = {}
     for r in rows:
         by.setdefault(r["controller"], []).append(r)
+    oracle_rows = by.get(paired.ORACLE, [])
+    oracle_failed = sum(r.get("rel_error") is None for r in oracle_rows)
     out = []
     for name, rs in by.items():
         err = abs_errors(rs)
         lo, hi = bootstrap_median_ci(err, n_boot=n_boot, seed=seed)
-        energy = [r["energy_J"] for r in rs if r.get("energy_J") is not None]
-        track = [r["tracking_rms_rad"] for r in rs if r.get("tracking_rms_rad") is not None]
-        out.append({
-            "controller": name, "episodes": len(rs), "median_abs_error": float(np.median(err)),
+        corrected = [abs(r["rel_error_corrected"]) if r.get("rel_error_corrected") is not None else math.inf
+                     for r in rs if "rel_error_corrected" in r]
+        e = {
+            "controller": name, "kind": _kind(rs), "episodes": len(rs), "median_abs_error": float(np.median(err)),
             "ci95_median": [lo, hi], "iqm_abs_error": iqm(err), "failure_rate": float(np.mean(~np.isfinite(err))),
-            "median_energy_J": float(np.median(energy)) if energy else math.nan,
-            "median_tracking_rms_rad": float(np.median(track)) if track else math.nan,
+            "median_abs_error_corrected": float(np.median(corrected)) if corrected else math.nan,
+            "median_energy_J": _median_or_nan([r.get("energy_J") for r in rs]),
+            "median_tracking_rms_rad": _median_or_nan([r.get("tracking_rms_rad") for r in rs]),
             "median_wall_s": float(np.median([r["wall_s"] for r in rs])),
-            # learned policies only (rows carry what OnnxPolicy read from its card); None for classical ones
+            # learned entries: what OnnxPolicy read from its metadata, or what a submission declared
             "train_env_steps": next((r["train_env_steps"] for r in rs if r.get("train_env_steps") is not None), None),
             "train_cpu_minutes": next((r["train_cpu_minutes"] for r in rs if r.get("train_cpu_minutes") is not None),
                                       None),
             "suites": sorted({str(r["suite"]) for r in rs}), "splits": sorted({str(r.get("split", "?")) for r in rs}),
             "version": ",".join(sorted({str(r["version"]) for r in rs})),
             "commit": ",".join(sorted({str(r.get("commit", "unknown")) for r in rs})),
-        })
-    out.sort(key=lambda e: (e["median_abs_error"], e["iqm_abs_error"], e["failure_rate"], e["controller"]))
-    for k, e in enumerate(out, 1):
-        e["rank"] = k
-    return out
+            "median_abs_control_error": None, "ci95_control_error": None, "n_paired": 0,
+            "oracle_failed": oracle_failed if oracle_rows else None,
+        }
+        if oracle_rows:
+            e["control_errors"] = paired.control_errors(rs, oracle_rows)
+            e.update(paired.summary(e["control_errors"], n_boot=n_boot, seed=seed))
+        out.append(e)
+    return rank(out, n_boot=n_boot, seed=seed)
 
 
-def _pct(x: float) -> str:
-    return "fail" if not math.isfinite(x) else f"{100 * x:.3f} %"
-
-
-COLUMNS = ("rank", "controller", "median |error|", "95 % CI of median", "IQM |error|", "failures", "median energy",
-           "median tracking RMS", "episodes", "training cost", "version", "commit")
-
-
-def _cells(e: dict) -> list[str]:
-    lo, hi = e["ci95_median"]
-    return [str(e["rank"]), e["controller"], _pct(e["median_abs_error"]), f"{_pct(lo)} .. {_pct(hi)}",
-            _pct(e["iqm_abs_error"]), f"{100 * e['failure_rate']:.0f} %", f"{e['median_energy_J']:.2f} J",
-            f"{1e3 * e['median_tracking_rms_rad']:.3f} mrad", str(e["episodes"]), _training_cost(e), e["version"],
-            e["commit"]]
-
-
-def _training_cost(e: dict) -> str:
-    """Environment steps and CPU minutes that trained a learned policy; '-' for classical controllers."""
-    steps, minutes = e.get("train_env_steps"), e.get("train_cpu_minutes")
-    if steps is None and minutes is None:
-        return "-"
-    parts = [f"{steps} env steps" if steps is not None else "", f"{minutes:.1f} CPU min" if minutes is not None else ""]
-    return ", ".join(p for p in parts if p)
-
-
-def verdict(entries: list[dict], baseline: str = "pd", target: float = 0.01) -> list[str]:
-    """Sentences computed from the table: the best classical controller against the target
-    and the baseline, and whether any learned policy beats it (non-overlapping 95 % CIs of
-    the median count as a difference; overlapping ones do not)."""
-    classical = [e for e in entries if e.get("train_env_steps") is None and e.get("train_cpu_minutes") is None]
-    learned = [e for e in entries if e not in classical]
-    out: list[str] = []
-    if classical:
-        best = min(classical, key=lambda e: (e["median_abs_error"], e["iqm_abs_error"]))
-        meets = "meets" if best["median_abs_error"] <= target else "does not meet"
-        out.append(f"- Best classical controller: `{best['controller']}`, median |error| "
-                   f"{_pct(best['median_abs_error'])}; it {meets} the {100 * target:.0f} % target. "
-                   + ("Every classical controller meets it." if all(e["median_abs_error"] <= target for e in classical)
-                      else "Not every classical controller meets it."))
-        base = next((e for e in entries if e["controller"] == baseline), None)
-        if base is not None and base is not best:
-            out.append(f"- Against the bare `{baseline}` baseline ({_pct(base['median_abs_error'])}): "
-                       + _compare(best, base) + ".")
-        for e in learned:
-            out.append(f"- Learned `{e['controller']}` ({_pct(e['median_abs_error'])}, trained with "
-                       f"{_training_cost(e)}) against `{best['controller']}`: " + _compare(e, best) + ".")
-    return out
-
-
-def _compare(a: dict, b: dict) -> str:
-    (alo, ahi), (blo, bhi) = a["ci95_median"], b["ci95_median"]
-    if ahi < blo:
-        return f"`{a['controller']}` is better, the 95 % intervals of the medians do not overlap"
-    if bhi < alo:
-        return f"`{a['controller']}` is worse, the 95 % intervals of the medians do not overlap"
-    return ("no difference can be claimed: the 95 % intervals of the medians overlap "
-            f"({_pct(alo)} .. {_pct(ahi)} against {_pct(blo)} .. {_pct(bhi)})")
-
-
-def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,
-                    preamble: str = "") -> str:
-    lines = [preamble.rstrip(), ""] if preamble else []
-    lines += ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
-    lines += ["| " + " | ".join(_cells(e)) + " |" for e in entries]
-    said = verdict(entries)
-    if said:
-        lines += ["", "## Verdict (computed from the table above)", ""] + said
-    for title, path in (figures or {}).items():
-        rel = path.relative_to(relative_to) if relative_to else path
-        lines += ["", f"![{title}]({rel.as_posix()})"]
-    return "\n".join(lines) + "\n"
-
-
-def render_html(entries: list[dict], figures: dict[str, Path] | None = None, title: str = "Leaderboard",
-                preamble: str = "") -> str:
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in COLUMNS)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in _cells(e)) + "</tr>" for e in entries)
-    imgs = "".join(
-        f'<figure><img alt="{html.escape(t)}" src="data:image/png;base64,{base64.b64encode(p.read_bytes()).decode()}">'
-        f"<figcaption>{html.escape(t)}</figcaption></figure>" for t, p in (figures or {}).items())
-    pre = f"<pre>{html.escape(preamble)}</pre>" if preamble else ""
-    return (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            "<style>body{font-family:sans-serif}table{border-collapse:collapse}td,th{border:1px solid #999;"
-            "padding:3px 8px;text-align:right}</style></head>"
-            f"<body><h1>{html.escape(title)}</h1>{pre}<table><tr>{head}</tr>{body}</table>{imgs}</body></html>\n")
+def public(entries: list[dict]) -> list[dict]:
+    """Entries without their per-scenario working data (for JSON output)."""
+    return [{k: v for k, v in e.items() if k != "control_errors"} for e in entries]

@@ -11,7 +11,15 @@ A suite file::
       tuning: {first_seed: 100000, count: 24}   # used by `bench tune` only
       test:   {first_seed: 200000, count: 30}   # held out: never used for tuning
 
-The split seed ranges must not overlap: the test seeds are never seen by tuning.
+The split seed ranges must not overlap: the test seeds are never seen by tuning. Seeds
+outside every split belong to the pseudo-split ``train`` (for learned controllers: the
+same distribution, never a tuning or test scenario).
+
+Optional keys: ``effects``, ``loop``, ``motor`` (hidden effects, the control loop, motor
+overrides drawn per seed: :mod:`.scenario_draws`) and ``cycles: N`` (each episode runs N
+reverse-symmetric cycles, each with fresh sensor noise, identified jointly), ``tuned:
+FILE`` (the suite's own tuned gains, a file in configs/controllers/ written by
+``bench tune --suite NAME``; without it controllers use configs/controllers/tuned.yaml).
 """
 
 from __future__ import annotations
@@ -24,9 +32,13 @@ from ..config_io import read_yaml
 
 from ..rig.presets import CONFIG_DIR, ConfigError, config_path
 from ..scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
+from .scenario_draws import apply_extras, validate_extras
 
 SUITE_DIR = CONFIG_DIR / "suites"
-SUITE_KEYS = {"name", "description", "presets", "ranges", "fixed", "splits"}
+SUITE_KEYS = {"name", "description", "presets", "ranges", "fixed", "splits", "effects", "loop", "motor", "cycles",
+              "tuned"}
+TUNED_DIR = CONFIG_DIR / "controllers"
+TRAIN_FIRST_SEED = 10**9  # declared splits lie below; seeds from here on are the "train" pseudo-split
 SPLITS = ("tuning", "test")
 
 
@@ -44,6 +56,8 @@ class EpisodeTask:
     preset: str
     controller: str
     controller_kwargs: dict[str, Any] = field(default_factory=dict)
+    cycles: int = 1  # scored reverse-symmetric cycles, identified jointly
+    entry: dict[str, Any] = field(default_factory=dict)  # declared by a submission: entry_kind, train cost
 
 
 @dataclass(frozen=True)
@@ -54,6 +68,9 @@ class Suite:
     ranges: dict[str, Any]
     fixed: dict[str, Any]
     splits: dict[str, tuple[int, int]]  # split -> (first_seed, count)
+    extras: dict[str, Any] = field(default_factory=dict)  # effects, loop, motor (scenario_draws)
+    cycles: int = 1
+    tuned_path: Path | None = None  # the suite's own tuned gains (None: configs/controllers/tuned.yaml)
 
     def seeds(self, split: str) -> list[int]:
         if split == "all":
@@ -64,30 +81,48 @@ class Suite:
         first, count = self.splits[split]
         return list(range(first, first + count))
 
+    def split_seed(self, split: str, k: int) -> int:
+        """Scenario seed number ``k`` of ``split``: cycles through a declared split's seeds;
+        for ``train``, ``TRAIN_FIRST_SEED + k mod 10**9`` (outside every declared split)."""
+        if split == "train":
+            return TRAIN_FIRST_SEED + int(k) % 10**9
+        seeds = self.seeds(split)
+        return seeds[int(k) % len(seeds)]
+
     def split_of(self, seed: int) -> str:
+        """``tuning``, ``test``, or ``train`` for a seed outside both."""
         for name, (first, count) in self.splits.items():
             if first <= seed < first + count:
                 return name
-        raise ConfigError(f"suite {self.name!r}: seed {seed} is in no split")
+        return "train"
 
     def preset_for(self, seed: int) -> str:
         return self.presets[seed % len(self.presets)]
 
     def scenario(self, seed: int) -> Scenario:
         preset = self.preset_for(seed)
-        return make_scenario(seed, preset=preset, ranges=self.ranges, fixed=self.fixed,
-                             name=f"{self.name}/{self.split_of(seed)}/{seed}")
+        sc = make_scenario(seed, preset=preset, ranges=self.ranges, fixed=self.fixed,
+                           name=f"{self.name}/{self.split_of(seed)}/{seed}")
+        return apply_extras(sc, self.extras) if self.extras else sc
 
     def scenarios(self, split: str = "test") -> list[Scenario]:
         return [self.scenario(s) for s in self.seeds(split)]
 
     def task(self, scenario: Scenario, controller: str, controller_kwargs: dict[str, Any] | None = None,
-             tuned: bool = True) -> EpisodeTask:
+             tuned: bool = True, entry: dict[str, Any] | None = None) -> EpisodeTask:
         kwargs = dict(controller_kwargs or {})
+        if tuned and self.tuned_path is not None:
+            from agents.tuning import load_tuned  # noqa: PLC0415 - agents depends on this package
+
+            params = load_tuned(controller, self.tuned_path)
+            if params:  # gains tuned on this suite's tuning split, passed explicitly
+                kwargs = {**params, **kwargs}
+                tuned = False
         if not tuned:
             kwargs["tuned"] = False
         return EpisodeTask(suite=self.name, split=self.split_of(scenario.seed), scenario=scenario,
-                           preset=self.preset_for(scenario.seed), controller=controller, controller_kwargs=kwargs)
+                           preset=self.preset_for(scenario.seed), controller=controller, controller_kwargs=kwargs,
+                           cycles=self.cycles, entry=dict(entry or {}))
 
 
 def suite_path(name: str) -> Path:
@@ -126,6 +161,9 @@ def load_suite(name: str) -> Suite:
                 and isinstance(spec.get("count"), int) and spec["count"] > 0 and spec["first_seed"] >= 0):
             raise ConfigError(f"{path}: splits.{split} = {spec!r}; expected {{first_seed: int >= 0, count: int > 0}}")
         splits[split] = (spec["first_seed"], spec["count"])
+        if spec["first_seed"] + spec["count"] > TRAIN_FIRST_SEED:
+            raise ConfigError(f"{path}: splits.{split} = {spec!r}; seeds from {TRAIN_FIRST_SEED} on are kept for "
+                              "training (split 'train')")
     if not splits:
         raise ConfigError(f"{path}: no splits; expected splits.test (and splits.tuning)")
     ranges_list = sorted(splits.values())
@@ -136,8 +174,18 @@ def load_suite(name: str) -> Suite:
 
     for p in presets:
         rig_path(p)
+    cycles = data.get("cycles", 1)
+    if isinstance(cycles, bool) or not isinstance(cycles, int) or not 1 <= cycles <= 20:
+        raise ConfigError(f"{path}: cycles = {cycles!r}; expected a whole number of cycles in [1, 20]")
+    tuned = data.get("tuned")
+    if tuned is not None and not (isinstance(tuned, str) and tuned.endswith((".yaml", ".yml"))
+                                  and "/" not in tuned):
+        raise ConfigError(f"{path}: tuned = {tuned!r}; expected a .yaml file name in configs/controllers/")
+    extras = validate_extras(data, path)
+    extras = {k: v for k, v in extras.items() if v}
     return Suite(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
-                 presets=tuple(presets), ranges=ranges, fixed=dict(fixed), splits=splits)
+                 presets=tuple(presets), ranges=ranges, fixed=dict(fixed), splits=splits, extras=extras,
+                 cycles=cycles, tuned_path=TUNED_DIR / tuned if tuned else None)
 
 
 def _validate_inline_ranges(ranges: dict[str, Any], path: Path) -> dict[str, Any]:

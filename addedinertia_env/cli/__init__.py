@@ -69,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as e:  # usage error (2, one line already printed), --help or --version (0)
         return e.code if isinstance(e.code, int) else 2
     previous = _sigterm_as_interrupt()
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # the command actually run (leaderboard headers)
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

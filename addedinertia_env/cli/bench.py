@@ -9,9 +9,6 @@
 
 from __future__ import annotations
 
-from ..machine import machine_line as _machine_line
-
-import datetime
 import os
 import re
 import shlex
@@ -27,7 +24,13 @@ def register(sub) -> None:
 
     r = bsub.add_parser("run", help="run a controller on a suite; one JSON line per episode")
     r.add_argument("--suite", required=True, help="suite name in configs/suites/ or a .yaml path")
-    r.add_argument("--controller", required=True, help="pd, feedforward-pd, pid, lqr, ilc, mpc, onnx:PATH or module:factory")
+    r.add_argument("--controller", required=True,
+                   help="pd, feedforward-pd, pid, lqr, ilc, mpc, onnx:PATH or module:factory; or a reference row: "
+                        "oracle (truth-based tracking, the floor) or zero (0 A, no control)")
+    r.add_argument("--entry-kind", choices=("classical", "learned"), default=None,
+                   help="what a submission is (default: from its card file, else classical; docs/SUBMITTING.md)")
+    r.add_argument("--train-cost", default=None, metavar="ENV_STEPS,CPU_MINUTES",
+                   help="a learned submission's training cost, e.g. 40960,6.5 (default: from its card file)")
     r.add_argument("--split", default="test", choices=("test", "tuning", "all"), help="scenario split (default: test)")
     r.add_argument("--seeds", type=positive_int, default=None, help="only the first N scenarios of the split")
     r.add_argument("--out", default=None, help="JSON-lines file (default: out/bench/SUITE-CONTROLLER.jsonl)")
@@ -63,7 +66,9 @@ def _check_controller(name: str) -> None:
     """Refuse an unknown controller before any episode runs (exit status 2)."""
     from agents.registry import CLASSICAL, UnknownController, _load  # noqa: PLC0415
 
-    if name in CLASSICAL:
+    from ..bench.runner import REFERENCES  # noqa: PLC0415
+
+    if name in REFERENCES or name in CLASSICAL:
         return
     if name.startswith("onnx:"):
         from agents.registry import make_controller  # noqa: PLC0415
@@ -86,10 +91,16 @@ def run_bench(args) -> int:
 
     suite = load_suite(args.suite)
     _check_controller(args.controller)
+    from ..bench.submission import SubmissionError, declared_entry  # noqa: PLC0415
+
+    try:
+        entry = declared_entry(args.controller, args.entry_kind, args.train_cost)
+    except SubmissionError as e:
+        raise BadInput(str(e)) from None
     scenarios = suite.scenarios(args.split)
     if args.seeds is not None:
         scenarios = scenarios[:args.seeds]
-    tasks = [suite.task(sc, args.controller) for sc in scenarios]
+    tasks = [suite.task(sc, args.controller, entry=entry) for sc in scenarios]
     safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", args.controller)
     out = Path(args.out or f"out/bench/{suite.name}-{safe}.jsonl")
     key = {"controller": args.controller, "suite": suite.name, "split": args.split}
@@ -108,8 +119,14 @@ def run_bench(args) -> int:
     info(f"bench: {len(todo)} scenario(s) of {suite.name}/{args.split} with {args.controller}, {args.jobs} job(s)")
     try:
         with RowAppender(out) as appender:
+            command = invoked_command(args)
+
+            def land(row: dict) -> None:
+                row["command"] = command  # the leaderboard header says how its rows were made
+                appender.append(row)
+
             new = run_tasks(todo, jobs=args.jobs, progress=not args.no_progress, desc=args.controller,
-                            on_row=appender.append)
+                            on_row=land)
     except KeyboardInterrupt:
         info(f"bench: interrupted; the finished episodes are in {out}: run the same command to resume")
         raise
@@ -126,82 +143,46 @@ def run_bench(args) -> int:
     return 0
 
 
-def machine_line() -> str:
-    return _machine_line()
-
-
-def _preamble(rows: list[dict], files: list[str]) -> str:
-    suites = sorted({f"{r['suite']}/{r.get('split', '?')}" for r in rows})
-    return "\n".join([
-        f"Produced {datetime.date.today().isoformat()} by `addedinertia bench leaderboard "
-        f"{' '.join(shlex.quote(f) for f in files)}` (via `make leaderboard`).",
-        f"Suite/split: {', '.join(suites)}. Machine: {machine_line()}.",
-        "Score: |lambda66 estimate / truth - 1| of the energy method (`identify([record], 'energy')`) on each "
-        "episode; a failed run or identification counts as an infinite error (a failure).",
-        "Median with a 95 % percentile-bootstrap interval (2000 resamples, seed 0); IQM = mean of the middle 50 %; "
-        "energy = integral of |u i| over hold + reverse stroke. ILC is scored on its last of 3 learning cycles.",
-    ])
-
-
-def _breakdown(rows: list[dict], order: list[str], key: str) -> str:
-    """Median |error| per controller and per value of ``key`` (Markdown)."""
-    import numpy as np  # noqa: PLC0415
-
-    from ..bench.leaderboard import abs_errors  # noqa: PLC0415
-
-    values = sorted({str(r.get(key)) for r in rows})
-    lines = [f"| controller | " + " | ".join(f"{key} = {v}" for v in values) + " |", "|" + "---|" * (len(values) + 1)]
-    for name in order:
-        cells = []
-        for v in values:
-            rs = [r for r in rows if r["controller"] == name and str(r.get(key)) == v]
-            cells.append(f"{100 * float(np.median(abs_errors(rs))):.3f} % (n={len(rs)})" if rs else "-")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+def invoked_command(args) -> str:
+    """The command line actually run, as ``addedinertia ...``."""
+    return "addedinertia " + " ".join(shlex.quote(a) for a in getattr(args, "argv", sys.argv[1:]))
 
 
 def run_leaderboard(args) -> int:
-    from ..bench.leaderboard import RowsError, load_rows, render_html, render_markdown, summarise  # noqa: PLC0415
-    from ..bench.plots import plot_error_vs_energy, plot_per_scenario  # noqa: PLC0415
+    from ..bench.leaderboard import RowsError, load_rows, public  # noqa: PLC0415
+    from ..bench.report import build, finite_or_none  # noqa: PLC0415
 
     try:
         rows = load_rows(args.files)
     except RowsError as e:
         raise BadInput(str(e)) from None
-    entries = summarise(rows)
-    order = [e["controller"] for e in entries]
+    out = Path(args.out) if args.out else None
     if args.format == "json":
-        obj = {"title": args.title, "entries": entries, "files": args.files}
-        if args.out:
+        from ..bench.leaderboard import summarise  # noqa: PLC0415
+        from ..bench.verdict import discrimination, verdict  # noqa: PLC0415
+
+        entries = summarise(rows)
+        disc = discrimination(entries)
+        obj = finite_or_none({"title": args.title, "entries": public(entries), "files": args.files,
+                              "verdict": verdict(entries),
+                              "discrimination": {k: v for k, v in disc.items()} if disc else None,
+                              "command": invoked_command(args)})
+        if out is not None:
             import json  # noqa: PLC0415
 
-            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.out).write_text(json.dumps(obj, indent=1, allow_nan=False, default=str) + "\n")
+            from ..atomic import atomic_write_text  # noqa: PLC0415
+
+            atomic_write_text(out, json.dumps(obj, indent=1, allow_nan=False, default=str) + "\n")
         emit_json(obj)
         return 0
-    out = Path(args.out) if args.out else None
-    figures = {}
-    if out is not None:
-        fig_dir = out.parent / "figures"
-        fig_dir.mkdir(parents=True, exist_ok=True)
-        stem = out.stem.lower()
-        figures["|error| against energy"] = plot_error_vs_energy(rows, order, fig_dir / f"{stem}-error-energy.png")
-        figures["per-scenario |error|"] = plot_per_scenario(rows, order, fig_dir / f"{stem}-per-scenario.png")
-    preamble = _preamble(rows, args.files)
-    if args.format == "md":
-        text = f"# {args.title}\n\n" + render_markdown(entries, figures, out.parent if out else None, preamble)
-        text += "\n## Median |error| by sensor quality\n\n" + _breakdown(rows, order, "sensor_quality") + "\n"
-        text += "\n## Median |error| by rig preset\n\n" + _breakdown(rows, order, "preset") + "\n"
-    else:
-        text = render_html(entries, figures, args.title, preamble)
+    text, _ = build(rows, invoked_command(args), args.format, out, args.title)
     if out is None:
         sys.stdout.write(text)
     else:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(out.name + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, out)
-        info(f"wrote {out}" + (f" and {len(figures)} figure(s) in {out.parent / 'figures'}" if figures else ""))
+        from ..atomic import atomic_write_text  # noqa: PLC0415
+
+        atomic_write_text(out, text)
+        info(f"wrote {out}" + (f" and its figures in {out.parent / 'figures'}" if args.format == "md" else ""))
     return 0
 
 
@@ -210,7 +191,7 @@ def run_tune(args) -> int:
 
     from ..bench.suites import load_suite  # noqa: PLC0415
 
-    load_suite(args.suite)
+    suite = load_suite(args.suite)
     try:
         result = tune(args.controller, suite=args.suite, candidates=args.candidates, scenarios=args.scenarios,
                       seed=args.seed, jobs=args.jobs, progress=not args.no_progress)
@@ -220,9 +201,9 @@ def run_tune(args) -> int:
                f"--candidates {args.candidates} --scenarios {args.scenarios} --seed {args.seed}")
     for t in result["trials"]:
         info(f"  score {100 * t['score']:.3f} %  energy {t['median_energy_J']:.2f} J  {t['params']}")
-    info(f"best: {result['params']} (median |error| {100 * result['score']:.3f} % on the tuning split)")
+    info(f"best: {result['params']} (median |control error| {100 * result['score']:.3f} % on the tuning split)")
     if not args.dry_run:
-        info(f"wrote {write_tuned(args.controller, result, command)}")
+        info(f"wrote {write_tuned(args.controller, result, command, path=suite.tuned_path)}")
     if args.json:
         emit_json({"controller": args.controller, "suite": args.suite, **result, "command": command})
     return 0

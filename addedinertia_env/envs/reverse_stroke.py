@@ -17,7 +17,7 @@ from ..identify import IdentificationError, identify
 from ..record import RunRecord
 from ..rig.interface import Rig
 from ..rig.mujoco_rig import MujocoRig
-from ..scenarios import Scenario, load_ranges
+from ..scenarios import Scenario, build_rig, load_ranges
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
 from .config import EnvConfig
 from .render import RigRenderer, plot_frame
@@ -27,8 +27,9 @@ NOMINAL_SAMPLE_RATE = 1000.0  # Hz, for render_fps only (the presets' sample rat
 
 
 def simulated_rig(scenario: Scenario) -> MujocoRig:
-    """The default rig factory: the MuJoCo rig of ``scenario`` with its own sensor-noise stream."""
-    return MujocoRig(scenario.rig, seed=scenario.sensor_seed)
+    """The default rig factory: the MuJoCo rig of ``scenario`` with its own sensor-noise stream
+    (seen through the scenario's control loop, if it has one: ``scenarios.build_rig``)."""
+    return build_rig(scenario)
 
 
 class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -130,6 +131,11 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         values), ``sensor_quality``, ``hold_s``, ``alpha``, ``scenario_seed``,
         ``action_repeat`` (1), ``control_mode`` (``"current"``), ``reward_weights``;
         plus ``rig_factory`` (scenario -> rig) and ``width``/``height`` of frames.
+        ``suite`` (e.g. ``"hard-v0"``) draws the scenarios of a benchmark suite instead,
+        control loop and hidden effects included, from ``suite_split`` ``"train"``
+        (seeds outside the tuning and test splits; default) or ``"tuning"``; the
+        scenario options then only pick the seed. With a 100 Hz drive (hard-v0) use
+        ``action_repeat=10``: the drive takes one set-point per 10 samples anyway.
         ``reset(options=...)`` accepts the scenario options (``preset`` to
         ``scenario_seed``). ``render_mode``: ``"rgb_array"`` (MuJoCo view of hull and
         flywheel; needs ``MUJOCO_GL``, see :mod:`.render`) or ``"plot"`` (the episode so
@@ -147,7 +153,8 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
                  sensor_quality: str | None = None, hold_s: float | None = None, alpha: float | None = None,
                  scenario_seed: int | None = None, action_repeat: int = 1, control_mode: str = "current",
                  reward_weights: RewardWeights | Mapping[str, float] | None = None,
-                 rig_factory: Callable[[Scenario], Rig] | None = None, width: int = 480, height: int = 360):
+                 rig_factory: Callable[[Scenario], Rig] | None = None, width: int = 480, height: int = 360,
+                 suite: str | None = None, suite_split: str = "train"):
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"ReverseStrokeEnv option render_mode={render_mode!r}: expected None or one of {RENDER_MODES}")
         for name, value in (("width", width), ("height", height)):
@@ -161,6 +168,16 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
                                 control_mode=control_mode, reward_weights=reward_weights or RewardWeights())
         self.render_mode = render_mode
         self.rig_factory = rig_factory or simulated_rig
+        self.suite, self.suite_split = None, suite_split
+        if suite is not None:  # scenarios of a benchmark suite (configs/suites/), e.g. hard-v0
+            from ..bench.suites import load_suite  # noqa: PLC0415
+
+            self.suite = load_suite(suite)
+            if suite_split == "test":
+                raise ValueError(f"ReverseStrokeEnv option suite_split={suite_split!r}: the test split is held "
+                                 "out; expected 'train' (seeds outside both splits) or 'tuning'")
+            if suite_split not in ("train", "tuning"):
+                raise ValueError(f"ReverseStrokeEnv option suite_split={suite_split!r}: expected 'train' or 'tuning'")
         self.width, self.height = width, height
         # One dict per instance (never a shared mutable class attribute).
         self.metadata = {**type(self).metadata,
@@ -183,7 +200,11 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         drawn = int(self.np_random.integers(0, 2**63 - 1))  # always drawn: the stream stays aligned
         scenario_seed = cfg.scenario_seed if cfg.scenario_seed is not None else drawn
         self.episode_config = cfg
-        self.scenario = cfg.scenario(scenario_seed, self._default_ranges)
+        if self.suite is not None:
+            seed_k = cfg.scenario_seed if cfg.scenario_seed is not None else drawn
+            self.scenario = self.suite.scenario(self.suite.split_seed(self.suite_split, seed_k))
+        else:
+            self.scenario = cfg.scenario(scenario_seed, self._default_ranges)
         self.rig = self.rig_factory(self.scenario)
         self.experiment = Experiment(self.rig, self.scenario.plan)
         self.experiment.start()

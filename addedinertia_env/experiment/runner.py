@@ -14,8 +14,17 @@ def controller_context(exp: Experiment):
     """What a controller may know once the free stroke is recorded."""
     from agents.base import ControllerContext  # noqa: PLC0415 - agents depends on this package
 
+    every = command_every(exp.rig)
+    slow = {"policy_rate_hz": 1.0 / (exp.rig.dt * every), "sample_dt": exp.rig.dt} if every > 1 else {}
     return ControllerContext(rig=exp.known, layout=ReverseStrokeTask.layout, reference=exp.reference,
-                             inertia_prior=exp.inertia_prior, dt=exp.rig.dt, hold_s=exp.plan.hold_s)
+                             inertia_prior=exp.inertia_prior, dt=exp.rig.dt * every, hold_s=exp.plan.hold_s,
+                             **slow)
+
+
+def command_every(rig: Any) -> int:
+    """Rig samples per controller call: 1, or the drive's set-point period of a
+    :class:`~addedinertia_env.rig.control_loop.LoopRig` (a 100 Hz drive on a 1 kHz rig: 10)."""
+    return max(1, int(getattr(rig, "command_every", 1)))
 
 
 def run_experiment(rig: Rig, controller: Any, plan: ExperimentPlan | None = None,
@@ -40,6 +49,10 @@ def drive(exp: Experiment, controller: Any) -> None:
     task = ReverseStrokeTask.for_rig(exp.known)
     if hasattr(controller, "reset"):
         controller.reset(controller_context(exp))
+    every, k = command_every(exp.rig), 0
     while exp.needs_control:
-        action, _ = controller.predict(task.observe(exp), deterministic=True)
-        exp.step(task.command(action))
+        if k % every == 0:  # the controller runs at the drive's set-point rate
+            action, _ = controller.predict(task.observe(exp), deterministic=True)
+            cmd = task.command(action)
+        exp.step(cmd)
+        k += 1

@@ -1,0 +1,80 @@
+"""The ranking of a leaderboard: the score, and the stated rule for ties.
+
+Score. With ``oracle`` rows present (simulated suites), an entry's score is its median
+control error ``|e_entry - e_oracle|`` (:mod:`.paired`); without them (rows from older
+runs), its median ``|e|``. ``e`` is the relative lambda66 error of the energy method as
+written. A failure counts as an infinite error.
+
+Tie rule. Entries are sorted by score (then IQM, failure rate, name). Walking down that
+order, an entry whose paired 95 % interval of ``|c_entry| - |c_leader|`` includes zero
+(without oracle rows: whose 95 % interval of the median overlaps the leader's) is tied
+with the leader of the current group and joins it; otherwise it leads a new group. Within
+a group, entries are ordered by median energy ``integral |u i| dt`` (less first): between
+two controllers that cannot be told apart on accuracy, the one that spends less wins.
+
+References (``oracle``, ``zero``) are shown in score order among the entries but take no
+rank (``rank`` is None).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from . import paired
+
+
+def score(e: dict[str, Any]) -> float:
+    """The ranked score of an entry (module doc)."""
+    if e.get("median_abs_control_error") is not None:
+        return float(e["median_abs_control_error"])
+    return float(e["median_abs_error"])
+
+
+def tied(a: dict[str, Any], b: dict[str, Any], n_boot: int = 2000, seed: int = 0) -> bool:
+    """True when ``a`` and ``b`` cannot be told apart on accuracy (module doc)."""
+    if a.get("control_errors") is not None and b.get("control_errors") is not None:
+        d = paired.difference(b["control_errors"], a["control_errors"], n_boot=n_boot, seed=seed)
+        return d["n"] > 0 and paired.clearly(d) == 0
+    (alo, ahi), (blo, bhi) = a["ci95_median"], b["ci95_median"]
+    return not (ahi < blo or bhi < alo)
+
+
+def rank(entries: list[dict[str, Any]], n_boot: int = 2000, seed: int = 0) -> list[dict[str, Any]]:
+    """``entries`` in display order with ``rank``, ``tie_group`` and ``score`` set (module doc)."""
+    def key(e):
+        return (score(e), e["iqm_abs_error"], e["failure_rate"], e["controller"])
+
+    for e in entries:
+        e["score"] = score(e)
+    refs = sorted((e for e in entries if e["kind"] == "reference"), key=key)
+    ranked = sorted((e for e in entries if e["kind"] != "reference"), key=key)
+    groups: list[list[dict]] = []
+    for e in ranked:
+        if groups and tied(groups[-1][0], e, n_boot=n_boot, seed=seed):
+            groups[-1].append(e)
+        else:
+            groups.append([e])
+    ordered = []
+    for g, members in enumerate(groups, 1):
+        members.sort(key=lambda e: (_energy(e), key(e)))
+        for e in members:
+            e["tie_group"] = g
+            ordered.append(e)
+    for k, e in enumerate(ordered, 1):
+        e["rank"] = k
+    for e in refs:
+        e["rank"], e["tie_group"] = None, None
+    # references merged in by score, for display
+    out: list[dict] = []
+    pending = list(refs)
+    for e in ordered:
+        while pending and score(pending[0]) <= score(e):
+            out.append(pending.pop(0))
+        out.append(e)
+    return out + pending
+
+
+def _energy(e: dict[str, Any]) -> float:
+    v = e.get("median_energy_J")
+    return v if v is not None and math.isfinite(v) else math.inf

@@ -1,0 +1,111 @@
+"""A whole leaderboard document from bench rows: header (how it was made), table, verdict, figures.
+
+``build(rows, files, command, fmt, out)`` returns the text of a Markdown document or a
+self-contained HTML page and writes its figures beside ``out`` (``figures/``).
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..machine import machine_line
+from .leaderboard import abs_errors, summarise
+from .render import render_html, render_markdown
+from .verdict import MIN_EPISODES
+
+
+def preamble(rows: list[dict], command: str) -> str:
+    """How the leaderboard was made: the command actually run, the rows' own commands, the
+    suite, the machine, the score."""
+    suites = sorted({f"{r['suite']}/{r.get('split', '?')}" for r in rows})
+    run_commands = sorted({str(r["command"]) for r in rows if r.get("command")})
+    commits = sorted({str(r.get("commit", "unknown")) for r in rows})
+    paired = any(r["controller"] == "oracle" for r in rows)
+    lines = [f"Produced {datetime.date.today().isoformat()} by `{command}`.",
+             f"Rows from commit(s) {', '.join(commits)}, made by: "
+             + ("; ".join(f"`{c}`" for c in run_commands) if run_commands else "(the rows do not record it)") + ".",
+             f"Suite/split: {', '.join(suites)}. Machine: {machine_line()}.",
+             "Error e = lambda66 estimate / truth - 1 of the patent's energy method as written "
+             "(`identify(records, 'energy', asymmetry_correction=False)`); `corrected` = the default identification "
+             "(dissipation mismatch corrected with a damping law fitted to the free stroke). A failed run or "
+             "identification counts as an infinite error."]
+    if paired:
+        lines.append("Ranked score: the control error |e_entry - e_oracle|, paired by scenario (same scenario, same "
+                     "sensor noise), its median with a 95 % paired bootstrap interval (2000 resamples of the "
+                     "scenarios, seed 0); paired tests between entries: median of | c_A | - | c_B | with its bootstrap "
+                     "interval and the Wilcoxon signed-rank p. Ties (interval including zero) are ordered by energy.")
+    else:
+        lines.append("Ranked score: median |e| with a 95 % percentile-bootstrap interval (2000 resamples, seed 0); "
+                     "no oracle rows, so no paired control error.")
+    lines.append("IQM = mean of the middle 50 %; energy = integral of |u i| dt over hold + reverse stroke. "
+                 "ILC learns for 2 unscored cycles, then is scored.")
+    small = sorted({n for n in (sum(r["controller"] == c for r in rows) for c in {r["controller"] for r in rows})
+                    if n < MIN_EPISODES})
+    if small:
+        lines.append(f"WARNING: some intervals rest on fewer than {MIN_EPISODES} episodes ({small}); they are "
+                     "wide and unreliable.")
+    return "\n".join(lines)
+
+
+def breakdown(rows: list[dict], order: list[str], key: str) -> str:
+    """Median |error| per controller and per value of ``key`` (Markdown)."""
+    values = sorted({str(r.get(key)) for r in rows})
+    lines = ["| controller | " + " | ".join(f"{key} = {v}" for v in values) + " |", "|" + "---|" * (len(values) + 1)]
+    for name in order:
+        cells = []
+        for v in values:
+            rs = [r for r in rows if r["controller"] == name and str(r.get(key)) == v]
+            cells.append(f"{100 * float(np.median(abs_errors(rs))):.3f} % (n={len(rs)})" if rs else "-")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def figures_for(rows: list[dict], entries: list[dict], out: Path) -> dict[str, Path]:
+    """The Pareto figure and the per-episode figures, in ``out``'s folder ``figures/``."""
+    from .plots import plot_error_vs_energy, plot_pareto, plot_per_scenario  # noqa: PLC0415
+
+    fig_dir = out.parent / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    stem = out.stem.lower()
+    order = [e["controller"] for e in entries]
+    paired = any(e.get("median_abs_control_error") is not None for e in entries)
+    label = "median |control error| vs oracle" if paired else "median |error|"
+    return {
+        "Pareto figure: accuracy against energy": plot_pareto(entries, fig_dir / f"{stem}-pareto.png", label),
+        "|error| against energy, per episode": plot_error_vs_energy(rows, order, fig_dir / f"{stem}-error-energy.png"),
+        "per-scenario |error|": plot_per_scenario(rows, order, fig_dir / f"{stem}-per-scenario.png"),
+    }
+
+
+def build(rows: list[dict], command: str, fmt: str = "md", out: Path | None = None,
+          title: str = "Controller leaderboard") -> tuple[str, list[dict[str, Any]]]:
+    """``(text, entries)`` of the leaderboard in ``fmt`` (``md`` or ``html``); figures only with ``out``."""
+    entries = summarise(rows)
+    pre = preamble(rows, command)
+    if fmt == "html":
+        return render_html(entries, rows, title, pre), entries
+    figures = figures_for(rows, entries, out) if out is not None else {}
+    order = [e["controller"] for e in entries]
+    text = f"# {title}\n\n" + render_markdown(entries, figures, out.parent if out else None, pre)
+    for key, label in (("sensor_quality", "sensor quality"), ("preset", "rig preset")):
+        if len({str(r.get(key)) for r in rows}) > 1 or key == "preset":
+            text += f"\n## Median |error| (as written) by {label}\n\n" + breakdown(rows, order, key) + "\n"
+    return text, entries
+
+
+def finite_or_none(x: Any) -> Any:
+    """JSON-safe copy: non-finite floats become None, tuples lists."""
+    if isinstance(x, dict):
+        return {str(k): finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [finite_or_none(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x

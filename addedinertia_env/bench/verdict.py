@@ -1,0 +1,136 @@
+"""The leaderboard's verdict: sentences computed from the ranked entries, never written by hand.
+
+With reference rows (simulated suites) the verdict first says whether the suite can judge
+controllers at all. It is *discriminating* when both hold:
+
+* ``zero`` is clearly worse than the best entry: the paired 95 % interval of
+  ``|c_zero| - |c_best|`` lies above zero;
+* the best entry is clearly above the oracle: the paired 95 % interval of its median
+  control error ``|c_best|`` lies above :data:`RESOLUTION` (0.1 % of lambda66, a tenth of
+  the 1 % target), i.e. there is measured headroom for a better controller.
+
+Otherwise it is labelled NON-DISCRIMINATING, with the numbers. Then: the best classical
+entry against the 1 % target and the bare ``pd`` baseline, every learned entry against the
+best classical one (paired tests), and a warning for any interval that rests on fewer
+than :data:`MIN_EPISODES` episodes.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from . import paired
+
+RESOLUTION = 0.001  # relative lambda66: control errors below this are not counted as headroom
+MIN_EPISODES = 10  # a bootstrap interval on fewer episodes is flagged
+TARGET = 0.01  # relative lambda66: the accuracy the experiment is for
+
+
+def pct(x: float | None) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "-"
+    return "fail" if not math.isfinite(x) else f"{100 * x:.3f} %"
+
+
+def _ci(ci) -> str:
+    return f"{pct(ci[0])} .. {pct(ci[1])}" if ci else "-"
+
+
+def _diff_text(d: dict[str, Any]) -> str:
+    p = d["p_wilcoxon"]
+    return (f"median paired difference {pct(d['median'])} (95 % CI {_ci(d['ci95'])}, n = {d['n']}, "
+            f"Wilcoxon p = {p:.2g})" if math.isfinite(p) else
+            f"median paired difference {pct(d['median'])} (95 % CI {_ci(d['ci95'])}, n = {d['n']})")
+
+
+def discrimination(entries: list[dict]) -> dict[str, Any] | None:
+    """The two tests of the module doc, with their numbers; None without reference rows."""
+    by = {e["controller"]: e for e in entries}
+    ranked = [e for e in entries if e.get("rank") is not None]
+    if "oracle" not in by or not ranked or ranked[0].get("control_errors") is None:
+        return None
+    best = ranked[0]
+    out: dict[str, Any] = {"best": best["controller"], "best_control_error": best["median_abs_control_error"],
+                           "best_ci95": best["ci95_control_error"], "resolution": RESOLUTION}
+    out["above_oracle"] = best["ci95_control_error"][0] > RESOLUTION
+    zero = by.get("zero")
+    if zero is not None and zero.get("control_errors") is not None:
+        d = paired.difference(zero["control_errors"], best["control_errors"])
+        out["zero_vs_best"] = d
+        out["zero_worse"] = paired.clearly(d) > 0
+    else:
+        out["zero_vs_best"], out["zero_worse"] = None, None
+    out["discriminating"] = bool(out["above_oracle"] and out["zero_worse"])
+    return out
+
+
+def verdict(entries: list[dict], baseline: str = "pd", target: float = TARGET) -> list[str]:
+    """Markdown bullet sentences (module doc)."""
+    out: list[str] = []
+    disc = discrimination(entries)
+    if disc is not None:
+        best = disc["best"]
+        z = disc["zero_vs_best"]
+        above = (f"`{best}` sits clearly above the oracle: median control error {pct(disc['best_control_error'])}, "
+                 f"paired 95 % CI {_ci(disc['best_ci95'])}, above the {pct(RESOLUTION)} resolution"
+                 if disc["above_oracle"] else
+                 f"`{best}` is NOT clearly above the oracle: median control error {pct(disc['best_control_error'])}, "
+                 f"paired 95 % CI {_ci(disc['best_ci95'])}, does not lie above the {pct(RESOLUTION)} resolution "
+                 "(no measured headroom for a better controller)")
+        if z is None:
+            zero = "no `zero` rows, so no-control cannot be compared"
+        elif disc["zero_worse"]:
+            zero = f"`zero` (no control) is clearly worse than `{best}`: {_diff_text(z)}"
+        else:
+            zero = f"`zero` (no control) is NOT clearly worse than `{best}`: {_diff_text(z)}"
+        label = "**Discriminating**" if disc["discriminating"] else "**NON-DISCRIMINATING**"
+        out.append(f"- {label}: {above}; {zero}.")
+    classical = [e for e in entries if e.get("kind") == "classical" and e.get("rank") is not None]
+    learned = [e for e in entries if e.get("kind") == "learned" and e.get("rank") is not None]
+    if classical:
+        best = classical[0]
+        meets = "meets" if best["median_abs_error"] <= target else "does not meet"
+        out.append(f"- Best classical entry: `{best['controller']}` (rank {best['rank']}); its median |error| "
+                   f"(method as written) is {pct(best['median_abs_error'])}, so it {meets} the "
+                   f"{100 * target:.0f} % target.")
+        base = next((e for e in entries if e["controller"] == baseline), None)
+        if base is not None and base is not best:
+            out.append(f"- Against the bare `{baseline}` baseline: " + compare(best, base) + ".")
+        for e in learned:
+            cost = training_cost(e)
+            out.append(f"- Learned `{e['controller']}` (trained with {cost}) against `{best['controller']}`: "
+                       + compare(e, best) + ".")
+    few = [e for e in entries if min(e["episodes"], e.get("n_paired") or e["episodes"]) < MIN_EPISODES]
+    if few:
+        names = ", ".join(f"`{e['controller']}` ({min(e['episodes'], e.get('n_paired') or e['episodes'])})"
+                          for e in few)
+        out.append(f"- **Warning**: intervals resting on fewer than {MIN_EPISODES} episodes: {names}; "
+                   "they are wide and unreliable.")
+    return out
+
+
+def compare(a: dict, b: dict) -> str:
+    """``a`` against ``b``: paired when both have control errors, else overlap of the intervals."""
+    if a.get("control_errors") is not None and b.get("control_errors") is not None:
+        d = paired.difference(a["control_errors"], b["control_errors"])
+        side = paired.clearly(d)
+        head = {1: f"`{a['controller']}` is clearly worse", -1: f"`{a['controller']}` is clearly better",
+                0: "no difference can be claimed"}[side]
+        return f"{head} ({_diff_text(d)} in |control error|)"
+    (alo, ahi), (blo, bhi) = a["ci95_median"], b["ci95_median"]
+    if ahi < blo:
+        return f"`{a['controller']}` is better, the 95 % intervals of the medians do not overlap"
+    if bhi < alo:
+        return f"`{a['controller']}` is worse, the 95 % intervals of the medians do not overlap"
+    return ("no difference can be claimed: the 95 % intervals of the medians overlap "
+            f"({pct(alo)} .. {pct(ahi)} against {pct(blo)} .. {pct(bhi)})")
+
+
+def training_cost(e: dict) -> str:
+    """Environment steps and CPU minutes that trained a learned entry; '-' when none declared."""
+    steps, minutes = e.get("train_env_steps"), e.get("train_cpu_minutes")
+    if steps is None and minutes is None:
+        return "-"
+    parts = [f"{steps} env steps" if steps is not None else "", f"{minutes:.1f} CPU min" if minutes is not None else ""]
+    return ", ".join(p for p in parts if p)
