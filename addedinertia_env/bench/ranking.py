@@ -8,9 +8,11 @@ written. A failure counts as an infinite error.
 Tie rule. Entries are sorted by score (then IQM, failure rate, name). Walking down that
 order, an entry whose paired 95 % interval of ``|c_entry| - |c_leader|`` includes zero
 (without oracle rows: whose 95 % interval of the median overlaps the leader's) is tied
-with the leader of the current group and joins it; otherwise it leads a new group. Within
-a group, entries are ordered by median energy ``integral |u i| dt`` (less first): between
-two controllers that cannot be told apart on accuracy, the one that spends less wins.
+with the leader of the current group and joins it; otherwise it leads a new group. The entries of
+a group share its rank (shown as ``1=``) and are listed by median energy
+``integral |u i| dt`` (less first): between controllers that cannot be told apart on
+accuracy, the one that spends less is listed first. The group's leader (its lowest score)
+is the one the verdict tests against the oracle and ``zero``.
 
 References (``oracle``, ``zero``) are shown in score order among the entries but take no
 rank (``rank`` is None).
@@ -41,7 +43,8 @@ def tied(a: dict[str, Any], b: dict[str, Any], n_boot: int = 2000, seed: int = 0
 
 
 def rank(entries: list[dict[str, Any]], n_boot: int = 2000, seed: int = 0) -> list[dict[str, Any]]:
-    """``entries`` in display order with ``rank``, ``tie_group`` and ``score`` set (module doc)."""
+    """``entries`` in display order with ``rank`` (shared within a tie group), ``tied``,
+    ``group_leader`` and ``score`` set (module doc)."""
     def key(e):
         return (score(e), e["iqm_abs_error"], e["failure_rate"], e["controller"])
 
@@ -57,22 +60,30 @@ def rank(entries: list[dict[str, Any]], n_boot: int = 2000, seed: int = 0) -> li
             groups.append([e])
     ordered = []
     for g, members in enumerate(groups, 1):
-        members.sort(key=lambda e: (_energy(e), key(e)))
         for e in members:
-            e["tie_group"] = g
-            ordered.append(e)
-    for k, e in enumerate(ordered, 1):
-        e["rank"] = k
+            e["rank"], e["tie_group"], e["tied"], e["group_leader"] = g, g, len(members) > 1, e is members[0]
+        members.sort(key=lambda e: (_energy(e), key(e)))
+        ordered += members
     for e in refs:
-        e["rank"], e["tie_group"] = None, None
+        e["rank"], e["tie_group"], e["tied"], e["group_leader"] = None, None, False, False
     # references merged in by score, for display
     out: list[dict] = []
     pending = list(refs)
     for e in ordered:
-        while pending and score(pending[0]) <= score(e):
+        while pending and score(pending[0]) <= (score(e) if not e["tied"] else _group_score(ordered, e)):
             out.append(pending.pop(0))
         out.append(e)
     return out + pending
+
+
+def _group_score(ordered: list[dict], e: dict) -> float:
+    return min(score(x) for x in ordered if x["tie_group"] == e["tie_group"])
+
+
+def best(entries: list[dict[str, Any]], kind: str | None = None) -> dict[str, Any] | None:
+    """The best ranked entry (of ``kind`` if given): lowest rank, then lowest score."""
+    pool = [e for e in entries if e.get("rank") is not None and (kind is None or e.get("kind") == kind)]
+    return min(pool, key=lambda e: (e["rank"], score(e))) if pool else None
 
 
 def _energy(e: dict[str, Any]) -> float:

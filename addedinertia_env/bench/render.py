@@ -16,7 +16,7 @@ from typing import Any
 
 from . import ranking
 from .plots import pareto_front
-from .verdict import pct, training_cost, verdict
+from .verdict import pct, rank_text, training_cost, verdict
 
 COLUMNS = ("rank", "controller", "kind", "median |control error| vs oracle", "95 % CI (paired)",
            "median |error| (as written)", "95 % CI of median", "median |error| corrected", "IQM |error|", "failures",
@@ -27,7 +27,7 @@ def cells(e: dict) -> list[str]:
     """The table row of entry ``e`` as text."""
     lo, hi = e["ci95_median"]
     cci = e.get("ci95_control_error")
-    rank = "ref" if e.get("rank") is None else str(e["rank"])
+    rank = rank_text(e)
     return [rank, e["controller"], e.get("kind", "?"), pct(e.get("median_abs_control_error")),
             f"{pct(cci[0])} .. {pct(cci[1])}" if cci else "-", pct(e["median_abs_error"]),
             f"{pct(lo)} .. {pct(hi)}", pct(e.get("median_abs_error_corrected")), pct(e["iqm_abs_error"]),
@@ -49,7 +49,8 @@ def tie_note(entries: list[dict]) -> str:
     tied = [g for g in groups.values() if len(g) > 1]
     if not tied:
         return "No two ranked entries are tied on accuracy."
-    return "Tied on accuracy, ordered by energy: " + "; ".join(", ".join(f"`{n}`" for n in g) for g in tied) + "."
+    return ("Tied on accuracy (paired 95 % interval of the difference includes zero), sharing a rank and listed by "
+            "energy: " + "; ".join(", ".join(f"`{n}`" for n in g) for g in tied) + ".")
 
 
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,

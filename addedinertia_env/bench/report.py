@@ -29,7 +29,7 @@ def preamble(rows: list[dict], command: str) -> str:
     lines = [f"Produced {datetime.date.today().isoformat()} by `{command}`.",
              f"Rows from commit(s) {', '.join(commits)}, made by: "
              + ("; ".join(f"`{c}`" for c in run_commands) if run_commands else "(the rows do not record it)") + ".",
-             f"Suite/split: {', '.join(suites)}. Machine: {machine_line()}.",
+             f"Suite/split: {', '.join(suites)} ({_suite_notes(rows)}). Machine: {machine_line()}.",
              "Error e = lambda66 estimate / truth - 1 of the patent's energy method as written "
              "(`identify(records, 'energy', asymmetry_correction=False)`); `corrected` = the default identification "
              "(dissipation mismatch corrected with a damping law fitted to the free stroke). A failed run or "
@@ -50,6 +50,20 @@ def preamble(rows: list[dict], command: str) -> str:
         lines.append(f"WARNING: some intervals rest on fewer than {MIN_EPISODES} episodes ({small}); they are "
                      "wide and unreliable.")
     return "\n".join(lines)
+
+
+def _suite_notes(rows: list[dict]) -> str:
+    """Where each suite is defined, with its one-line description."""
+    from .suites import SUITE_DIR, load_suite  # noqa: PLC0415
+
+    notes = []
+    for name in sorted({str(r["suite"]) for r in rows}):
+        path = SUITE_DIR / f"{name}.yaml"
+        if path.exists():
+            notes.append(f"`configs/suites/{name}.yaml`: {load_suite(name).description}")
+        else:
+            notes.append(f"{name}: not a suite of this version")
+    return "; ".join(notes)
 
 
 def breakdown(rows: list[dict], order: list[str], key: str) -> str:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from . import paired
+from . import paired, ranking
 
 RESOLUTION = 0.001  # relative lambda66: control errors below this are not counted as headroom
 MIN_EPISODES = 10  # a bootstrap interval on fewer episodes is flagged
@@ -47,10 +47,9 @@ def _diff_text(d: dict[str, Any]) -> str:
 def discrimination(entries: list[dict]) -> dict[str, Any] | None:
     """The two tests of the module doc, with their numbers; None without reference rows."""
     by = {e["controller"]: e for e in entries}
-    ranked = [e for e in entries if e.get("rank") is not None]
-    if "oracle" not in by or not ranked or ranked[0].get("control_errors") is None:
+    best = ranking.best(entries)
+    if "oracle" not in by or best is None or best.get("control_errors") is None:
         return None
-    best = ranked[0]
     out: dict[str, Any] = {"best": best["controller"], "best_control_error": best["median_abs_control_error"],
                            "best_ci95": best["ci95_control_error"], "resolution": RESOLUTION}
     out["above_oracle"] = best["ci95_control_error"][0] > RESOLUTION
@@ -86,12 +85,11 @@ def verdict(entries: list[dict], baseline: str = "pd", target: float = TARGET) -
             zero = f"`zero` (no control) is NOT clearly worse than `{best}`: {_diff_text(z)}"
         label = "**Discriminating**" if disc["discriminating"] else "**NON-DISCRIMINATING**"
         out.append(f"- {label}: {above}; {zero}.")
-    classical = [e for e in entries if e.get("kind") == "classical" and e.get("rank") is not None]
+    best = ranking.best(entries, "classical")
     learned = [e for e in entries if e.get("kind") == "learned" and e.get("rank") is not None]
-    if classical:
-        best = classical[0]
+    if best is not None:
         meets = "meets" if best["median_abs_error"] <= target else "does not meet"
-        out.append(f"- Best classical entry: `{best['controller']}` (rank {best['rank']}); its median |error| "
+        out.append(f"- Best classical entry: `{best['controller']}` (rank {rank_text(best)}); its median |error| "
                    f"(method as written) is {pct(best['median_abs_error'])}, so it {meets} the "
                    f"{100 * target:.0f} % target.")
         base = next((e for e in entries if e["controller"] == baseline), None)
@@ -108,6 +106,13 @@ def verdict(entries: list[dict], baseline: str = "pd", target: float = TARGET) -
         out.append(f"- **Warning**: intervals resting on fewer than {MIN_EPISODES} episodes: {names}; "
                    "they are wide and unreliable.")
     return out
+
+
+def rank_text(e: dict) -> str:
+    """``ref``, ``3`` or ``1=`` (shared by a tie group)."""
+    if e.get("rank") is None:
+        return "ref"
+    return f"{e['rank']}=" if e.get("tied") else str(e["rank"])
 
 
 def compare(a: dict, b: dict) -> str:
