@@ -26,7 +26,7 @@ def _rows(path: Path) -> list[dict]:
 
 def _comparable(rows: list[dict]) -> list[dict]:
     """Rows without their wall-clock time (the only field a rerun may change)."""
-    return [{k: v for k, v in r.items() if k != "wall_s"} for r in rows]
+    return [{k: v for k, v in r.items() if k not in ("wall_s", "command")} for r in rows]
 
 
 def _start(out: Path, jobs: int) -> subprocess.Popen:
