@@ -21,8 +21,9 @@ def test_ideal_run_returns_the_true_lambda66(oracle_record, preset):
     record, params = oracle_record(preset)
     result = identify([record], "energy")
     truth = params.hull.lambda66
-    # The method's own acceptance criterion (physics.md section 4): better than 0.05 %.
-    assert abs(result.lambda66 / truth - 1.0) < 5e-4, (result.lambda66, truth)
+    # The method's own acceptance criterion (physics.md section 4) is 0.05 %; at its floor
+    # (issue 18: dense boundary angles, the simulator's damping time-centred) 0.005 %.
+    assert abs(result.lambda66 / truth - 1.0) < 5e-5, (result.lambda66, truth)
     assert result.n_intervals >= 3  # several boundary angles, none rejected on an ideal run
     lo, hi = result.ci95
     assert math.isfinite(lo) and math.isfinite(hi) and lo <= result.lambda66 <= hi

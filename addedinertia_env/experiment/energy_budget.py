@@ -17,9 +17,10 @@ Groups (percent of the true lambda66, signed: estimate minus truth):
 * ``current offset/gain``: the work recomputed from the current corrected with the sensor's
   true offset and gain;
 * ``current noise``: the true (noise-free) sampled current, trapezoid rule;
-* ``integration rule``: the true current's exact mean over each physics step (the
-  electrical transient) instead of the trapezoid on the sample grid;
-* ``motor friction and angles``: the rest of the work term (friction model, smoothed angles);
+* ``smoothed angles``: the true angles instead of the smoothed encoder angles in the work sum;
+* ``integration rule``: the true current's exact course between samples (the electrical
+  transient) instead of the estimator's rule on the sample grid;
+* ``motor friction``: the true rotor friction instead of the rig block's model;
 * ``hull at rest``: true kinetic energy left at t2 and t3;
 * ``dissipation mismatch``: the true ``W_reverse - W_forward`` instead of the model's.
 """
@@ -34,7 +35,7 @@ import mujoco
 import numpy as np
 
 from ..identify.energy import DEFAULT_FRACTIONS, DENSE_ANGLES, BalanceTerms, RunBalance, hann_weights, \
-    inertia_from_terms, interval_mean_current
+    inertia_from_terms, interval_mean_current, prepared_balance
 from ..record import RunRecord
 from ..rig import forces
 from ..rig.mujoco_rig import MujocoRig, TrueState
@@ -143,33 +144,33 @@ def _crossing_index(phi, a, b, level, direction):
 
 # --- work series under different assumptions ---------------------------------------------
 
-def _reaction_work_series(bal: RunBalance, current: np.ndarray, rule: str = "estimator") -> np.ndarray:
-    """Cumulative reaction work from a current series (A) on the sample grid, estimator's angles and friction."""
+def _reaction_work_series(bal: RunBalance, current: np.ndarray, phi: np.ndarray | None = None) -> np.ndarray:
+    """Cumulative reaction work (J) from a sampled current series (A) under the estimator's
+    integration rule and friction model, on the estimator's smoothed angles or on ``phi``."""
     t = bal.t
-    if rule == "estimator":  # the estimator's own rule on the sample grid
-        i_mid = interval_mean_current(t, current, bal.R, bal.L, bal.current_sampling)
-    else:  # "given": current already holds the per-interval mean (length n-1)
-        i_mid = current
-    omega = np.diff(bal.psi_s) / np.diff(t)
-    torque = bal.k_t * i_mid - (bal.f_visc * omega + bal.f_coul * np.sign(omega))
-    return np.concatenate([[0.0], np.cumsum(-torque * np.diff(bal.phi_s))])
+    i_mid = interval_mean_current(t, current, bal.R, bal.L, bal.current_sampling)
+    dphi = np.diff(bal.phi_s if phi is None else phi)
+    return np.concatenate([[0.0], np.cumsum(-(bal.k_t * i_mid - _estimated_friction(bal)) * dphi)])
 
 
-def _interval_mean_current(run: TrueRun) -> np.ndarray:
-    """The current's exact mean over each sample interval, A, from the logged motor work:
-    the simulator applies ``k_t i_mean`` over each physics step, so ``dA = k_t i_mean dpsi``."""
+def _estimated_friction(bal: RunBalance) -> np.ndarray:
+    """The estimator's rotor friction torque over each sample interval, N m."""
+    omega = np.diff(bal.psi_s) / np.diff(bal.t)
+    return bal.f_visc * omega + bal.f_coul * np.sign(omega)
+
+
+def _exact_current_work(run: TrueRun, bal: RunBalance) -> np.ndarray:
+    """Cumulative reaction work (J) of the true current's exact time course on the true angles,
+    with the estimator's friction model: what the sampled current cannot give."""
     s = run.states
-    dA, dpsi = np.diff(s["motor_work"]), np.diff(s["psi"])
-    k_t = forces.true_torque_constant(run.params)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(np.abs(dpsi) > 1e-12, dA / (k_t * dpsi), 0.5 * (s["i"][1:] + s["i"][:-1]))
-    return mean
+    friction = np.concatenate([[0.0], np.cumsum(_estimated_friction(bal) * np.diff(s["phi"]))])
+    return -bal.k_t * s["current_angle"] + friction
 
 
 # --- the budget ---------------------------------------------------------------------------
 
-GROUPS = ("crossing times", "hull rates", "spring", "current offset/gain", "current noise", "integration rule",
-          "motor friction and angles", "hull at rest", "dissipation mismatch")
+GROUPS = ("crossing times", "hull rates", "spring", "current offset/gain", "current noise", "smoothed angles",
+          "integration rule", "motor friction", "hull at rest", "dissipation mismatch")
 
 
 def _weighted(lams: list[float], g: np.ndarray) -> float:
@@ -188,7 +189,7 @@ def budget(run: TrueRun, fractions=DEFAULT_FRACTIONS) -> dict[str, float]:
     ``sum of groups`` (to compare with ``estimate - bookkeeping``).
     """
     rec, p = run.record, run.params
-    bal = RunBalance(rec.without_truth(), "reaction", True)
+    bal = prepared_balance(rec.without_truth(), "reaction", fractions, True)[0]
     f = np.linspace(fractions[0], fractions[1], DENSE_ANGLES)
     g_all = hann_weights(f, fractions[0], fractions[1])
     ests, trues, g = [], [], []
@@ -228,22 +229,24 @@ def budget(run: TrueRun, fractions=DEFAULT_FRACTIONS) -> dict[str, float]:
     out["crossing times"] = swap(A_f=lambda E, T: float(np.interp(t[bal.k2], t, W_est) - np.interp(T.t1, t, W_est)),
                                  A_r=lambda E, T: float(np.interp(T.t4, t, W_est) - np.interp(t[bal.k3], t, W_est)))
     out["hull rates"] = swap(w1f=None, w1r=None)
+    out["hull rate, forward"] = swap(w1f=None)
+    out["hull rate, reverse"] = swap(w1r=None)
     out["spring"] = swap(spring=None)
     out["hull at rest"] = swap(hull_rest=None)
     out["dissipation mismatch"] = swap(dW=None)
-    # Work term, split by what the current series is.
+    # Work term, split by what the current and angle series are.
     sens = p.sensors
-    i_meas = rec["i"]
-    i_cal = (i_meas - sens.current_offset) / (1.0 + sens.current_gain_error)
+    i_cal = (rec["i"] - sens.current_offset) / (1.0 + sens.current_gain_error)
     W_cal = _reaction_work_series(bal, i_cal)
-    W_clean = _reaction_work_series(bal, run.states["i"] * 1.0)
-    W_exact = _reaction_work_series(bal, _interval_mean_current(run), rule="given")
+    W_clean = _reaction_work_series(bal, run.states["i"])
+    W_clean_true_angles = _reaction_work_series(bal, run.states["i"], phi=run.states["phi"])
+    W_exact = _exact_current_work(run, bal)
     steps = [("current offset/gain", W_est, W_cal), ("current noise", W_cal, W_clean),
-             ("integration rule", W_clean, W_exact)]
+             ("smoothed angles", W_clean, W_clean_true_angles), ("integration rule", W_clean_true_angles, W_exact)]
     for name, before, after in steps:
+        # swap(...) is the error removed; the difference of two is what the step between them removes.
         out[name] = swap(**work_between(after)) - swap(**work_between(before))
-    # (swap(...) is the error removed; the difference of two is what the step between them removes.)
-    out["motor friction and angles"] = swap(A_f=None, A_r=None) - swap(**work_between(W_exact))
+    out["motor friction"] = swap(A_f=None, A_r=None) - swap(**work_between(W_exact))
     out["sum of groups"] = sum(out[k] for k in GROUPS)
     return out
 
@@ -255,4 +258,54 @@ def budget_summary(runs: list[dict[str, float]]) -> dict[str, tuple[float, float
     for k in keys:
         v = np.array([r[k] for r in runs])
         out[k] = (float(np.median(v)), float(0.5 * (np.percentile(v, 84) - np.percentile(v, 16))))
+    return out
+
+
+# --- seeded runs on the shipped presets -------------------------------------------------------
+
+def preset_rig(preset: str, sensors: str = "calibrated") -> RigParams:
+    """Preset ``preset`` with its sensors as shipped (``"preset"``), with the current and voltage
+    gain errors set to zero (``"calibrated"``: noise, offsets and quantisation kept), or ideal."""
+    from ..rig.params import SensorParams  # noqa: PLC0415
+    from ..rig.presets import load_rig  # noqa: PLC0415
+
+    rig = load_rig(preset)
+    if sensors == "ideal":
+        return rig.replace(sensors=SensorParams.ideal(rig.sensors.sample_rate))
+    if sensors == "calibrated":
+        return rig.replace(sensors=dataclasses.replace(rig.sensors, current_gain_error=0.0, voltage_gain_error=0.0))
+    if sensors == "preset":
+        return rig
+    raise ValueError(f"sensors={sensors!r}: expected 'preset', 'calibrated' or 'ideal'")
+
+
+def seeded_plan(preset: str, seed: int, spread: float = 0.1) -> ExperimentPlan:
+    """The preset's plan with the twist ``alpha`` varied by +-``spread``/2 (relative) per seed.
+
+    With the motor passive, the free stroke is the same in every seed of a rig: its encoder
+    quantisation errors (the rest angle, the forward rates) would be one frozen draw shared
+    by all seeds. An experimenter never twists the rod exactly alike twice; varying the
+    twist per seed makes those errors differ between seeds as they do between real runs.
+    """
+    from ..rig.presets import load_preset, plan_from_preset  # noqa: PLC0415
+
+    data = load_preset(preset)
+    base = plan_from_preset(data)
+    u = float(np.random.default_rng([seed, 1791]).random()) - 0.5
+    return dataclasses.replace(base, alpha=base.alpha * (1.0 + spread * u))
+
+
+def seeded_errors(preset: str, seeds, controller: str = "lqr", sensors: str = "calibrated") -> list[dict[str, float]]:
+    """For each seed: the energy method's relative error (percent) and whether its 95 % interval
+    covers the truth, on one run of ``preset`` (``seeded_plan``, ``preset_rig``)."""
+    from ..identify import identify  # noqa: PLC0415
+
+    rig = preset_rig(preset, sensors)
+    out = []
+    for seed in seeds:
+        run = simulate_with_truth(rig, controller, seeded_plan(preset, seed), seed=seed)
+        res = identify([run.record], "energy")
+        out.append({"seed": seed, "error_pct": 100.0 * (res.lambda66 / run.truth - 1.0),
+                    "covered": bool(res.ci95[0] <= run.truth <= res.ci95[1]),
+                    "half_width_pct": 50.0 * (res.ci95[1] - res.ci95[0]) / run.truth})
     return out

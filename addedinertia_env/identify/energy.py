@@ -65,6 +65,8 @@ WORK_FORMS = ("reaction", "current", "electric")
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
 RATE_HALF_WIDTH = 0.1  # s, window of the local quintic that gives crossing instants and rates
 RATE_DEGREE = 5
+REST_FIT_S = 0.08  # s, span of encoder steps before t2 and after t3 that give the rest angles
+DAMPING_FIT_WINDOW_S = 0.1  # s, Savitzky-Golay window of the rates and accelerations of the damping fit
 WORK_SMOOTHING_S = 0.2  # s, window of the quintic smoothing of the angles in the work sums
 DIAGNOSTIC_FORM_WARNING = (
     "energy method, work={work!r}: a diagnostic form; it books the flywheel's energy (tens of J) "
@@ -168,6 +170,20 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
 
 
 def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool) -> _RunEstimate:
+    balance, phi1_list, weights, first = prepared_balance(rec, work, fractions, asymmetry_correction)
+    if not np.isfinite(first.value):
+        return first
+    return _combine(balance, [balance.interval(phi1) for phi1 in phi1_list], weights)
+
+
+def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_FRACTIONS,
+                     asymmetry_correction: bool = True):
+    """A record's :class:`RunBalance` after the first pass, its boundary angles (rad), their
+    weights (None: pooled by inverse variance) and the first pass's estimate.
+
+    The first pass (no dissipation-mismatch correction) gives the total inertia that the
+    damping-law fit and the hull's energy at rest then use.
+    """
     balance = RunBalance(rec, work, asymmetry_correction)
     given = rec.experiment.get("phi1")
     dense = not given and len(fractions) == 2
@@ -179,7 +195,14 @@ def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bo
         weights = hann_weights(f, fractions[0], fractions[1])
     else:
         phi1_list, weights = [balance.phi_n + x * (balance.phi2 - balance.phi_n) for x in fractions], None
-    intervals = [balance.interval(phi1) for phi1 in phi1_list]
+    first = _combine(balance, [balance.interval(phi1) for phi1 in phi1_list], weights)
+    if np.isfinite(first.value):
+        balance.use_total_inertia(first.value + balance.J_h)
+    return balance, phi1_list, weights, first
+
+
+def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> _RunEstimate:
+    """One run's estimate from its boundary angles: Hann-weighted (dense) or inverse-variance pooled."""
     ok = [k for k, iv in enumerate(intervals) if not iv.rejected]
     if not ok:
         return _RunEstimate(float("nan"), float("inf"), intervals)
@@ -270,19 +293,31 @@ class RunBalance:
         # Smoothed angles for the work increments, smoothed phase by phase: a window across the
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
         self.phi_s, self.psi_s = _smooth_by_phase(rec, phi), _smooth_by_phase(rec, psi)
+        self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.work_cum = self._cumulative_work()
         self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros_like(t)
-        self.law = _forward_damping_law(rec, free, self.k2, self.J_h, self.c, self.phi_n)
-        self.dW_of = _DissipationMismatch(t, phi, free, self.k2, self.k3, rev, self.law, self.direction) \
-            if (asymmetry_correction and self.law) else None
+        self.asymmetry_correction = asymmetry_correction
+        self.law: dict | None = None
+        self.dW_of = None  # set by use_total_inertia once a first estimate exists
         sat = None
         if "i_cmd" in rec.samples and np.isfinite(rig.current_limit):
             sat = np.abs(rec["i_cmd"]) >= 0.999 * rig.current_limit
         self.saturated = sat
-        J_guess = self.law["J"] if self.law else self.J_h
-        self.hull_rest = 0.5 * J_guess * (self._rest_rate(self.k2, free.start) ** 2
-                                          + self._rest_rate(self.k3, hold.start if hold is not None else free.start) ** 2)
+        w2 = self._fit_before.deriv()(0.0) if self._fit_before is not None else self._rest_rate(self.k2, free.start)
+        w3 = w2 if hold is None else self._rest_rate(self.k3, hold.start)
+        self.rest_rates_sq = float(w2**2 + w3**2)
+        self.hull_rest = 0.5 * 2.0 * self.J_h * self.rest_rates_sq  # refined by use_total_inertia
         self.quantum = _quantum(phi, rig.phi_counts)
+
+    def use_total_inertia(self, J_total: float) -> None:
+        """Refine with a first estimate of ``J_hull + lambda66`` (kg m^2): the hull's energy at
+        rest, and the damping law (fitted with the inertia known, so the noise of the
+        acceleration does not dilute it) behind the dissipation-mismatch correction."""
+        self.hull_rest = 0.5 * J_total * self.rest_rates_sq
+        if self.asymmetry_correction:
+            self.law = _forward_damping_law(self.rec, self.free, self.k2, J_total, self.c, self.phi_n)
+            self.dW_of = (_DissipationMismatch(self.t, self.phi, self.free, self.k2, self.k3, self.rev, self.law,
+                                               self.direction) if self.law else None)
 
     # --- per boundary angle ----------------------------------------------------------
     def terms(self, phi1: float) -> tuple[BalanceTerms, dict] | str:
@@ -305,8 +340,8 @@ class RunBalance:
         A_r = float(np.interp(t4, t, W) - np.interp(t3, t, W))
         B_f = float(np.interp(t2, t, B) - np.interp(t1, t, B))
         B_r = float(np.interp(t4, t, B) - np.interp(t3, t, B))
-        c, n = self.c, self.phi_n
-        spring = 0.5 * c * ((phi[self.k2] - n) ** 2 - (phi1 - n) ** 2 + (phi[self.k3] - n) ** 2 - (phi1 - n) ** 2)
+        c, n, p2, p3 = self.c, self.phi_n, self.phi_rest2, self.phi_rest3
+        spring = 0.5 * c * ((p2 - n) ** 2 - (phi1 - n) ** 2 + (p3 - n) ** 2 - (phi1 - n) ** 2)
         terms = BalanceTerms(phi1=float(phi1), t1=t1, t4=t4, w1f=w1f, w1r=w1r, spring=float(spring),
                              A_f=A_f, A_r=A_r, B_f=B_f, B_r=B_r, hull_rest=float(self.hull_rest))
         if self.work != "reaction":
@@ -376,6 +411,51 @@ class RunBalance:
         return self.quantum / np.sqrt(12.0) if self.quantum > 0 else 1e-7
 
     # --- helpers ------------------------------------------------------------------------
+    def _rest_angles(self, hold: slice | None) -> tuple[float, float]:
+        """Hull angles at t2 and t3, rad: the spring term's rests.
+
+        A braked hull reads one constant encoder count, up to half a count (2.4e-5 rad for
+        17 bits) from the truth; that is 0.05 to 0.15 % of lambda66 in the spring term. The
+        count changes just before the stop and just after the release carry more: where the
+        reading steps, the angle crosses the midpoint of the two readings, at a time known to
+        half a sample while the hull moves slowly. A quadratic in time through those crossings
+        over :data:`REST_FIT_S` on each side gives the rest angle to about 0.1 count. When the
+        brake held the hull (the same count at t2 and t3 +- 1), both rests are one angle and
+        the two sides' fits are averaged.
+        """
+        phi, k2, k3 = self.phi, self.k2, self.k3
+        self._fit_before = None
+        if not self.rec.known.phi_counts:  # an encoder without stated counts: take the readings
+            return float(phi[k2]), float(phi[k3])
+        q = 2.0 * np.pi / self.rec.known.phi_counts
+        fit_before = _crossings_fit(self.t, phi, k2, -REST_FIT_S, q)
+        fit_after = _crossings_fit(self.t, phi, k3, REST_FIT_S, q)
+        self._fit_before = fit_before
+        before = fit_before(0.0) if fit_before is not None else None
+        after = fit_after(0.0) if fit_after is not None else None
+        r2 = before if before is not None else float(phi[k2])
+        r3 = after if after is not None else float(phi[k3])
+        held = hold is not None and abs(phi[k3] - phi[k2]) <= 1.5 * q
+        if held and before is not None and after is not None:
+            r2 = r3 = 0.5 * (before + after)
+        if fit_after is not None:
+            self._anchor_reverse_start(fit_after, r3)
+        return float(r2), float(r3)
+
+    def _anchor_reverse_start(self, fit, rest: float) -> None:
+        """Replace the smoothed angle over the reverse stroke's first :data:`REST_FIT_S` by the
+        rest-angle fit (blended out over its second half).
+
+        At the brake's release the smoothing has only one side to work with, and its angle
+        is off by up to half a count there, just where the motor pushes hardest: that offset
+        times the starting torque is 0.02-0.03 % of lambda66 in the reverse work."""
+        t, k3 = self.t, self.k3
+        end = int(np.searchsorted(t, t[k3] + REST_FIT_S, side="right"))
+        tau = t[k3:end] - t[k3]
+        blend = np.clip(2.0 - 2.0 * tau / REST_FIT_S, 0.0, 1.0)
+        curve = fit(tau) - fit(0.0) + rest
+        self.phi_s[k3:end] = blend * curve + (1.0 - blend) * self.phi_s[k3:end]
+
     def _rest_rate(self, k: int, start: int, window_s: float = 0.05) -> float:
         """Hull rate at sample ``k`` from a quadratic over the samples before it in its own phase, rad/s.
 
@@ -469,6 +549,37 @@ def _smooth_by_phase(rec: RunRecord, angle: np.ndarray) -> np.ndarray:
     return out
 
 
+def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float):
+    """The angle (rad) as a function of time from sample ``k`` (s), fitted to the instants where a quantised reading steps, within
+    ``span_s`` seconds before (negative) or after (positive) it: a quadratic in time through
+    (step instant, midpoint of the two readings), without a linear term after ``k`` (the hull
+    starts from rest there). None when fewer than four steps."""
+    if span_s < 0:
+        a, b = int(np.searchsorted(t, t[k] + span_s)), k
+    else:
+        a, b = k, int(np.searchsorted(t, t[k] + span_s, side="right")) - 1
+    d = np.diff(phi[a:b + 1])
+    steps = np.nonzero(d != 0)[0]
+    times, levels = [], []
+    for j in steps:
+        n = max(1, int(round(abs(d[j]) / q)))
+        t0, t1 = t[a + j], t[a + j + 1]
+        for m in range(n):  # several counts in one sample: spread the crossings over it
+            times.append(t0 + (m + 0.5) / n * (t1 - t0))
+            levels.append(phi[a + j] + np.sign(d[j]) * (m + 0.5) * q)
+    if len(times) < 4:
+        return None
+    tau = np.asarray(times) - t[k]
+    # Before t2 the hull may pass its stop and come back a little: a free quadratic. After t3
+    # it starts from rest at the brake's release: no linear term (a free one, extrapolated
+    # back over the first count's dwell, is off by a count or more).
+    X = np.column_stack([np.ones_like(tau), tau, tau**2]) if span_s < 0 else np.column_stack([np.ones_like(tau), tau**2])
+    coef, *_ = np.linalg.lstsq(X, np.asarray(levels), rcond=None)
+    if span_s < 0:
+        return np.polynomial.Polynomial(coef)
+    return np.polynomial.Polynomial([coef[0], 0.0, coef[1]])
+
+
 def _quantum(angle: np.ndarray, counts: int) -> float:
     """Encoder step, rad: from the counts per turn, or the smallest step seen when not given."""
     if counts:
@@ -512,33 +623,39 @@ def _crossing_fit(t: np.ndarray, phi: np.ndarray, k: int, level: float,
             "kernel": (sel, kernel)}
 
 
-def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_h: float, c: float, phi_n: float) -> dict | None:
-    """Damping torque magnitude ``D(w) = d1 |w| + d2 w^2`` seen on the forward stroke.
+def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c: float,
+                         phi_n: float) -> dict | None:
+    """Damping torque magnitude ``D(w) = d1 |w| + d2 w^2`` (N m) seen on the forward stroke.
 
-    From ``J phi'' + c (phi - phi_n) = -D(w) sign(w)`` with ``J`` and the damping fitted
-    jointly by least squares on smoothed derivatives of the free stroke's second half.
+    From ``J phi'' + c (phi - phi_n) = -D(w) sign(w)`` with the total inertia ``J_total``
+    (kg m^2) given (a first estimate): least squares for ``d1, d2`` on smoothed derivatives
+    of the free stroke's second half. Fitting ``J`` jointly would put the acceleration's
+    noise among the regressors and shrink ``J`` (and inflate ``d2`` several-fold) when the
+    encoder's quantisation is a sizeable part of the acceleration.
     """
     from scipy.signal import savgol_filter  # noqa: PLC0415
 
     t, phi = rec.t, rec["phi"]
     a = free.start + (k2 - free.start) // 3
-    if k2 - a < 60:
+    dt = float(np.median(np.diff(t[free])))
+    win = max(7, int(round(DAMPING_FIT_WINDOW_S / dt)) | 1)
+    if k2 - a < 2 * win:
         return None
-    dt = float(np.median(np.diff(t[a:k2])))
-    win = 41
     seg = phi[a - win:k2 + 1] if a >= win else phi[a:k2 + 1]
     w = savgol_filter(seg, win, 3, deriv=1, delta=dt)
     acc = savgol_filter(seg, win, 3, deriv=2, delta=dt)
     keep = slice(win, len(seg) - win // 2)
     w, acc, ph = w[keep], acc[keep], seg[keep]
-    # -c (phi - phi_n) = J acc + d1 w + d2 w|w|   (linear in J, d1, d2)
-    X = np.column_stack([acc, w, w * np.abs(w)])
-    y = -c * (ph - phi_n)
+    # -c (phi - phi_n) - J acc = d1 w + d2 w|w|   (linear in d1, d2)
+    X = np.column_stack([w, w * np.abs(w)])
+    y = -c * (ph - phi_n) - J_total * acc
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
-    J, d1, d2 = (float(x) for x in coef)
-    if not np.isfinite(J) or J <= 0:
+    d1, d2 = (float(x) for x in coef)
+    if not (np.isfinite(d1) and np.isfinite(d2)):
         return None
-    return {"J": J, "d1": max(d1, 0.0), "d2": max(d2, 0.0)}
+    if d2 < 0:  # refit linear only
+        d1, d2 = float(np.linalg.lstsq(X[:, :1], y, rcond=None)[0][0]), 0.0
+    return {"J": J_total, "d1": max(d1, 0.0), "d2": d2}
 
 
 class _DissipationMismatch:
@@ -551,7 +668,8 @@ class _DissipationMismatch:
         def speed_over_angle(a: int, b: int):
             lo, hi = max(a, 0), min(b, len(t) - 1)
             dt = float(np.median(np.diff(t[lo:hi])))
-            speed = np.abs(savgol_filter(phi[lo:hi + 1], 41, 3, deriv=1, delta=dt))
+            win = max(7, int(round(DAMPING_FIT_WINDOW_S / dt)) | 1)
+            speed = np.abs(savgol_filter(phi[lo:hi + 1], win, 3, deriv=1, delta=dt))
             ang = phi[lo:hi + 1]
             order = np.argsort(ang)
             return ang[order], speed[order]

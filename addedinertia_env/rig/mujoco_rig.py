@@ -91,6 +91,7 @@ class TrueState:
     electric_energy: float  # J, cumulative integral of u i dt
     ohmic_loss: float  # J, cumulative integral of R i^2 dt
     reaction_work_hull: float = 0.0  # J, cumulative work of the motor's reaction -(k_t i - M_f) on the hull
+    current_angle: float = 0.0  # A rad, cumulative integral of i dphi (the current's share of that work)
 
 
 class MujocoRig(SimulatedRigBase):
@@ -129,7 +130,7 @@ class MujocoRig(SimulatedRigBase):
         self.water_rate = 0.0
         self.motor_work = self.dissipated_hull = self.dissipated_flywheel = 0.0
         self.electric_energy = self.ohmic_loss = 0.0
-        self.reaction_work_hull = 0.0
+        self.reaction_work_hull = self.current_angle = 0.0
         self._w_prev = 0.0  # hull rate one physics step ago (forces.centred_rate)
         self.sensors.reset()
         self.set_brake(brake)
@@ -177,6 +178,7 @@ class MujocoRig(SimulatedRigBase):
             self.dissipated_hull += q_hull * dphi
             self.dissipated_flywheel += q_fly * dpsi
             self.reaction_work_hull -= (torque + q_fly) * dphi
+            self.current_angle += i_mean * dphi
             if not passive:
                 # Exact integrals over the step with u held: int(u i) = u * mean(i);
                 # int(R i^2) from the exponential solution.
@@ -204,7 +206,7 @@ class MujocoRig(SimulatedRigBase):
                          motor_work=self.motor_work, dissipated_hull=self.dissipated_hull,
                          dissipated_flywheel=self.dissipated_flywheel,
                          electric_energy=self.electric_energy, ohmic_loss=self.ohmic_loss,
-                         reaction_work_hull=self.reaction_work_hull)
+                         reaction_work_hull=self.reaction_work_hull, current_angle=self.current_angle)
 
     # --- internals ------------------------------------------------------------------
     def _mean_flywheel_rate(self, omega0: float, i_guess: float, h: float) -> float:
