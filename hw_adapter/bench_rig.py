@@ -149,6 +149,9 @@ class BenchRig:
                 if got is not None and isinstance(got[1], m.Caps):
                     self.caps = got[1]
                     break
+                if got is not None and got[1].type == m.HEARTBEAT and got[1].reason == m.BUSY_REASON:
+                    raise LinkError(f"bench {self.url!r} is busy: another host is connected; "
+                                    "try again when its run has ended")
             if self.caps is not None:
                 break
         if self.caps is None:

@@ -126,7 +126,7 @@ class Board:
         if t == m.SEGMENT:
             return self._segment(msg)
         if t == m.QUERY:
-            return self._flush_batch() + [self.sample(self.last_reading)]
+            return self._flush_batch() + [self.sample(self.present())]
         if t == m.HEARTBEAT:
             return [m.Empty(m.HEARTBEAT, msg.reason)]
         if t == m.RESET:
@@ -196,6 +196,21 @@ class Board:
         for _ in range(min(ticks, 1000)):
             out += self.stream(self.tick()) + self._flush()
         return out + self._flush_batch()
+
+    def present(self) -> Reading:
+        """The instruments now, without stepping (what QUERY reports).
+
+        The encoders have not moved since the last sample (the simulated bench only moves
+        on a step), but a safe state entered since then (DISARM, a fault, a dropped link)
+        has already opened the drive and set the brake: a passive drive carries no current
+        and its terminals show the flywheel's back-EMF.
+        """
+        r = self.last_reading
+        if self.armed and self.cmd.mode != "passive":
+            return r
+        back_emf = float(getattr(self.rig, "k_t", self.params.motor.k_t)) * self.rig.true_state().omega
+        return Reading(t=r.t, phi=r.phi, psi=r.psi, u=back_emf, i=0.0, brake=bool(self.rig.brake))
+
     # --- the sample period --------------------------------------------------------------
     def tick(self) -> m.Sample:
         """One sample period under the latched command or, version 2, the inner loop (safe state when disarmed)."""

@@ -205,8 +205,10 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
         summary["arm_checks"] = checks
         failed = [c for c in checks if not c["ok"]]
         if failed:
+            hint = (f"; inspect and clear latched faults with `addedinertia bench-faults --bench {opts.bench} --clear`"
+                    if any(c["check"] == "no_latched_faults" for c in failed) else "")
             raise rig.stop("arming", "arming check failed: " + "; ".join(f"{c['check']} ({c['detail']})"
-                                                                             for c in failed))
+                                                                             for c in failed) + hint)
         rig.arm()
         summary["warmup"] = warm_up(rig, opts.warmup_s)
         if opts.dry_run:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import heapq
 import json
+from collections import deque
 import random
 import select
 import socket
@@ -31,12 +32,16 @@ from .board import Board
 from .framing import FrameParser, encode_frame
 
 HEARTBEAT_S = 0.1  # s, idle heartbeat of a free-running board before the host's HELLO
+IDLE_TIMEOUT_S = 30.0  # s without a valid frame from the host: the connection is dropped (board safe)
+BAD_FRAME_WINDOW = 100  # frames; more than BAD_FRAME_LIMIT of them bad latches BAD_FRAMES (PROTOCOL.md 5.5)
+BAD_FRAME_LIMIT = 10
 
 
 class EmulatorServer:
     """Serve ``board`` on ``host:port`` (port 0: any free port; see :attr:`port`)."""
 
-    def __init__(self, board: Board, port: int = 0, host: str = "127.0.0.1", events_path: str | Path | None = None):
+    def __init__(self, board: Board, port: int = 0, host: str = "127.0.0.1", events_path: str | Path | None = None,
+                 idle_timeout_s: float = IDLE_TIMEOUT_S):
         if host not in ("127.0.0.1", "localhost", "::1"):
             raise ValueError(f"bench emulator host {host!r}: it listens on loopback only (127.0.0.1)")
         self.board = board
@@ -50,6 +55,10 @@ class EmulatorServer:
         self._disconnect_done = False
         self._onset_logged: set[str] = set()
         self.connections = 0
+        self.idle_timeout_s = float(idle_timeout_s)
+        self.refused_busy = 0  # second hosts answered BUSY while one was connected
+        self.dropped_idle = 0  # connections dropped for silence
+        self._frame_window: deque[bool] = deque(maxlen=BAD_FRAME_WINDOW)  # True: a bad frame
         self.board_overruns = 0
         self._seq = 0
 
@@ -105,6 +114,7 @@ class EmulatorServer:
         conn.setblocking(False)
         parser = FrameParser()
         board = self.board
+        self._frame_window.clear()  # BAD_FRAMES counts this host's frames
         outq: list[tuple[float, int, bytes]] = []  # (due, order, bytes)
         period = board.period_us * 1e-6
         next_tick = time.monotonic()
@@ -139,15 +149,22 @@ class EmulatorServer:
             order += 1
             heapq.heappush(outq, (due, order, data))
 
+        last_heard = time.monotonic()
         while not self._stop.is_set():
             now = time.monotonic()
+            if now - last_heard > self.idle_timeout_s:
+                self.dropped_idle += 1
+                self.board.log.add("idle_drop", now, board.board_t)
+                return  # the finally of serve_forever closes the socket and puts the board safe
             waits = [0.05]
             if self.realtime:
                 waits.append(next_tick - now)
             if outq:
                 waits.append(outq[0][0] - now)
-            ready, _, _ = select.select([conn], [], [], max(0.0, min(waits)))
-            if ready:
+            ready, _, _ = select.select([conn, self.listener], [], [], max(0.0, min(waits)))
+            if self.listener in ready:
+                self._answer_busy()
+            if conn in ready:
                 try:
                     data = conn.recv(4096)
                 except (BlockingIOError, InterruptedError):
@@ -156,11 +173,17 @@ class EmulatorServer:
                     return
                 if data == b"":
                     return  # the host closed the link
-                for frame in parser.feed(data or b""):
+                crc_before = parser.stats.bad_crc
+                frames = parser.feed(data or b"")
+                self._count_frames(parser.stats.bad_crc - crc_before, 0)
+                for frame in frames:
                     try:
                         msg = m.decode(frame)
                     except m.MessageError:
+                        self._count_frames(1, 0)
                         continue
+                    self._count_frames(0, 1)
+                    last_heard = time.monotonic()
                     if msg.type == m.HELLO:
                         streaming = True
                     for reply in board.handle(msg, frame.seq, frame.version):
@@ -192,6 +215,23 @@ class EmulatorServer:
                 self._onset("disconnect", time.monotonic(), board.board_t)
                 return  # the finally of serve_forever closes the socket and puts the board safe
 
+    def _answer_busy(self) -> None:
+        """A second host while one is served: one HEARTBEAT with reason BUSY, then the connection is closed."""
+        try:
+            other, _ = self.listener.accept()
+        except (BlockingIOError, TimeoutError, socket.timeout, OSError):
+            return
+        self.refused_busy += 1
+        frame = encode_frame(m.HEARTBEAT, 0, self.board.time_us, m.Empty(m.HEARTBEAT, m.BUSY_REASON).pack())
+        threading.Thread(target=_say_busy, args=(other, frame), name="bench-emulator-busy", daemon=True).start()
+
+    def _count_frames(self, bad: int, good: int) -> None:
+        """Slide the window of the host's last frames; too many bad ones latch BAD_FRAMES (board safe)."""
+        self._frame_window.extend([True] * min(bad, BAD_FRAME_WINDOW) + [False] * good)
+        n_bad = sum(self._frame_window)
+        if n_bad > BAD_FRAME_LIMIT and not self.board.fault_bits & m.F_BAD_FRAMES:
+            self.board.go_safe(m.F_BAD_FRAMES, float(n_bad))
+
     @staticmethod
     def _send_now(conn: socket.socket, data: bytes) -> bool:
         """Write ``data`` whole on the non-blocking socket; False if the host is gone."""
@@ -215,3 +255,22 @@ class EmulatorServer:
         if name not in self._onset_logged:
             self._onset_logged.add(name)
             self.board.log.add("fault_onset", wall, board_t, fault=name)
+
+
+def _say_busy(conn: socket.socket, frame: bytes, linger_s: float = 2.0) -> None:
+    """Send the BUSY frame, then wait (up to ``linger_s``) for the host to hang up: closing first could
+    make its serial layer drop the frame it has not read yet."""
+    try:
+        conn.settimeout(0.5)
+        conn.sendall(frame)
+        deadline = time.monotonic() + linger_s
+        while time.monotonic() < deadline:
+            try:
+                if not conn.recv(4096):
+                    break
+            except socket.timeout:
+                continue
+    except OSError:
+        pass
+    finally:
+        conn.close()

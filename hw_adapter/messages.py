@@ -64,6 +64,9 @@ FAULT_NAMES = {F_WATCHDOG: "watchdog", F_LINK: "link", F_OVERCURRENT: "overcurre
                F_ANGLE_LIMIT: "angle_limit", F_BRAKE: "brake", F_ENCODER: "encoder", F_HOST_STOP: "host_stop",
                F_BAD_FRAMES: "bad_frames", F_DRIVE: "drive", F_SEGMENTS: "segments"}
 
+# HEARTBEAT.reason of a board that already serves another host (sent unasked, then the link closes).
+BUSY_REASON = 0xFFFF
+
 # CAPS.flags bits.
 CAP_EMULATOR = 1 << 0  # the board is the simulated bench
 CAP_LOCKSTEP = 1 << 1  # one SAMPLE per COMMAND (emulator --fast); else free-running at the sample rate

@@ -31,6 +31,8 @@ def register(sub) -> None:
     p.add_argument("--board-watchdog-ms", type=int, default=50, help="board watchdog while driving, ms")
     p.add_argument("--events", default=None, help="write fault onsets and safe-state times here (JSON lines)")
     p.add_argument("--once", action="store_true", help="exit after the first host disconnects")
+    p.add_argument("--idle-timeout", type=float, default=30.0,
+                   help="drop a host that sends no valid frame for this long, s (default 30; the board goes safe)")
     p.set_defaults(func=run)
 
 
@@ -41,6 +43,8 @@ def run(args) -> int:
 
     if not 0 <= args.port <= 65535:
         raise BadInput(f"--port {args.port}: expected 0..65535")
+    if not 0.1 <= args.idle_timeout <= 86400:
+        raise BadInput(f"--idle-timeout {args.idle_timeout}: expected 0.1 to 86400 s")
     if args.board_watchdog_ms <= 0:
         raise BadInput(f"--board-watchdog-ms {args.board_watchdog_ms}: expected > 0")
     try:
@@ -51,7 +55,7 @@ def run(args) -> int:
     board = Board(params, seed=args.seed, faults=faults, lockstep=not args.realtime,
                   limits=BoardLimits(watchdog_ms=args.board_watchdog_ms), board_id=f"emu-{params.hull.name}"[:16])
     try:
-        server = EmulatorServer(board, port=args.port, events_path=args.events)
+        server = EmulatorServer(board, port=args.port, events_path=args.events, idle_timeout_s=args.idle_timeout)
     except OSError as e:
         raise BadInput(f"--port {args.port}: cannot listen on 127.0.0.1 ({e})") from None
     print(json.dumps({"url": server.url, "port": server.port, "rig": args.rig,
