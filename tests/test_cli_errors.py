@@ -182,3 +182,42 @@ def test_simulate_removes_temporary_files_of_killed_writers_only(capsys, tmp_pat
     assert not stale.exists() and str(stale) in err
     assert live.exists()
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["run-0000.csv", "run-0000.json"]
+
+
+def test_a_suites_bad_value_is_blamed_on_the_suite(capsys, tmp_path):
+    import yaml
+
+    data = yaml.safe_load((Path(__file__).resolve().parents[1] / "configs" / "suites" / "smoke.yaml").read_text())
+    data["fixed"]["hold_s"] = -1.0
+    suite = tmp_path / "bad-suite.yaml"
+    suite.write_text(yaml.safe_dump(data))
+    line = _one_line_error(capsys, ["bench", "run", "--suite", suite, "--controller", "lqr",
+                                    "--out", tmp_path / "r.jsonl"], suite)
+    assert "hold_s" in line
+
+
+def test_a_rig_file_without_its_motor_block_is_refused(capsys, tmp_path):
+    import yaml
+
+    data = yaml.safe_load((Path(__file__).resolve().parents[1] / "configs" / "rigs" / "wigley-2m.yaml").read_text())
+    del data["motor"]
+    rig = tmp_path / "nomotor.yaml"
+    rig.write_text(yaml.safe_dump(data))
+    line = _one_line_error(capsys, ["simulate", "--rig", rig, "--out", tmp_path / "o"], rig)
+    assert "motor" in line
+
+
+def test_simulate_resumes_its_own_records_and_refuses_others(capsys, tmp_path):
+    out = tmp_path / "sim"
+    argv = ["simulate", "--out", str(out), "--hold", "0.2", "--cycles", "2", "--seed", "5"]
+    assert main(argv) == 0
+    first = (out / "run-0001.csv").read_text()
+    (out / "run-0001.csv").unlink()  # as if killed before the second record was renamed into place
+    (out / "run-0001.json").unlink()
+    capsys.readouterr()
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "kept 1 record" in err and (out / "run-0001.csv").read_text() == first  # same record again
+    other = ["simulate", "--out", str(out), "--hold", "0.2", "--seed", "6"]
+    _one_line_error(capsys, other, out / "run-0000.csv")
+    assert main([*other, "--force"]) == 0

@@ -71,6 +71,7 @@ class Suite:
     extras: dict[str, Any] = field(default_factory=dict)  # effects, loop, motor (scenario_draws)
     cycles: int = 1
     tuned_path: Path | None = None  # the suite's own tuned gains (None: configs/controllers/tuned.yaml)
+    source: str = ""  # the suite file, for messages
 
     def seeds(self, split: str) -> list[int]:
         if split == "all":
@@ -101,9 +102,13 @@ class Suite:
 
     def scenario(self, seed: int) -> Scenario:
         preset = self.preset_for(seed)
-        sc = make_scenario(seed, preset=preset, ranges=self.ranges, fixed=self.fixed,
-                           name=f"{self.name}/{self.split_of(seed)}/{seed}")
-        return apply_extras(sc, self.extras) if self.extras else sc
+        try:
+            sc = make_scenario(seed, preset=preset, ranges=self.ranges, fixed=self.fixed,
+                               name=f"{self.name}/{self.split_of(seed)}/{seed}")
+            return apply_extras(sc, self.extras) if self.extras else sc
+        except (ConfigError, ValueError) as e:  # a value the suite drew or fixed: the suite file is to blame
+            raise ConfigError(f"{self.source or self.name}: scenario seed {seed} on preset {preset!r}, with the "
+                              f"suite's fixed values {self.fixed} and ranges: {e}") from None
 
     def scenarios(self, split: str = "test") -> list[Scenario]:
         return [self.scenario(s) for s in self.seeds(split)]
@@ -183,9 +188,12 @@ def load_suite(name: str) -> Suite:
         raise ConfigError(f"{path}: tuned = {tuned!r}; expected a .yaml file name in configs/controllers/")
     extras = validate_extras(data, path)
     extras = {k: v for k, v in extras.items() if v}
-    return Suite(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
-                 presets=tuple(presets), ranges=ranges, fixed=dict(fixed), splits=splits, extras=extras,
-                 cycles=cycles, tuned_path=TUNED_DIR / tuned if tuned else None)
+    suite = Suite(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
+                  presets=tuple(presets), ranges=ranges, fixed=dict(fixed), splits=splits, extras=extras,
+                  cycles=cycles, tuned_path=TUNED_DIR / tuned if tuned else None, source=str(path))
+    for first, _ in splits.values():  # a bad fixed value or range refused up front, naming the suite file
+        suite.scenario(first)
+    return suite
 
 
 def _validate_inline_ranges(ranges: dict[str, Any], path: Path) -> dict[str, Any]:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..rig.effects import effect_names
 from ..rig.presets import SENSOR_QUALITY, load_preset, plan_from_preset, rig_from_mapping, sensors_for_quality
-from ..simulate import OTHER_KINDS, effects_from_name, simulate_to_dir
+from ..simulate import OTHER_KINDS, OutputInUse, effects_from_name, simulate_to_dir
 from .common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
 
 
@@ -28,6 +28,9 @@ def register(sub) -> None:
     p.add_argument("--effect", default="none", choices=["none", *effect_names()],
                    help="hide one effect in the simulated truth (seeded size)")
     p.add_argument("--out", default="out/sim", help="folder for the records")
+    p.add_argument("--force", action="store_true",
+                   help="overwrite records in --out (by default records of this same simulation are kept and "
+                        "others are refused)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
@@ -51,10 +54,19 @@ def run(args) -> int:
 
     for stale in remove_stale_temps(args.out):
         info(f"removed {stale}, a temporary file of a killed earlier run")
-    paths = simulate_to_dir(rig, Path(args.out), controller=args.controller, plan=plan, seed=args.seed,
-                            cycles=args.cycles, kind=args.kind)
+    signature = {"rig": args.rig, "controller": args.controller, "seed": args.seed, "hold": args.hold,
+                 "alpha": args.alpha, "kind": args.kind, "sensors": args.sensors, "effect": args.effect}
+    kept: list[Path] = []
+    try:
+        paths = simulate_to_dir(rig, Path(args.out), controller=args.controller, plan=plan, seed=args.seed,
+                                cycles=args.cycles, kind=args.kind, signature=signature, force=args.force, kept=kept)
+    except OutputInUse as e:
+        raise BadInput(str(e)) from None
+    if kept:
+        info(f"resumed: kept {len(kept)} record(s) of this simulation already in {args.out} (--force redoes them)")
     for p in paths:
-        info(f"wrote {p} (+ .json)")
+        if p not in kept:
+            info(f"wrote {p} (+ .json)")
     if args.json:
         emit_json({"records": [str(p) for p in paths], "rig": args.rig, "kind": args.kind,
                    "controller": args.controller, "seed": args.seed})

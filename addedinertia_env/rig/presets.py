@@ -47,6 +47,7 @@ def rig_path(name: str) -> Path:
     return config_path("rig", name, RIG_DIR)
 
 
+REQUIRED_BLOCKS = ("hull", "spring", "motor")  # what a rig file must state; sensors and the rest have defaults
 TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps", "effects", "experiment")
 
 
@@ -57,6 +58,10 @@ def load_preset(name: str) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
     _only_keys(data, set(TOP_KEYS), str(path))
+    missing = [key for key in REQUIRED_BLOCKS if not isinstance(data.get(key), dict)]
+    if missing:
+        raise ConfigError(f"{path}: missing block(s) {missing}; a rig file states its {', '.join(REQUIRED_BLOCKS)} "
+                          "(no silent defaults; see configs/rigs/wigley-2m.yaml)")
     data["_path"] = str(path)
     return data
 
