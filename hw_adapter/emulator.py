@@ -216,7 +216,7 @@ class EmulatorServer:
                 return  # the finally of serve_forever closes the socket and puts the board safe
 
     def _answer_busy(self) -> None:
-        """A second host while one is served: one HEARTBEAT with reason BUSY, then the connection is closed."""
+        """A second host while one is served: its frames are answered with a HEARTBEAT of reason BUSY, then it is closed."""
         try:
             other, _ = self.listener.accept()
         except (BlockingIOError, TimeoutError, socket.timeout, OSError):
@@ -257,19 +257,21 @@ class EmulatorServer:
             self.board.log.add("fault_onset", wall, board_t, fault=name)
 
 
-def _say_busy(conn: socket.socket, frame: bytes, linger_s: float = 2.0) -> None:
-    """Send the BUSY frame, then wait (up to ``linger_s``) for the host to hang up: closing first could
-    make its serial layer drop the frame it has not read yet."""
+def _say_busy(conn: socket.socket, frame: bytes, linger_s: float = 3.0) -> None:
+    """Answer whatever another host sends (its HELLO) with the BUSY frame, until it hangs up or
+    ``linger_s`` passes. Answering, not sending unasked: a serial layer may discard bytes that
+    arrive while it is still opening the port."""
     try:
-        conn.settimeout(0.5)
-        conn.sendall(frame)
+        conn.settimeout(0.25)
         deadline = time.monotonic() + linger_s
         while time.monotonic() < deadline:
             try:
-                if not conn.recv(4096):
-                    break
+                data = conn.recv(4096)
             except socket.timeout:
                 continue
+            if not data:
+                break
+            conn.sendall(frame)
     except OSError:
         pass
     finally:
