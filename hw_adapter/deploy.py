@@ -143,7 +143,7 @@ def arm_checks(rig: BenchRig, plan, pings: int) -> list[dict[str, Any]]:
         rtt_p99 = float(np.percentile(rtts, 99)) if rtts else math.inf
         # Single-rate: a command per sample must beat half the watchdog. Two-rate: a segment
         # must reach the board within one host period (its deadline).
-        bound, what = ((1.0 / rig.host_rate_hz, "one host period") if rig.two_rate
+        bound, what = ((1.0 / rig.host_rate_hz, "one host period") if rig.two_rate and not rig.lockstep
                        else (rig.watchdog_s / 2, "half the watchdog"))
         add("link_round_trip", len(rtts) == pings and rtt_p99 < bound,
             f"{len(rtts)}/{pings} echoes, p99 {1e3 * rtt_p99:.2f} ms (must be < {what}, {1e3 * bound:.1f} ms)")
@@ -261,8 +261,8 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
         try:
             result = identify([read_record(summary["record"])], "energy")
             summary.update(lambda66=result.lambda66, ci95=list(result.ci95), n_intervals=result.n_intervals)
-        except IdentificationError as e:
-            summary["identify_error"] = str(e)
+        except (IdentificationError, ValueError) as e:  # a record the estimator cannot use: not a crash
+            summary["identify_error"] = f"{type(e).__name__}: {e}" if not isinstance(e, IdentificationError) else str(e)
             exit_status = EXIT_IDENTIFY_FAILED
     summary["wall_s"] = time.perf_counter() - t_start
     summary["exit_status"] = exit_status

@@ -20,7 +20,8 @@ truth (the preset's, for scoring only), and a ``stall`` run: the host stops send
 segments 0.1 s into the hold (its controller blocks for 0.5 s); the time from the stall's
 start (host) to the board's own SEGMENTS fault (emulator), both on the system's
 monotonic clock. ``--load N`` keeps N busy processes running during every run (the
-"loaded" rows); ``--repeat K`` repeats the nominal run.
+"loaded" rows); ``--repeat K`` repeats the nominal run; ``--rt-priority P`` runs the host
+at SCHED_FIFO priority P and the emulator (the board) at P + 5, as a bench PC would.
 """
 
 from __future__ import annotations
@@ -74,6 +75,8 @@ def one_run(name: str, faults: str, args, work: Path) -> dict:
     extra = ["--faults", faults] if faults and faults != "stall" else []
     proc, url = spawn_bench_server("--fast" if args.fast else "--realtime", "--rig", args.rig,
                                    "--board-watchdog-ms", str(args.board_watchdog_ms), *extra, events=events)
+    if args.rt_priority:  # the board outranks the host, as separate hardware would
+        os.sched_setscheduler(proc.pid, os.SCHED_FIFO, os.sched_param(args.rt_priority + 5))
     controller = make_controller(args.controller)
     if faults == "stall":
         controller = StallingController(controller)
@@ -160,7 +163,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--host-rate-hz", type=float, default=None, help="two-rate mode at this host rate")
     p.add_argument("--repeat", type=int, default=1, help="nominal runs")
     p.add_argument("--load", type=int, default=0, help="busy processes kept running during the runs")
+    p.add_argument("--rt-priority", type=int, default=0,
+                   help="run the host at SCHED_FIFO this priority and the emulator 5 above (root; 0: normal)")
     args = p.parse_args(argv)
+    if args.rt_priority:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.rt_priority))
     runs = {f"nominal{k + 1 if args.repeat > 1 else ''}": "" for k in range(args.repeat)}
     runs.update({k: v.format(at=args.at) for k, v in FAULTS.items()})
     if args.host_rate_hz is not None:
@@ -168,7 +175,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.only:
         runs = {k: v for k, v in runs.items() if k.rstrip("0123456789") in args.only or k in args.only}
     rows = []
-    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.load)]
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"],  # ordinary priority
+                                preexec_fn=lambda: os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0)))
+               for _ in range(args.load)]
     try:
         with tempfile.TemporaryDirectory(prefix="bench-figures-") as tmp:
             for name, faults in runs.items():

@@ -67,3 +67,42 @@ def test_a_policy_at_another_rate_is_refused_before_arming(capsys):
     assert summary["status"].startswith("refused:") and "1000 Hz" in summary["refused"]
     assert "omit --host-rate-hz" in captured.err
     assert "refused before arming" in captured.err and "100 Hz" in captured.err
+
+
+def test_the_environment_holds_its_action_exactly_as_the_board_loop_does():
+    """A policy trained in the environment at action_repeat 10 (100 Hz) sees the board it
+    will drive: the same actions through the two-rate board loop (zero-order hold, the
+    brake released on its sample) give the same record, sample for sample."""
+    import gymnasium as gym
+    import numpy as np
+
+    from addedinertia_env.envs.reverse_stroke import simulated_rig
+
+    env = gym.make("AddedInertia/ReverseStroke-v0", randomize=False, hold_s=0.3, scenario_seed=3,
+                   action_repeat=10).unwrapped
+    env.reset(seed=0)
+    assert env.policy_rate_hz == pytest.approx(100.0) and env.board_mode == "zoh"
+    actions = np.random.default_rng(1).uniform(-0.3, 0.3, 1000)
+    k = 0
+    done = False
+    while not done:
+        _, _, done, _, _ = env.step(actions[k:k + 1])
+        k += 1
+    env_rec = env.experiment.record("env")
+
+    class Replay:
+        def __init__(self):
+            self.k = 0
+
+        def predict(self, obs, deterministic=True):
+            self.k += 1
+            return actions[self.k - 1:self.k], None
+
+    rig = TwoRateSimRig(simulated_rig(env.scenario), 100.0)
+    exp = Experiment(rig, env.scenario.plan)
+    exp.start()
+    drive_two_rate(exp, Replay(), 100.0, "zoh")
+    board_rec = exp.record("board")
+    for col in ("t", "phi", "i", "i_cmd", "brake"):
+        assert np.array_equal(env_rec.samples[col], board_rec.samples[col]), col
+

@@ -193,6 +193,19 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         self._renderer: RigRenderer | None = None
         self.episode_config = self.config  # the config with this episode's reset options
 
+    # --- the policy's rate (a property of the task) ----------------------------------
+    board_mode = "zoh"  # between actions the drive holds the action: the two-rate board's "zoh" mode
+
+    @property
+    def policy_rate_hz(self) -> float | None:
+        """Hz, how often the agent acts: the rig's sample rate / ``action_repeat`` (None
+        before the first reset). A two-rate bench runs the policy at this host rate with
+        the board in mode :attr:`board_mode` (``deploy --host-rate-hz``); the board loop
+        (``rig/board_loop.py``) holds the action exactly as this environment does."""
+        if self.rig is None:
+            return None
+        return 1.0 / (self.rig.dt * self.config.action_repeat)
+
     # --- Gymnasium API ----------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)

@@ -28,12 +28,24 @@ def command_every(rig: Any) -> int:
 
 
 def run_experiment(rig: Rig, controller: Any, plan: ExperimentPlan | None = None,
-                   run_id: str = "run") -> RunRecord:
+                   run_id: str = "run", policy_rate_hz: float | None = None,
+                   board_mode: str | None = None) -> RunRecord:
     """Twist, release, hold and reverse under ``controller``; returns the run record.
 
     ``controller`` is anything with ``predict(obs) -> (action, state)``; if it also has
     ``reset(context)``, it is called once the free stroke has been recorded.
+    ``policy_rate_hz``: the controller acts at this rate through the two-rate board's
+    inner loop (``rig/board_loop.py``, mode ``board_mode``, default ``zoh``), as on a
+    two-rate bench (``deploy --host-rate-hz``); None: at every sample.
     """
+    if policy_rate_hz is not None:
+        from ..rig.board_loop import TwoRateSimRig  # noqa: PLC0415
+        from .two_rate import drive_two_rate  # noqa: PLC0415
+
+        exp = Experiment(TwoRateSimRig(rig, policy_rate_hz), plan)
+        exp.start()
+        drive_two_rate(exp, controller, policy_rate_hz, board_mode)
+        return exp.record(run_id)
     exp = Experiment(rig, plan)
     exp.start()
     drive(exp, controller)
