@@ -5,7 +5,8 @@ Modules, from the wire up (docs/PROTOCOL.md, docs/BENCH.md):
 * ``framing``: frames (sync, version, type, seq, length, time, payload, CRC-32) and the
   streaming parser;
 * ``messages``: payload layouts of protocol version 1 (HELLO, CAPS, RESET, ARM, DISARM,
-  COMMAND, SAMPLE, FAULT, HEARTBEAT, QUERY);
+  COMMAND, SAMPLE, FAULT, HEARTBEAT, QUERY) and version 2, the two-rate bench (SEGMENT,
+  SAMPLE_BATCH; the board's inner loop is ``addedinertia_env/rig/board_loop.py``);
 * ``link``: the host end over pyserial (``/dev/ttyUSB0``, ``socket://``, ``loop://``);
 * ``safety``: the envelope between any controller and the link; ``watchdog``: the host
   watchdog thread;
