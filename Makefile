@@ -36,6 +36,7 @@ BENCH_CONTROLLERS ?= oracle zero pd feedforward-pd pid lqr ilc mpc
 BENCH_SEEDS ?=
 BENCH_JOBS ?= 2
 LEADERBOARD_DOC ?= docs/LEADERBOARD.md
+LEADERBOARD_HTML ?= out/bench/leaderboard-$(BENCH_SUITE).html
 # Learned policies (docs/LEARNING.md), run as onnx:PATH on the same suite, split and seeds.
 LEARNED_POLICIES ?= agents/policies/reverse_stroke.onnx
 BENCH_ROWS = $(foreach c,$(BENCH_CONTROLLERS),out/bench/$(BENCH_SUITE)-$(c).jsonl) \
@@ -55,7 +56,7 @@ leaderboard: $(STAMP)
 	done
 	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format md --out $(LEADERBOARD_DOC) \
 	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
-	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format html --out out/bench/leaderboard-$(BENCH_SUITE).html \
+	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format html --out $(LEADERBOARD_HTML) \
 	  --title "Leaderboard: $(BENCH_SUITE), held-out test split"
 
 # Retrain and re-export the shipped policy (docs/LEARNING.md; about 20 min on 2 shared cores).
@@ -83,7 +84,8 @@ leaderboard-realistic:
 
 # docs/LEADERBOARD_hard.md: hard-v0, the suite where control matters (configs/suites/hard-v0.yaml).
 leaderboard-hard:
-	$(MAKE) leaderboard BENCH_SUITE=hard-v0 LEADERBOARD_DOC=docs/LEADERBOARD_hard.md
+	$(MAKE) leaderboard BENCH_SUITE=hard-v0 LEADERBOARD_DOC=docs/LEADERBOARD_hard.md \
+	  LEADERBOARD_HTML=docs/leaderboard_hard.html
 
 # Re-tune every classical controller on hard-v0's tuning split with one budget
 # (configs/controllers/tuned-hard-v0.yaml; about 25 min on 2 shared cores).

@@ -253,3 +253,14 @@ def test_html_page_renders_in_headless_chromium(tmp_path):
     dom = out.stdout
     assert "<table id=\"leaderboard\"" in dom and dom.count("<tr") >= 5
     assert "control error vs oracle" in dom  # the drill-down table was built by the script
+
+
+def test_env_draws_a_suites_training_scenarios_never_its_test_split():
+    import gymnasium as gym
+
+    env = gym.make("AddedInertia/ReverseStroke-v0", suite="hard-v0", action_repeat=10)
+    _, info = env.reset(seed=3)
+    assert info["scenario"].startswith("hard-v0/train/") and isinstance(env.unwrapped.rig, LoopRig)
+    env.close()
+    with pytest.raises(ValueError, match="held out"):
+        gym.make("AddedInertia/ReverseStroke-v0", suite="hard-v0", suite_split="test")

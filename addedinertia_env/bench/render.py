@@ -53,6 +53,30 @@ def tie_note(entries: list[dict]) -> str:
             "energy: " + "; ".join(", ".join(f"`{n}`" for n in g) for g in tied) + ".")
 
 
+def pairwise_table(entries: list[dict]) -> str:
+    """Paired tests between every two rows (Markdown): the median of ``|c_row| - |c_column|``
+    over their common scenarios; ``*`` when its 95 % bootstrap interval excludes zero (the row
+    is clearly worse: positive, or clearly better: negative). Empty without oracle rows."""
+    from . import paired  # noqa: PLC0415
+
+    rows = [e for e in entries if e.get("control_errors") is not None and e["controller"] != paired.ORACLE]
+    if len(rows) < 2:
+        return ""
+    lines = ["| row minus column | " + " | ".join(f"`{e['controller']}`" for e in rows) + " |",
+             "|" + "---|" * (len(rows) + 1)]
+    for a in rows:
+        cells = []
+        for b in rows:
+            if a is b:
+                cells.append("-")
+                continue
+            d = paired.difference(a["control_errors"], b["control_errors"])
+            mark = "*" if paired.clearly(d) else ""
+            cells.append(f"{100 * d['median']:+.3f} %{mark}" if math.isfinite(d["median"]) else "fail")
+        lines.append(f"| `{a['controller']}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,
                     preamble: str = "") -> str:
     lines = [preamble.rstrip(), ""] if preamble else []
@@ -63,6 +87,11 @@ def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None,
     said = verdict(entries)
     if said:
         lines += ["", "## Verdict (computed from the table above)", ""] + said
+    pairs = pairwise_table(entries)
+    if pairs:
+        lines += ["", "## Paired tests between entries", "",
+                  "Median over the common scenarios of |c_row| - |c_column| (c = e - e_oracle); `*`: its paired "
+                  "95 % bootstrap interval excludes zero (positive: the row is clearly worse).", "", pairs]
     for title, path in (figures or {}).items():
         rel = path.relative_to(relative_to) if relative_to else path
         lines += ["", f"![{title}]({rel.as_posix()})"]
