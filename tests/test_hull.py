@@ -236,6 +236,10 @@ def test_hull_cli_stability_from_a_record(capsys, realistic_record_path):
     assert lo <= fr["lambda66_measured"] <= hi
     assert st["lambda66_range"]["lambda66"] == pytest.approx([lo * fr["zero_frequency_correction"],
                                                               hi * fr["zero_frequency_correction"]])
+    # the correction to zero frequency is the BEM's A66(0)/A66(swing): below 1, by the free-surface effect
+    assert 0.95 < fr["zero_frequency_correction"] < 1.0
+    code, out, err = run_cli(capsys, "hull", "wigley-2m", "--from-record", realistic_record_path, "--method", "magic")
+    assert code == 2 and "--method" in err
 
 
 # --- BEM against closed forms (Capytaine) ------------------------------------------------
@@ -251,14 +255,16 @@ def _deep_spheroid_error(ratio: float, panels: int) -> float:
 @needs_capytaine
 @pytest.mark.parametrize("ratio", [3.0, 5.0, 7.0, 10.0])
 def test_bem_deep_spheroid_within_3_percent_of_lamb(ratio):
-    assert abs(_deep_spheroid_error(ratio, 400)) < 0.03
+    # the issue asks for 3 %; the direct formulation does much better at 400 panels (-0.33 % at
+    # worst, docs/HYDRODYNAMICS.md), so hold it to 1 %
+    assert abs(_deep_spheroid_error(ratio, 400)) < 0.01
 
 
 @needs_capytaine
 @pytest.mark.slow
 @pytest.mark.parametrize("ratio", [3.0, 5.0, 7.0, 10.0])
-def test_bem_deep_spheroid_fine_within_half_a_percent_of_lamb(ratio):
-    assert abs(_deep_spheroid_error(ratio, 3200)) < 0.005
+def test_bem_deep_spheroid_fine_within_a_quarter_percent_of_lamb(ratio):
+    assert abs(_deep_spheroid_error(ratio, 3200)) < 0.0025
 
 
 @needs_capytaine
@@ -320,3 +326,32 @@ def test_user_mesh_round_trip_and_lid_refused(capsys, tmp_path):
     lidded.write_text(gdf_text(type(q)(v, f, q.nx, q.nz, q.shape, q.submergence)))
     code, out, err = run_cli(capsys, "hull", lidded, "--json")
     assert code == 2 and "internal lid" in err and out == ""
+
+
+# --- radiation memory as a state-space system -----------------------------------------
+
+def test_state_space_fit_recovers_a_known_rational_kernel():
+    from addedinertia_env.hull.radiation_ss import fit_radiation_ss
+
+    # Kh(s) = 40 s / (s^2 + 3 s + 50): a damped resonance at ~7 rad/s, Kh(0) = 0
+    w = np.linspace(0.2, 30.0, 150)
+    s = 1j * w
+    K = 40 * s / (s**2 + 3 * s + 50)
+    a_inf = 5.0
+    ss = fit_radiation_ss(w, a_inf + (K.imag / w), K.real, a_inf, tolerance=0.01)
+    assert ss.order == 2 and ss.fit_error < 1e-3
+    assert np.all(np.linalg.eigvals(ss.A).real < 0)
+    t = np.linspace(0.0, 3.0, 31)
+    # K(t) of 40 s/(s^2 + 3 s + 50): 40 e^{-1.5 t} (cos(wd t) - 1.5/wd sin(wd t)), wd = sqrt(50 - 2.25)
+    wd = math.sqrt(50 - 2.25)
+    exact = 40 * np.exp(-1.5 * t) * (np.cos(wd * t) - 1.5 / wd * np.sin(wd * t))
+    assert np.max(np.abs(ss.kernel(t) - exact)) < 1e-2 * 40
+
+
+def test_state_space_fit_of_the_cached_wigley_is_small_and_stable():
+    from addedinertia_env.hull.radiation_ss import fit_radiation_ss
+
+    fine = read_cache(cache_path("wigley-2m"))["resolutions"]["fine"]
+    ss = fit_radiation_ss(fine["omega"], fine["A66"], fine["B66"], fine["infinite_frequency"]["A66"], tolerance=0.05)
+    assert ss.order <= 6 and ss.fit_error < 0.05
+    assert np.all(np.linalg.eigvals(ss.A).real < 0)

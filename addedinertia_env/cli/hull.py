@@ -38,7 +38,7 @@ def register(sub) -> None:
     p.add_argument("--lambda66-range", type=float, nargs=2, metavar=("LO", "HI"), default=None,
                    help="lambda66 interval (kg m^2) for --stability (default: BEM zero frequency +-5 %%)")
     p.add_argument("--from-record", metavar="RUN.csv", nargs="+", default=None,
-                   help="take lambda66 and its 95 %% interval from run record(s) (implies --stability)")
+                   help="take lambda66 and its 95 %% interval from run record(s) (implies --stability; overrides --lambda66-range)")
     p.add_argument("--method", default="energy", help="identification method for --from-record (default energy)")
     p.add_argument("--export-mesh", metavar="FILE.gdf", default=None,
                    help="write a preset's generated quarter mesh (fine resolution, or --panels FINE) in WAMIT GDF format")
@@ -185,9 +185,11 @@ def _stability(args, data: dict, out: dict) -> dict:
     rng = tuple(args.lambda66_range) if args.lambda66_range else (0.95 * added["lambda66"], 1.05 * added["lambda66"])
     measured = None
     if args.from_record:
-        from ..identify import identify  # noqa: PLC0415
+        from ..identify import METHODS, identify  # noqa: PLC0415
         from ..record import read_record  # noqa: PLC0415
 
+        if args.method not in METHODS:
+            raise BadInput(f"--method {args.method!r}: expected one of {', '.join(METHODS)}")
         res = identify([read_record(p) for p in args.from_record], method=args.method)
         # the rig measures at its swing frequency; manoeuvring needs zero frequency: scale by the BEM ratio
         ratio = out["A66_zero"] / out["A66_swing"] if out.get("A66_swing") else 1.0
@@ -237,6 +239,9 @@ def _lines(out: dict) -> list[str]:
     if rt:
         lines.append(f"  retardation K(0) = {rt['K0']:.4g} N m, memory {rt['memory_time_5pct']:.2f} s, "
                      f"Ogilvie check {100 * rt['ogilvie_max_rel_error']:.2f} %")
+    ss = out.get("radiation_state_space")
+    if ss:
+        lines.append(f"  radiation memory as a state-space system: order {ss['order']}, fit error {100 * ss['fit_error']:.1f} %")
     stab = out.get("stability")
     if stab:
         n = stab["nominal"]

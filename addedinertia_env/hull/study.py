@@ -187,4 +187,13 @@ def summary(data: dict[str, Any], *, swing_omega: float | None = None, kernel: b
             k = kernel_summary(fine["omega"], fine["A66"], fine["B66"], out["A66_inf"])
             out["retardation"] = {key: k[key] for key in ("K0", "memory_time_5pct", "clipped_negative_B66",
                                                            "tail_fraction", "ogilvie_max_rel_error")}
+            from .radiation_ss import fit_radiation_ss  # noqa: PLC0415
+
+            ss = fit_radiation_ss(fine["omega"], fine["A66"], fine["B66"], out["A66_inf"], tolerance=0.05)
+            poles = np.linalg.eigvals(ss.A)
+            out["radiation_state_space"] = {
+                "order": ss.order, "fit_error": ss.fit_error, "tolerance": 0.05,
+                "poles": [{"re": float(z.real), "im": float(z.imag)} for z in poles],
+                "A": ss.A.tolist(), "b": ss.b.tolist(), "c": ss.c.tolist(),
+                "how": "Kh(j w) = B66 + j w (A66 - A66(inf)) fitted by P(s)/Q(s), smallest order with error < 5 %"}
     return out
