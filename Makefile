@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: leaderboard-realistic leaderboard-hard tune-hard demo test test-slow test-all bench leaderboard policy accuracy-table perf clean detection-table
+.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard demo test test-slow test-all bench leaderboard policy accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -94,3 +94,9 @@ tune-hard: $(STAMP)
 	for c in feedforward-pd pid lqr mpc ilc; do \
 	  $(BIN)/addedinertia bench tune --suite hard-v0 --controller $$c $(TUNE_BUDGET) --jobs $(BENCH_JOBS) || exit 1; \
 	done
+
+# The other lab's development set (docs/DISCOVERY.md, issue 11): discover, whole-record and
+# energy on each case, scored against its answers.json.
+FOREIGN_LAB ?= ../shared/data/foreign-lab.tar.xz
+foreign-lab-table: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.foreign_lab --data $(FOREIGN_LAB) --out docs/DISCOVERY.md

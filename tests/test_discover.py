@@ -82,6 +82,44 @@ def test_unmodelled_disturbance_is_unexplained():
     assert diag.cause == "unexplained"
 
 
+def quirky_dataset(effect: str, seed: int) -> list[RunRecord]:
+    """The dataset of (effect, seed) as a DAQ with two quirks drawn from the seed would log it."""
+    from addedinertia_env.daq import apply_quirks, draw_quirks
+
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 11]))
+    quirks = draw_quirks(rng)
+    return [apply_quirks(r, quirks, rng) for r in dataset(effect, seed)], quirks
+
+
+QUIRK_CASES = [(e, 10) for e in ("none",) + EFFECT_NAMES]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("effect,seed", QUIRK_CASES)
+def test_hidden_effect_found_under_drawn_daq_quirks(effect, seed):
+    records, quirks = quirky_dataset(effect, seed)
+    diag = discover(records)
+    assert diag.data.skipped == []
+    assert diag.cause == effect, (quirks.to_dict(), [c.to_json()["reason"] for c in diag.candidates])
+    truth = records[0].truth_lambda66()  # scoring only
+    assert abs(diag.gain()["lambda66_extended"] / truth - 1) < 3e-3
+
+
+@pytest.mark.slow
+def test_two_effects_at_once_are_both_named():
+    """Dry bearing friction and a stiffening spring together: the pair search names both."""
+    from addedinertia_env.rig.effects import BearingCoulomb, Effects, SpringStiffening
+
+    hidden = Effects(bearing_coulomb=BearingCoulomb(torque=0.06), spring_stiffening=SpringStiffening(k3=6.0))
+    records = simulate_dataset("pair", 31, effects=hidden)
+    diag = discover(records)
+    best = diag.best_pair
+    assert best is not None and set(best.effects) == set(hidden.active)
+    assert set(diag.causes) == set(hidden.active), [c.to_json()["reason"] for c in diag.pairs]
+    truth = records[0].truth_lambda66()
+    assert abs(diag.gain()["lambda66_extended"] / truth - 1) < 3e-3
+
+
 def test_discover_cli_json_and_report(tmp_path):
     paths = [write_record(r, tmp_path / f"{r.run_id}.csv") for r in dataset("spring_stiffening", 3)]
     report = tmp_path / "report"
@@ -108,31 +146,54 @@ def _copy(rec: RunRecord) -> RunRecord:
 
 
 @pytest.mark.parametrize("damage,expected", [
-    ("no_reverse", "'reverse' block"),
-    ("free_decay_kind", "reverse-symmetric"),
+    ("no_reverse", "blocks of reverse motion"),
+    ("forced_kind", "forced-oscillation"),
     ("two_rigs", "differs from"),
-    ("uneven_sampling", "uniform sampling"),
 ])
-def test_bad_records_refused_with_a_clear_message(tmp_path, capsys, damage, expected):
+def test_an_unusable_record_is_skipped_and_reported(tmp_path, capsys, damage, expected):
     good = dataset("none", 3)
     a, b = _copy(good[0]), _copy(good[1])
     if damage == "no_reverse":
-        a.samples["phase"] = np.where(a.phase == "reverse", "idle", a.phase)
-    elif damage == "free_decay_kind":
-        a.meta["experiment"]["kind"] = "free-decay"
+        b.samples["phase"] = np.where(b.phase == "reverse", "idle", b.phase)
+    elif damage == "forced_kind":
+        b.meta["experiment"]["kind"] = "forced-oscillation"
     elif damage == "two_rigs":
         b.meta["rig"]["c_torsion"] = 40.0
-    elif damage == "uneven_sampling":
-        t = a.samples["t"].copy()
-        t[2000:] += 0.0004  # one long interval, not a gap
-        a.samples["t"] = t
     paths = [_write(tmp_path, a, "a"), _write(tmp_path, b, "b")]
-    rc = main(["discover", *map(str, paths), "--json"])
+    rc = main(["discover", *map(str, paths), "--json", "--no-heldout"])
+    out = capsys.readouterr()
+    assert rc == 0
+    obj = json.loads(out.out)
+    assert [s["run"] for s in obj["skipped"]] == [str(paths[1])]
+    assert expected in obj["skipped"][0]["reason"]
+    assert [r["run"] for r in obj["runs"]] == [str(paths[0])]
+
+
+def test_no_usable_record_is_refused_with_a_clear_message(tmp_path, capsys):
+    a = _copy(dataset("none", 3)[0])
+    a.meta["experiment"]["kind"] = "forced-oscillation"
+    path = _write(tmp_path, a, "a")
+    rc = main(["discover", str(path), "--json"])
     err = capsys.readouterr()
     assert rc == 2
     assert err.out == ""  # nothing half-analysed on stdout
-    assert expected in err.err and "error" in err.err and len(err.err.strip().splitlines()) == 1
-    from addedinertia_env.record import RecordError, read_record
+    assert "no usable record" in err.err and "forced-oscillation" in err.err
+    assert len(err.err.strip().splitlines()) == 1
+    from addedinertia_env.record import read_record
+    with pytest.raises(DiscoveryInputError):
+        discover([read_record(path)])
 
-    with pytest.raises((DiscoveryInputError, RecordError)):  # the reader's plausibility check may refuse first
-        discover([read_record(p) for p in paths])
+
+def test_uneven_sampling_is_integrated_on_the_recorded_times(tmp_path):
+    """A long interval (not a gap) and a dropped sample: read, fitted, not refused."""
+    good = dataset("none", 3)
+    a = _copy(good[0])
+    t = a.samples["t"].copy()
+    t[2000:] += 0.0004
+    a.samples["t"] = t
+    keep = np.ones(len(t), bool)
+    keep[3000] = False
+    a.samples = {k: v[keep] for k, v in a.samples.items()}
+    diag = discover([a, *[_copy(r) for r in good[1:]]], heldout=False, pairs=False)
+    assert diag.data.skipped == []
+    assert diag.data.runs[0].sampling["dropped_samples"] == 1

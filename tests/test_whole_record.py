@@ -58,7 +58,9 @@ def test_wrong_kind_refused():
     from addedinertia_env.identify.whole_record import identify_whole_record
     from addedinertia_env.record import RecordError
 
-    with pytest.raises(IdentificationError, match="reverse-symmetric"):  # the method itself refuses the kind
-        identify_whole_record([bad])
+    forced = type(rec)(samples=rec.samples,
+                       meta={**rec.meta, "experiment": {**rec.experiment, "kind": "forced-oscillation"}})
+    with pytest.raises(IdentificationError, match="forced-oscillation"):  # the method itself refuses the kind
+        identify_whole_record([forced])
     with pytest.raises(RecordError, match="phase"):  # identify() refuses first: phases out of a free decay's order
         identify([bad], "whole-record")

@@ -8,8 +8,9 @@ from .common import BadInput, emit_json, info
 
 def register(sub) -> None:
     p = sub.add_parser("discover", help="diagnose which effect the nominal model lacks (docs/DISCOVERY.md)",
-                       description="Fit the nominal gray-box model to all strokes of the given reverse-symmetric "
-                                   "runs, try each candidate effect of the vocabulary, name the cause and the gain.")
+                       description="Fit the nominal gray-box model to all strokes of the given free-decay and "
+                                   "reverse-symmetric runs, try each candidate effect of the vocabulary (and pairs), "
+                                   "name the cause and the gain; unusable records are skipped and listed.")
     p.add_argument("records", nargs="+", metavar="RUN.csv")
     p.add_argument("--report", metavar="DIR", default=None, help="write report.md, figures and discovery.json here")
     p.add_argument("--no-heldout", action="store_true", help="skip the held-out check (faster, weaker)")
@@ -33,13 +34,15 @@ def run(args) -> int:
         out["report"] = str(path)
         info(f"report written to {path}")
     g = out["gain"]
-    info(f"cause: {diag.cause}")
+    for s in out["skipped"]:
+        info(f"{s['run']}: skipped: {s['reason']}")
+    info(f"cause: {diag.cause}" + (f" (both: {' + '.join(diag.causes)})" if len(diag.causes) > 1 else ""))
     info(f"hull residual RMS {g['residual_rms_nominal'] * 1e6:.2f} -> {g['residual_rms_extended'] * 1e6:.2f} urad; "
          f"lambda66 {g['lambda66_nominal']:.4f} -> {g['lambda66_extended']:.4f} kg m^2")
     if args.json:
         emit_json(out)
     else:
-        print(f"cause: {diag.cause}")
+        print(f"cause: {diag.cause}" + (f" (both: {' + '.join(diag.causes)})" if len(diag.causes) > 1 else ""))
         for c in out["candidates"]:
             print(f"  {c['cause']:18s} delta BIC {c['delta_bic']:9.1f}  {c['reason']}")
     return 0

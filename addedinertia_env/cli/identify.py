@@ -14,6 +14,9 @@ def register(sub) -> None:
     p.add_argument("--method", choices=sorted(METHODS), default="energy")
     p.add_argument("--work", choices=("reaction", "current", "electric"), default=None,
                    help="energy method: how motor work is measured (default: reaction)")
+    p.add_argument("--effect", default=None, metavar="CAUSE",
+                   help="whole-record: extend the model by this effect (a cause named by discover, "
+                        "or two joined by '+'); default the nominal model")
     p.add_argument("--verbose", action="store_true", help="include every interval in the JSON")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -30,6 +33,11 @@ def run(args) -> int:
             info("--work applies to the energy method only; ignored")
         else:
             options["work"] = args.work
+    if args.effect is not None:
+        if args.method != "whole-record":
+            info("--effect applies to the whole-record method only; ignored")
+        else:
+            options["effect"] = args.effect
     result = identify(records, args.method, **options)
     if args.json:
         out = result.to_json(verbose=args.verbose)

@@ -48,16 +48,17 @@ def hidden_effect(effect: str, seed: int) -> Effects:
 
 
 def simulate_dataset(effect: str, seed: int, spec: DatasetSpec | None = None,
-                     out: str | Path | None = None) -> list[RunRecord]:
+                     out: str | Path | None = None, effects: Effects | None = None) -> list[RunRecord]:
     """The runs of the standard dataset with ``effect`` (or ``"none"``) hidden, seeded.
 
+    ``effects``: hide exactly these instead (e.g. two at once; ``effect`` is then only a label).
     With ``out``, the records are also written there as ``run-a{alpha}-h{hold}.csv``.
     """
     from ..simulate import simulate_run  # noqa: PLC0415 - heavy import (MuJoCo, agents)
 
     spec = spec or DatasetSpec()
     data = load_preset(spec.rig)
-    rig = rig_from_mapping(data, effects=hidden_effect(effect, seed))
+    rig = rig_from_mapping(data, effects=effects if effects is not None else hidden_effect(effect, seed))
     records = []
     noise_seeds = np.random.SeedSequence([seed, 4, 1]).spawn(len(spec.runs))
     for (alpha, hold), ss in zip(spec.runs, noise_seeds):

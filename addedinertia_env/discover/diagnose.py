@@ -11,7 +11,15 @@ Procedure (``docs/DISCOVERY.md`` explains the choices):
    rig's known sensor imperfections), and, for the best few, (c) two-fold held-out
    prediction: fit on half of the runs, predict the other half, and back;
 4. name the best candidate that passes all three; otherwise ``unexplained`` when the
-   nominal residuals stay well above the noise floor and far from white, else ``none``.
+   nominal residuals stay well above the noise floor and far from white, else ``none``;
+5. **pairs after singles**: the best few singles are fitted two at a time; a pair is
+   named (``causes``, both) when it beats the chosen single (or the nominal model) by
+   the same three tests with both of its effects significant. When nothing explains
+   structured residuals, the cause is ``unexplained`` and the best pair is shown.
+
+Every record is used: free decays and reverse-symmetric runs of one hull are fitted
+jointly with one parameter set (:mod:`.prepare`); a record no model can use is listed
+in ``skipped`` with the reason.
 
 Never reads ``truth``.
 """
@@ -27,7 +35,8 @@ from ..record import RunRecord
 from . import residuals as resid
 from .fit import Fit, bic, effective_n, fit_model
 from ..rig.effects import registry
-from .model import GrayBoxModel, candidates as candidate_names
+from .model import GrayBoxModel, candidate_specs
+from .model import candidates as candidate_names
 from .prepare import Prepared, prepare
 
 
@@ -43,6 +52,7 @@ class Thresholds:
     min_heldout_gain: float = 0.10  # held-out RMS must drop by at least 10 %
     min_z: float = 4.0  # fitted size / its (correlation-inflated) standard error
     top_k_heldout: int = 3  # candidates that get the held-out check (best by BIC)
+    top_k_pairs: int = 3  # singles (best by BIC) whose pairs are fitted
     unexplained_excess: float = 3.0  # residual RMS / noise floor, either channel, that is "structure"
     unexplained_lag1: float = 0.8  # and residuals this correlated
     # Smallest fitted size called an effect, per size parameter: clear of the rig's known
@@ -53,25 +63,28 @@ class Thresholds:
 
 @dataclass
 class Candidate:
-    cause: str
+    cause: str  # an effect of the vocabulary, or "a+b" for a pair
     fit: Fit
-    delta_bic: float
+    delta_bic: float  # against the nominal model (pairs: against their reference, see ``against``)
     n_eff: float
-    z: float
+    z: float  # smallest z of the candidate's effects
     size_ok: bool
     heldout_rms: float | None = None  # normalised (noise units), both channels
     heldout_gain: float | None = None
     accepted: bool = False
     reason: str = ""
+    effects: tuple[str, ...] = ()
+    against: str = "nominal"
 
     def to_json(self) -> dict:
         p = self.fit.params
         se = self.fit.stderr()
         extra = {k: p[k] for k in p if k not in ("lambda66", "b1", "b2")}
-        return {"cause": self.cause, "score": self.delta_bic, "delta_bic": self.delta_bic, "n_eff": self.n_eff,
+        return {"cause": self.cause, "effects": list(self.effects or (self.cause,)), "against": self.against,
+                "score": self.delta_bic, "delta_bic": self.delta_bic, "n_eff": self.n_eff,
                 "params": extra, "stderr": {k: se[k] for k in extra}, "z": self.z, "size_ok": self.size_ok,
                 "residual_rms": self.fit.hull_rms,
-                "flywheel_rms": float(np.sqrt(np.mean(self.fit.flywheel_residuals**2))),
+                "flywheel_rms": _rms(self.fit.flywheel_residuals),
                 "lambda66": p["lambda66"], "heldout_rms": self.heldout_rms, "heldout_gain": self.heldout_gain,
                 "accepted": self.accepted, "reason": self.reason}
 
@@ -85,22 +98,35 @@ class Diagnosis:
     heldout_nominal: float | None
     thresholds: Thresholds
     wall_s: float = 0.0
+    pairs: list[Candidate] = field(default_factory=list)
+    causes: list[str] = field(default_factory=list)  # every effect named (two for a pair); [] for none/unexplained
 
     @property
-    def best(self) -> Candidate | None:
+    def chosen(self) -> Candidate | None:
+        """The candidate (single or pair) whose model is the extended one."""
+        if len(self.causes) > 1:
+            return next((c for c in self.pairs if c.effects == tuple(self.causes)), None)
         return next((c for c in self.candidates if c.cause == self.cause), None)
 
     @property
+    def best(self) -> Candidate | None:
+        return self.chosen
+
+    @property
+    def best_pair(self) -> Candidate | None:
+        return min(self.pairs, key=lambda c: c.fit.cost) if self.pairs else None
+
+    @property
     def extended(self) -> Fit:
-        b = self.best
+        b = self.chosen
         return b.fit if b is not None else self.nominal
 
     def gain(self) -> dict:
         ext = self.extended
-        b = self.best
+        b = self.chosen
         return {"residual_rms_nominal": self.nominal.hull_rms, "residual_rms_extended": ext.hull_rms,
-                "flywheel_rms_nominal": float(np.sqrt(np.mean(self.nominal.flywheel_residuals**2))),
-                "flywheel_rms_extended": float(np.sqrt(np.mean(ext.flywheel_residuals**2))),
+                "flywheel_rms_nominal": _rms(self.nominal.flywheel_residuals),
+                "flywheel_rms_extended": _rms(ext.flywheel_residuals),
                 "lambda66_nominal": self.nominal.params["lambda66"], "lambda66_extended": ext.params["lambda66"],
                 "heldout_rms_nominal": self.heldout_nominal,
                 "heldout_rms_extended": b.heldout_rms if b is not None else self.heldout_nominal,
@@ -109,14 +135,27 @@ class Diagnosis:
     def to_json(self) -> dict:
         nominal_se = self.nominal.stderr()
         ext = self.extended
-        return {"cause": self.cause, "candidates": [c.to_json() for c in self.candidates], "gain": self.gain(),
+        bp = self.best_pair
+        return {"cause": self.cause, "causes": list(self.causes),
+                "candidates": [c.to_json() for c in self.candidates],
+                "pairs": [c.to_json() for c in self.pairs], "best_pair": bp.to_json() if bp is not None else None,
+                "gain": self.gain(),
                 "nominal": {"params": self.nominal.params, "stderr": nominal_se},
-                "extended": {"cause": self.cause, "params": ext.params, "stderr": ext.stderr()},
+                "extended": {"cause": self.cause, "causes": list(self.causes), "params": ext.params,
+                             "stderr": ext.stderr()},
                 "residuals_nominal": resid.summary(self.nominal),
                 "residuals_extended": resid.summary(ext),
-                "runs": [{"run": r.name, "alpha": r.alpha, "hold_s": r.hold_s, "current_offset": r.current_offset,
-                          "current_noise": r.current_noise} for r in self.data.runs],
+                "runs": [{"run": r.name, "kind": r.kind, "alpha": r.alpha, "hold_s": r.hold_s,
+                          "current_offset": r.current_offset, "current_noise": r.current_noise,
+                          "segments": [{"kind": s.kind, "release_t": s.t_start, "steps": s.steps} for s in r.segments],
+                          "sampling": r.sampling} for r in self.data.runs],
+                "skipped": list(self.data.skipped),
+                "current_sampling": dict(self.data.current_mode_report),
                 "thresholds": {k: v for k, v in self.thresholds.__dict__.items()}, "wall_s": self.wall_s}
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
 
 
 def _physical_size(cause: str, params: dict[str, float]) -> tuple[str, float]:
@@ -125,27 +164,55 @@ def _physical_size(cause: str, params: dict[str, float]) -> tuple[str, float]:
     return spec.size_param, params[spec.size_param] - spec.param(spec.size_param).neutral
 
 
-def _start_for(model: GrayBoxModel, nominal: Fit) -> np.ndarray:
+def _significance(effects: tuple[str, ...], fit: Fit, th: Thresholds) -> tuple[float, bool]:
+    """Smallest z over ``effects`` and whether every one is big and clear of its standard error."""
+    se = fit.stderr()
+    zs, ok = [], True
+    for e in effects:
+        name, size = _physical_size(e, fit.params)
+        z = abs(size) / se[name] if se[name] > 0 else math.inf
+        zs.append(z)
+        ok = ok and abs(size) >= th.min_size[name] and z >= th.min_z
+    return (min(zs) if zs else math.inf), ok
+
+
+def _start_for(model: GrayBoxModel, nominal: Fit, singles: dict[str, Fit] | None = None) -> np.ndarray:
+    """Start values: nominal parameters from ``nominal``, each effect's from its single fit if given."""
     x = model.start()
-    x[:3] = nominal.theta
+    x[:3] = nominal.theta[:3]
+    for e in model.effects:
+        fit = (singles or {}).get(e)
+        if fit is not None:
+            for spec in candidate_specs(e):
+                x[model.names.index(spec.name)] = fit.params[spec.name]
     return x
 
 
 def _holdout_folds(data: Prepared) -> list[tuple[list[int], list[int]]]:
-    """Two folds, each training set covering as many (amplitude, hold) levels as it can."""
+    """Two folds, each training set covering as many (kind, amplitude, hold) levels as it can.
+
+    Within each experiment kind the runs are ordered by (amplitude, hold) and dealt
+    alternately (for four runs of two amplitudes x two holds: {1st, 4th} / {2nd, 3rd},
+    so that each fold has both amplitudes and both holds).
+    """
     n = len(data.runs)
     if n < 2:
         return []
-    order = sorted(range(n), key=lambda k: (round(data.runs[k].alpha, 4), round(data.runs[k].hold_s, 2)))
-    # (a1,h1), (a1,h2), (a2,h1), (a2,h2) -> folds {0,3} / {1,2}: each has both amplitudes and holds.
-    a = [order[k] for k in range(n) if k % 4 in (0, 3)]
-    b = [order[k] for k in range(n) if k % 4 in (1, 2)]
+    a, b = [], []
+    for kind in sorted({r.kind for r in data.runs}):
+        order = sorted((k for k in range(n) if data.runs[k].kind == kind),
+                       key=lambda k: (round(data.runs[k].alpha, 4), round(data.runs[k].hold_s, 2)))
+        pattern = (0, 3) if len(order) == 4 else (0, 2)
+        mod = 4 if len(order) == 4 else 2
+        for j, k in enumerate(order):
+            (a if j % mod in pattern else b).append(k)
     if not a or not b:
+        order = list(range(n))
         a, b = order[::2], order[1::2]
     return [(a, b), (b, a)]
 
 
-def heldout_rms(data: Prepared, effect: str | None, start: np.ndarray) -> float:
+def heldout_rms(data: Prepared, effect, start: np.ndarray) -> float:
     """Normalised RMS of predictions of held-out runs (fits on the other runs), both folds pooled."""
     sq, n = 0.0, 0
     for train, test in _holdout_folds(data):
@@ -156,14 +223,23 @@ def heldout_rms(data: Prepared, effect: str | None, start: np.ndarray) -> float:
     return math.sqrt(sq / n) if n else float("nan")
 
 
+def _structured(fit: Fit, th: Thresholds) -> bool:
+    s = resid.summary(fit)
+    return max(s["hull_excess"], s["flywheel_excess"]) > th.unexplained_excess and s["lag1"] > th.unexplained_lag1
+
+
 def discover(records: list[RunRecord], thresholds: Thresholds | None = None, heldout: bool = True,
-             progress=None) -> Diagnosis:
-    """Diagnose ``records`` (reverse-symmetric runs of one rig); see the module docstring."""
+             progress=None, pairs: bool = True, current_mode: str | None = None) -> Diagnosis:
+    """Diagnose ``records`` (free decays and reverse-symmetric runs of one rig); see the module docstring.
+
+    ``pairs``: also try two effects at once (after the singles). ``current_mode``: how
+    the logged current is read (default: the rig block, else estimated; see :mod:`.prepare`).
+    """
     import time  # noqa: PLC0415
 
     t0 = time.perf_counter()
     th = thresholds or Thresholds()
-    data = prepare([r.without_truth() for r in records])
+    data = prepare([r.without_truth() for r in records], current_mode=current_mode)
     nominal = fit_model(GrayBoxModel(data))
     candidates = []
     for cause in candidate_names():
@@ -173,11 +249,9 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
         fit = fit_model(model, x0=_start_for(model, nominal))
         n_eff = effective_n(fit)
         dbic = bic(nominal, n_eff) - bic(fit, n_eff)
-        pname, size = _physical_size(cause, fit.params)
-        se = fit.stderr()[pname]
-        z = abs(size) / se if se > 0 else math.inf
-        size_ok = abs(size) >= th.min_size[pname] and z >= th.min_z
-        candidates.append(Candidate(cause=cause, fit=fit, delta_bic=dbic, n_eff=n_eff, z=z, size_ok=size_ok))
+        z, size_ok = _significance((cause,), fit, th)
+        candidates.append(Candidate(cause=cause, fit=fit, delta_bic=dbic, n_eff=n_eff, z=z, size_ok=size_ok,
+                                    effects=(cause,)))
     candidates.sort(key=lambda c: -c.delta_bic)
     ho_nominal = None
     if heldout and len(data.runs) >= 2:
@@ -186,25 +260,66 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
             c.heldout_rms = heldout_rms(data, c.cause, c.fit.theta)
             c.heldout_gain = 1.0 - c.heldout_rms / ho_nominal
     for c in candidates:
-        reasons = []
-        if c.delta_bic < th.min_delta_bic:
-            reasons.append(f"delta BIC {c.delta_bic:.1f} < {th.min_delta_bic}")
-        if not c.size_ok:
-            reasons.append(f"fitted size not significant (z = {c.z:.1f})")
-        if heldout and ho_nominal is not None:
-            if c.heldout_gain is None:
-                reasons.append("not among the best for the held-out check")
-            elif c.heldout_gain < th.min_heldout_gain:
-                reasons.append(f"held-out gain {c.heldout_gain:.1%} < {th.min_heldout_gain:.0%}")
-        c.accepted = not reasons
-        c.reason = "; ".join(reasons) if reasons else "accepted"
+        _judge(c, th, heldout and ho_nominal is not None)
     accepted = [c for c in candidates if c.accepted]
-    if accepted:
-        cause = max(accepted, key=lambda c: c.delta_bic).cause
-    else:
-        s = resid.summary(nominal)
-        structured = (max(s["hull_excess"], s["flywheel_excess"]) > th.unexplained_excess
-                      and s["lag1"] > th.unexplained_lag1)
-        cause = "unexplained" if structured else "none"
+    single = max(accepted, key=lambda c: c.delta_bic) if accepted else None
+    cause = single.cause if single is not None else ("unexplained" if _structured(nominal, th) else "none")
+    causes = [single.cause] if single is not None else []
+    pair_cands: list[Candidate] = []
+    if pairs:
+        pair_cands = _pair_search(data, nominal, candidates, single, ho_nominal, th, heldout, progress)
+        won = [c for c in pair_cands if c.accepted]
+        if won:
+            best = max(won, key=lambda c: c.delta_bic)
+            order = sorted(best.effects, key=lambda e: -next(c.delta_bic for c in candidates if c.cause == e))
+            causes, cause = order, order[0]
+            best.effects = tuple(order)
     return Diagnosis(cause=cause, data=data, nominal=nominal, candidates=candidates, heldout_nominal=ho_nominal,
-                     thresholds=th, wall_s=time.perf_counter() - t0)
+                     thresholds=th, wall_s=time.perf_counter() - t0, pairs=pair_cands, causes=causes)
+
+
+def _judge(c: Candidate, th: Thresholds, with_heldout: bool) -> None:
+    reasons = []
+    if c.delta_bic < th.min_delta_bic:
+        reasons.append(f"delta BIC {c.delta_bic:.1f} < {th.min_delta_bic}")
+    if not c.size_ok:
+        reasons.append(f"fitted size not significant (z = {c.z:.1f})")
+    if with_heldout:
+        if c.heldout_gain is None:
+            reasons.append("not among the best for the held-out check")
+        elif c.heldout_gain < th.min_heldout_gain:
+            reasons.append(f"held-out gain {c.heldout_gain:.1%} < {th.min_heldout_gain:.0%}")
+    c.accepted = not reasons
+    c.reason = "; ".join(reasons) if reasons else "accepted"
+
+
+def _pair_search(data: Prepared, nominal: Fit, singles: list[Candidate], chosen: Candidate | None,
+                 ho_nominal: float | None, th: Thresholds, heldout: bool, progress=None) -> list[Candidate]:
+    """Pairs of the best few singles, each judged against the chosen single (or the nominal model)."""
+    top = [c for c in singles if c.delta_bic > 0][: th.top_k_pairs]
+    if len(top) < 2:
+        return []
+    fits = {c.cause: c.fit for c in singles}
+    ref = chosen.fit if chosen is not None else nominal
+    ref_name = chosen.cause if chosen is not None else "nominal"
+    ref_ho = (chosen.heldout_rms if chosen is not None else ho_nominal)
+    out = []
+    for i in range(len(top)):
+        for j in range(i + 1, len(top)):
+            effects = (top[i].cause, top[j].cause)
+            if progress:
+                progress("+".join(effects))
+            model = GrayBoxModel(data, effects)
+            fit = fit_model(model, x0=_start_for(model, nominal, fits))
+            n_eff = effective_n(fit)
+            dbic = bic(ref, n_eff) - bic(fit, n_eff)
+            z, size_ok = _significance(effects, fit, th)
+            out.append(Candidate(cause="+".join(effects), fit=fit, delta_bic=dbic, n_eff=n_eff, z=z, size_ok=size_ok,
+                                 effects=effects, against=ref_name))
+    for c in out:
+        if heldout and ref_ho is not None and c.delta_bic >= th.min_delta_bic and c.size_ok:
+            c.heldout_rms = heldout_rms(data, c.effects, c.fit.theta)
+            c.heldout_gain = 1.0 - c.heldout_rms / ref_ho
+        _judge(c, th, heldout and ref_ho is not None)
+    out.sort(key=lambda c: -c.delta_bic)
+    return out

@@ -60,6 +60,23 @@ class Fit:
             cov = cov * (1 + rho) / (1 - rho)
         return cov
 
+    def sandwich_covariance(self, groups: list[np.ndarray]) -> np.ndarray:
+        """Cluster-robust (sandwich) parameter covariance, the residuals grouped by ``groups``.
+
+        ``(J^T J)^-1 [sum_g J_g^T r_g r_g^T J_g] (J^T J)^-1`` times ``G / (G - 1)``: it makes
+        no assumption on the noise within a group (correlated, or model error), only that
+        groups (strokes) are independent; where the model is wrong the residuals carry
+        structure and the interval widens with them.
+        """
+        J, r = self.jacobian, self.residuals
+        bread = np.linalg.pinv(J.T @ J)
+        meat = np.zeros_like(bread)
+        for g in groups:
+            s = J[g].T @ r[g]
+            meat += np.outer(s, s)
+        G = len(groups)
+        return bread @ meat @ bread * (G / max(G - 1, 1))
+
     def stderr(self, inflate: bool = True) -> dict[str, float]:
         sd = np.sqrt(np.clip(np.diag(self.covariance(inflate)), 0, None))
         return self.model.as_dict(sd)

@@ -19,9 +19,17 @@ Flywheel (second row)::
 Its residual is shot from a fitted state every :data:`~.prepare.FLYWHEEL_CHUNK_S`
 (variable projection: the state is linear and solved exactly).
 
-Integration: classic RK4 at ``STEP_SAMPLES`` samples per step, the input torque averaged
-over the step (exact for its impulse), vectorised over segments and parameter sets, so
-that a finite-difference Jacobian is one batched integration.
+Integration: classic RK4 over steps of about 20 ms of *recorded* samples (each step's
+length from ``t``: dropped samples and jitter included). The input is integrated on the
+sample grid, not on the step: within a step the motor torque is replaced by the straight
+line with the same impulse and the same first moment (both summed over the sample
+intervals, the current read as the DAQ logged it), which RK4 integrates exactly; so a
+controller whose current chatters within a step is not smeared into a lag. Vectorised
+over segments and parameter sets, so that a finite-difference Jacobian is one batched
+integration.
+
+A model is the nominal one extended by any number of candidate effects (``effects``),
+so that pairs can be fitted as well as singles.
 """
 
 from __future__ import annotations
@@ -33,15 +41,13 @@ import numpy as np
 
 from ..rig import forces
 from ..rig.effects import registry
-from .prepare import STEP_SAMPLES, Prepared, double_integral
+from .prepare import Prepared, flywheel_prediction, interval_current
 
 NOMINAL_PARAMS = registry.NOMINAL_PARAM_NAMES
 
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One fitted parameter: name, unit, start value, bounds and typical size (same unit)."""
-
     name: str
     unit: str
     start: float
@@ -55,8 +61,6 @@ NOMINAL_SPECS = (
     ParamSpec("b1", "N m s", 0.2, -5.0, 50.0, 0.1),
     ParamSpec("b2", "N m s^2", 50.0, -50.0, 1e4, 10.0),
 )
-
-
 
 def candidate_specs(effect: str) -> tuple[ParamSpec, ...]:
     """The fitted parameters of a candidate effect, from the effect registry."""
@@ -78,21 +82,37 @@ def no_effect_value(name: str) -> float:
 
 
 class GrayBoxModel:
-    """Nominal model (``effect=None``) or nominal + one candidate effect, on prepared data."""
+    """Nominal model (no effect) or nominal + candidate effects, on prepared data.
 
-    def __init__(self, data: Prepared, effect: str | None = None):
-        if effect is not None and effect not in candidates():
-            raise ValueError(f"unknown candidate {effect!r}; expected one of {', '.join(candidates())}")
+    ``effect``: None, one effect name, or a tuple of names (a pair search fits two).
+    """
+
+    def __init__(self, data: Prepared, effect: str | tuple[str, ...] | None = None):
+        effects = () if effect is None else ((effect,) if isinstance(effect, str) else tuple(effect))
+        for e in effects:
+            if e not in candidates():
+                raise ValueError(f"unknown candidate {e!r}; expected one of {', '.join(candidates())}")
         self.data = data
-        self.effect = effect
-        self.specs = NOMINAL_SPECS + (candidate_specs(effect) if effect else ())
+        self.effects = effects
+        self.effect = effects[0] if len(effects) == 1 else ("+".join(effects) if effects else None)
+        self.specs = NOMINAL_SPECS + tuple(s for e in effects for s in candidate_specs(e))
         self.names = tuple(s.name for s in self.specs)
-        self._free = [r.free for r in data.runs]
-        self._rev = [r.reverse for r in data.runs]
-        self._hold = np.array([r.hold_s for r in data.runs])
-        self._hull_obs = np.concatenate([s.phi_steps[1:] for s in self._free + self._rev])
-        self._fly_proj = [_chunk_projections(r.flywheel) for r in data.runs]
-        self._fly_obs = [r.flywheel.theta[::STEP_SAMPLES][: _n_points(r.flywheel)] for r in data.runs]
+        self.segments = []
+        for run in data.runs:
+            first = len(self.segments)
+            for seg in run.segments:
+                if seg.kind == "reverse":
+                    seg.carry_from = first  # the free stroke of the same run
+                self.segments.append(seg)
+        self._hold = np.array([s.hold_before for s in self.segments])
+        self._hull_obs = np.concatenate([s.phi_steps[1:] for s in self.segments])
+        self._flywheels = [r.flywheel for r in data.runs if r.flywheel is not None and r.flywheel.chunks]
+        self._fly_proj = [_chunk_projections(fw) for fw in self._flywheels]
+        self._fly_obs = [fw.theta[:: fw.step_samples][: _n_points(fw)] for fw in self._flywheels]
+        n = max(s.steps for s in self.segments)
+        self._h = np.zeros((len(self.segments), n))
+        for k, s in enumerate(self.segments):
+            self._h[k, : s.steps] = np.diff(s.t_steps)
         self._input_cache: dict[tuple[float, float], tuple] = {}
 
     # --- parameters -----------------------------------------------------------------
@@ -118,14 +138,12 @@ class GrayBoxModel:
         col = lambda n: self._column(thetas, n)[:, None]  # noqa: E731 - (P, 1) broadcasts over segments
         d = self.data
         effects = SimpleNamespace()
-        if self.effect is not None:
-            names = registry.get(self.effect).param_names
-            setattr(effects, self.effect, SimpleNamespace(**{n: col(n) for n in names}))
+        for e in self.effects:
+            setattr(effects, e, SimpleNamespace(**{n: col(n) for n in registry.get(e).param_names}))
         effects._hooked = registry.hook_table(effects)
         return SimpleNamespace(hull=SimpleNamespace(b1=col("b1"), b2=col("b2")),
                                spring=SimpleNamespace(c=d.c, phi_neutral=d.phi_neutral), effects=effects)
 
-    # --- inputs -------------------------------------------------------------------------
     @staticmethod
     def _motor_input_params(ns: SimpleNamespace, P: int) -> tuple[np.ndarray, np.ndarray]:
         """Per parameter set: the current channel's lag (s) and the torque-constant ratio (-)."""
@@ -133,28 +151,22 @@ class GrayBoxModel:
         ratios = np.broadcast_to(np.ravel(forces.torque_constant_ratio(ns)), (P,))
         return delays, ratios
 
+    # --- inputs -------------------------------------------------------------------------
     def _inputs(self, delay: float, ratio: float):
-        """Hull input torque per step for every segment, and flywheel accelerations, cached."""
+        """Per segment the hull input torque per step as (mean, slope), and flywheel angles; cached."""
         key = (float(delay), float(ratio))
         hit = self._input_cache.get(key)
         if hit is not None:
             return hit
         d = self.data
         k_t = d.k_t * ratio
-
-        def motor_torque(t, current, q_fly):
-            i = _shifted(t, current, delay)
-            return k_t * 0.5 * (i[1:] + i[:-1]) + q_fly  # on the flywheel, per interval
-
         hull = []
-        for seg in self._free + self._rev:
-            per_interval = -motor_torque(seg.t, seg.current, seg.flywheel_friction)  # reaction on the hull
-            hull.append(per_interval[: seg.steps * STEP_SAMPLES].reshape(seg.steps, STEP_SAMPLES).mean(axis=1))
-        fly = []
-        for run in d.runs:
-            fw = run.flywheel
-            acc = motor_torque(fw.t, fw.current, fw.flywheel_friction) / d.J_flywheel
-            fly.append(double_integral(fw.t, acc)[::STEP_SAMPLES][: _n_points(fw)])
+        for seg in self.segments:
+            ia, ib = interval_current(seg.t, seg.current, d.current_mode, delay)
+            q = seg.flywheel_friction
+            # reaction on the hull of the motor torque on the flywheel, at each interval's ends
+            hull.append(step_input(seg.t, -(k_t * ia + q), -(k_t * ib + q), seg.step_samples, seg.steps))
+        fly = [flywheel_prediction(fw, d.k_t, d.J_flywheel, d.current_mode, delay, ratio) for fw in self._flywheels]
         out = (hull, fly)
         if len(self._input_cache) > 64:
             self._input_cache.clear()
@@ -173,6 +185,10 @@ class GrayBoxModel:
     def n_hull(self) -> int:
         return int(self._hull_obs.size)
 
+    @property
+    def n_flywheel(self) -> int:
+        return int(sum(sl.stop - sl.start for fw in self._flywheels for sl in fw.chunks))
+
     def hull_prediction(self, thetas: np.ndarray) -> np.ndarray:
         """Model hull angle at every step boundary of every segment, (P, n_hull)."""
         P = len(thetas)
@@ -180,21 +196,26 @@ class GrayBoxModel:
         delays, ratios = self._motor_input_params(ns, P)
         inputs = [self._inputs(delays[p], ratios[p])[0] for p in range(P)]
         J = (self.data.J_hull + thetas[:, 0])[:, None]
-        nf = len(self._free)
-        segs = self._free + self._rev
-        u = _stack([inp for inp in inputs])
+        segs = self.segments
+        mean = _stack([[m for m, _ in row] for row in inputs])
+        slope = _stack([[s for _, s in row] for row in inputs])
         phi0 = np.array([s.phi[0] for s in segs])[None, :].repeat(P, 0)
         ends = np.array([s.steps for s in segs])
-        if not forces.has_water_memory(ns):  # strokes independent: one pass over all of them
-            phi, _ = _integrate(phi0, np.zeros_like(phi0), u, J, ns, self.data, ends)
+        carried = np.array([s.carry_from is not None for s in segs])
+        if not forces.has_water_memory(ns) or not carried.any():  # strokes independent: one pass
+            phi, _ = _integrate(phi0, np.zeros_like(phi0), mean, slope, self._h, J, ns, self.data, ends)
         else:  # the water state carries from the free stroke, through the hold, to the reverse
-            phi = np.empty((P, len(segs), u.shape[2] + 1))
-            free_phi, water_end = _integrate(phi0[:, :nf], np.zeros((P, nf)), u[:, :nf], J, ns, self.data, ends[:nf])
-            water0 = forces.water_rate_after_rest(water_end, self._hold[None, :], ns)
-            n_rev = int(ends[nf:].max())
-            rev_phi, _ = _integrate(phi0[:, nf:], water0, u[:, nf:, :n_rev], J, ns, self.data, ends[nf:])
-            phi[:, :nf] = free_phi
-            phi[:, nf:, : n_rev + 1] = rev_phi
+            phi = np.zeros((P, len(segs), mean.shape[2] + 1))
+            first = ~carried
+            idx_f, idx_c = np.nonzero(first)[0], np.nonzero(carried)[0]
+            phi_f, water_end = _integrate(phi0[:, idx_f], np.zeros((P, len(idx_f))), mean[:, idx_f], slope[:, idx_f],
+                                          self._h[idx_f], J, ns, self.data, ends[idx_f])
+            phi[:, idx_f] = phi_f
+            src = np.array([int(np.nonzero(idx_f == segs[i].carry_from)[0][0]) for i in idx_c])
+            water0 = forces.water_rate_after_rest(water_end[:, src], self._hold[idx_c][None, :], ns)
+            phi_c, _ = _integrate(phi0[:, idx_c], water0, mean[:, idx_c], slope[:, idx_c], self._h[idx_c], J,
+                                  ns, self.data, ends[idx_c])
+            phi[:, idx_c] = phi_c
         parts = [phi[:, k, 1: s.steps + 1] for k, s in enumerate(segs)]
         return np.concatenate(parts, axis=1)
 
@@ -207,7 +228,7 @@ class GrayBoxModel:
             for obs, pred, proj in zip(self._fly_obs, fly, self._fly_proj):
                 y = obs - pred
                 parts += [M @ y[sl] for sl, M in proj]
-            rows.append(np.concatenate(parts))
+            rows.append(np.concatenate(parts) if parts else np.zeros(0))
         return np.array(rows)
 
     def split(self, scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -217,10 +238,40 @@ class GrayBoxModel:
     def hull_index(self) -> list[tuple[int, str, slice]]:
         """(run, stroke kind, slice of the hull residuals) for every segment."""
         out, k = [], 0
-        for seg in self._free + self._rev:
+        for seg in self.segments:
             out.append((seg.run, seg.kind, slice(k, k + seg.steps)))
             k += seg.steps
         return out
+
+    def flywheel_rows(self, run: int) -> np.ndarray:
+        """Indices of run ``run``'s flywheel residuals in the stacked residual vector."""
+        offset = self.n_hull
+        for fw in self._flywheels:
+            n = sum(sl.stop - sl.start for sl in fw.chunks)
+            if fw.run == run:
+                return np.arange(offset, offset + n)
+            offset += n
+        return np.zeros(0, dtype=int)
+
+
+def step_input(t: np.ndarray, start: np.ndarray, end: np.ndarray, n: int, steps: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Per step of ``n`` sample intervals: the straight line ``mean + slope (s - s_mid)`` with the
+    same impulse and first moment as the input (linear over each interval, values ``start``,
+    ``end``), N m and N m/s. RK4 integrates a linear input exactly."""
+    m = steps * n
+    h = np.diff(t)[:m].reshape(steps, n)
+    a, b = start[:m].reshape(steps, n), end[:m].reshape(steps, n)
+    t0 = t[:m].reshape(steps, n)
+    t_end = t[n:: n][:steps]
+    H = t_end - t[:: n][:steps]
+    mid = t0 + 0.5 * h
+    avg = 0.5 * (a + b)
+    m0 = np.sum(avg * h, axis=1)
+    m1 = np.sum(avg * h * (t_end[:, None] - mid) - (b - a) * h * h / 12.0, axis=1)
+    mean = m0 / H
+    slope = 12.0 * (0.5 * mean * H * H - m1) / H**3
+    return mean, slope
 
 
 def _n_points(fw) -> int:
@@ -229,20 +280,13 @@ def _n_points(fw) -> int:
 
 def _chunk_projections(fw) -> list[tuple[slice, np.ndarray]]:
     """Per chunk, the matrix that removes the best straight line (a fresh angle and rate)."""
-    t = fw.t[::STEP_SAMPLES]
+    t = fw.t[:: fw.step_samples]
     out = []
     for sl in fw.chunks:
         tt = t[sl] - t[sl][0]
         X = np.column_stack([np.ones_like(tt), tt])
         out.append((sl, np.eye(len(tt)) - X @ np.linalg.pinv(X)))
     return out
-
-
-def _shifted(t: np.ndarray, x: np.ndarray, delay: float) -> np.ndarray:
-    """``x(t + delay)`` by linear interpolation (a channel that lags by ``delay`` read forward)."""
-    if delay == 0.0:
-        return x
-    return np.interp(t + delay, t, x)
 
 
 def _stack(rows: list[list[np.ndarray]]) -> np.ndarray:
@@ -255,9 +299,12 @@ def _stack(rows: list[list[np.ndarray]]) -> np.ndarray:
     return out
 
 
-def _integrate(phi0, water0, u, J, ns, data: Prepared, ends: np.ndarray):
-    """RK4 of the hull from rest; phi at every step boundary (P, S, N + 1), and the water state at each segment's end."""
-    h = STEP_SAMPLES * data.dt
+def _integrate(phi0, water0, mean, slope, h_steps, J, ns, data: Prepared, ends: np.ndarray):
+    """RK4 of the hull from rest; phi at every step boundary (P, S, N + 1), and the water state at each segment's end.
+
+    ``mean``, ``slope``: (P, S, N) input torque line per step; ``h_steps``: (S, N) step lengths, s
+    (0 past a segment's end, which freezes it).
+    """
     c = data.c
     neutral = forces.true_neutral(ns)
     memory = forces.has_water_memory(ns)
@@ -267,17 +314,19 @@ def _integrate(phi0, water0, u, J, ns, data: Prepared, ends: np.ndarray):
         dr = forces.water_rate_derivative(w, r, ns) if memory else 0.0
         return w, acc, dr
 
-    P, S, N = u.shape
+    P, S, N = mean.shape
     phi, w, r = phi0.astype(float), np.zeros((P, S)), water0.astype(float)
     out = np.empty((P, S, N + 1))
     out[:, :, 0] = phi
     water_end = np.zeros((P, S))
     for j in range(N):
-        torque = u[:, :, j]
-        k1p, k1w, k1r = deriv(phi, w, r, torque)
-        k2p, k2w, k2r = deriv(phi + 0.5 * h * k1p, w + 0.5 * h * k1w, r + 0.5 * h * k1r, torque)
-        k3p, k3w, k3r = deriv(phi + 0.5 * h * k2p, w + 0.5 * h * k2w, r + 0.5 * h * k2r, torque)
-        k4p, k4w, k4r = deriv(phi + h * k3p, w + h * k3w, r + h * k3r, torque)
+        h = h_steps[None, :, j]
+        u_mid = mean[:, :, j]
+        du = 0.5 * slope[:, :, j] * h
+        k1p, k1w, k1r = deriv(phi, w, r, u_mid - du)
+        k2p, k2w, k2r = deriv(phi + 0.5 * h * k1p, w + 0.5 * h * k1w, r + 0.5 * h * k1r, u_mid)
+        k3p, k3w, k3r = deriv(phi + 0.5 * h * k2p, w + 0.5 * h * k2w, r + 0.5 * h * k2r, u_mid)
+        k4p, k4w, k4r = deriv(phi + h * k3p, w + h * k3w, r + h * k3r, u_mid + du)
         phi = phi + h / 6.0 * (k1p + 2 * k2p + 2 * k3p + k4p)
         w = w + h / 6.0 * (k1w + 2 * k2w + 2 * k3w + k4w)
         if memory:

@@ -12,7 +12,6 @@ import numpy as np
 from . import residuals as resid
 from .diagnose import Diagnosis
 from .fit import Fit
-from .prepare import STEP_SAMPLES
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -31,10 +30,9 @@ def _save(fig, path: Path) -> None:
 
 
 def _segment_times(fit: Fit):
-    for run, kind, sl in fit.model.hull_index():
+    for seg, (run, kind, sl) in zip(fit.model.segments, fit.model.hull_index()):
         rd = fit.model.data.runs[run]
-        seg = rd.free if kind == "free" else rd.reverse
-        t = seg.t[STEP_SAMPLES:: STEP_SAMPLES][: seg.steps] - seg.t_start
+        t = seg.t_steps[1:] - seg.t_start
         yield rd, kind, t, fit.hull_residuals[sl]
 
 
@@ -88,7 +86,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
     n = len(diag.nominal.hull_residuals)
     for label, fit in fits:
         acf = resid.autocorrelation(fit)
-        ax.plot(np.arange(len(acf)) * STEP_SAMPLES * diag.data.dt, acf, marker="o", ms=3, label=label)
+        ax.plot(np.arange(len(acf)) * diag.data.step_samples * diag.data.dt, acf, marker="o", ms=3, label=label)
     ax.axhspan(-1.96 / np.sqrt(n), 1.96 / np.sqrt(n), color="0.85", label="white noise 95 %")
     ax.set_xlabel("lag [s]")
     ax.set_ylabel("autocorrelation")

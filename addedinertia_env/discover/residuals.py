@@ -8,7 +8,6 @@ import numpy as np
 from scipy import stats
 
 from .fit import Fit
-from .prepare import STEP_SAMPLES
 
 MAX_LAG = 20
 
@@ -40,16 +39,14 @@ def structure(fit: Fit) -> dict:
     """Hull residual RMS by run (with its amplitude and hold) and by stroke; correlation with current."""
     data = fit.model.data
     hull = fit.hull_residuals
-    by_run, by_phase = [], {"free": [], "reverse": []}
+    by_run, by_phase = [], {"free": [], "reverse": [], "stroke": []}
     currents, resid_rev = [], []
-    for run, kind, sl in fit.model.hull_index():
+    for seg, (run, kind, sl) in zip(fit.model.segments, fit.model.hull_index()):
         r = hull[sl]
         by_phase[kind].append(r)
-        rd = data.runs[run]
-        if kind == "reverse":
-            seg = rd.reverse
-            i_steps = seg.current[STEP_SAMPLES:: STEP_SAMPLES][: seg.steps]
-            currents.append(i_steps)
+        if kind in ("reverse", "stroke"):
+            n = seg.step_samples
+            currents.append(seg.current[n:: n][: seg.steps])
             resid_rev.append(r)
     for k, rd in enumerate(data.runs):
         parts = [hull[sl] for run, _, sl in fit.model.hull_index() if run == k]
@@ -58,8 +55,10 @@ def structure(fit: Fit) -> dict:
                        "rms": float(np.sqrt(np.mean(x**2)))})
     phase_rms = {k: float(np.sqrt(np.mean(np.concatenate(v) ** 2))) if v else float("nan")
                  for k, v in by_phase.items()}
-    i_all, r_all = np.concatenate(currents), np.concatenate(resid_rev)
-    corr = float(np.corrcoef(i_all, r_all)[0, 1]) if np.std(i_all) > 0 and np.std(r_all) > 0 else 0.0
+    i_all = np.concatenate(currents) if currents else np.zeros(0)
+    r_all = np.concatenate(resid_rev) if resid_rev else np.zeros(0)
+    corr = float(np.corrcoef(i_all, r_all)[0, 1]) if i_all.size > 2 and np.std(i_all) > 0 and np.std(r_all) > 0 \
+        else 0.0
     return {"by_run": by_run, "by_phase": phase_rms, "corr_current": corr,
             "amplitude_trend": _trend(by_run, "alpha"), "hold_trend": _trend(by_run, "hold_s")}
 
@@ -80,6 +79,10 @@ def summary(fit: Fit) -> dict:
     q, p = ljung_box(fit)
     fly = fit.flywheel_residuals
     return {"hull_rms": fit.hull_rms, "hull_noise_floor": data.phi_noise, "hull_excess": fit.hull_rms / data.phi_noise,
-            "flywheel_rms": float(np.sqrt(np.mean(fly**2))), "flywheel_noise_floor": data.theta_noise,
-            "flywheel_excess": float(np.sqrt(np.mean(fly**2))) / data.theta_noise,
+            "flywheel_rms": _rms(fly), "flywheel_noise_floor": data.theta_noise,
+            "flywheel_excess": _rms(fly) / data.theta_noise,
             "lag1": fit.lag1(), "ljung_box_q": q, "ljung_box_p": p, **structure(fit)}
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
