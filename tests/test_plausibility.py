@@ -153,3 +153,15 @@ def test_in_memory_records_are_checked_before_any_method(realistic_record, clone
     rec.samples["u"] = rec.samples["u"] * 1e3
     with pytest.raises(RecordError, match="column 'u'"):
         identify([rec], "energy")
+
+
+def test_every_method_refusal_names_the_record(tmp_path, capsys, realistic_record, clone):
+    """A method's own refusal (too short, too few swings) still names the file."""
+    rec = clone(realistic_record[0])
+    rec.meta["experiment"]["kind"] = "free-decay"
+    n = int(np.nonzero(rec.phase == "free")[0][40])
+    samples = {k: v[:n] for k, v in rec.samples.items()}  # idle then a short free stretch
+    path = _written(tmp_path, RunRecord(samples=samples, meta=rec.meta))
+    rc = main(["identify", str(path), "--method", "free-decay", "--json"])
+    err = capsys.readouterr().err
+    assert rc == 2 and str(path) in err, err

@@ -31,7 +31,13 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         check_plausible(rec)
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
-    result = estimator([r.without_truth() for r in records], **options)
+    try:
+        result = estimator([r.without_truth() for r in records], **options)
+    except IdentificationError as e:  # every refusal names the records it is about
+        names = [r.name for r in records]
+        if not any(n in str(e) for n in names):
+            raise IdentificationError(f"{method} method on {', '.join(names)}: {e}") from None
+        raise
     return check_physical(result, records)
 
 
