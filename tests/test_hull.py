@@ -355,3 +355,16 @@ def test_state_space_fit_of_the_cached_wigley_is_small_and_stable():
     ss = fit_radiation_ss(fine["omega"], fine["A66"], fine["B66"], fine["infinite_frequency"]["A66"], tolerance=0.05)
     assert ss.order <= 6 and ss.fit_error < 0.05
     assert np.all(np.linalg.eigvals(ss.A).real < 0)
+
+
+def test_export_mesh_writes_a_gdf_quarter(capsys, tmp_path):
+    out = tmp_path / "w.gdf"
+    code, stdout, err = run_cli(capsys, "hull", "spheroid-7", "--export-mesh", out, "--panels", "100", "400", "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["panels"] == 4 * int(out.read_text().splitlines()[3])
+    lines = out.read_text().splitlines()
+    assert lines[2].split() == ["1", "1"]  # both symmetry flags
+    n = int(lines[3])
+    assert len(lines) == 4 + 4 * n and abs(4 * n - 400) <= 40
+    xyz = np.array([[float(v) for v in line.split()] for line in lines[4:]])
+    assert xyz[:, 0].min() >= 0 and xyz[:, 1].min() >= 0 and xyz[:, 2].max() <= 1e-12  # the wetted quarter

@@ -41,7 +41,8 @@ def register(sub) -> None:
                    help="take lambda66 and its 95 %% interval from run record(s) (implies --stability; overrides --lambda66-range)")
     p.add_argument("--method", default="energy", help="identification method for --from-record (default energy)")
     p.add_argument("--export-mesh", metavar="FILE.gdf", default=None,
-                   help="write a preset's generated quarter mesh (fine resolution, or --panels FINE) in WAMIT GDF format")
+                   help="only write a preset's generated quarter mesh (fine resolution, or --panels FINE) in WAMIT GDF "
+                        "format, and stop (nothing is solved)")
     p.set_defaults(func=run)
 
 
@@ -115,8 +116,11 @@ def _study_mesh(args) -> dict:
 def run(args) -> int:
     from ..hull import study as st  # noqa: PLC0415
 
-    if args.export_mesh:
-        _export(args)
+    if args.export_mesh:  # write the mesh and stop: nothing is solved
+        written = _export(args)
+        if args.json:
+            emit_json(written)
+        return 0
 
     data, facts = _study_for(args)
     if data.get("hull") is None:
@@ -141,7 +145,7 @@ def run(args) -> int:
     return 0
 
 
-def _export(args) -> None:
+def _export(args) -> dict:
     from ..atomic import atomic_write_text  # noqa: PLC0415
     from ..hull import study as st  # noqa: PLC0415
     from ..hull.geometry import gdf_text, quarter_mesh  # noqa: PLC0415
@@ -152,6 +156,8 @@ def _export(args) -> None:
     q = quarter_mesh(shape, n, "deep" if args.deep else "floating")
     atomic_write_text(args.export_mesh, gdf_text(q, f"{facts['preset']} {q.submergence}, {q.nb_faces_full} panels"))
     info(f"mesh written to {args.export_mesh} ({q.nb_faces_full} panels, quarter with both symmetries)")
+    return {"mesh": str(args.export_mesh), "panels": q.nb_faces_full, "nx": q.nx, "nz": q.nz,
+            "submergence": q.submergence, "hull": shape.as_dict(), "format": "gdf"}
 
 
 def _mesh_summary(data: dict) -> dict:
