@@ -130,3 +130,10 @@ def test_any_mutation_is_refused_or_physical_big(tmp_path, capsys, records, meth
         check_outcome(tmp_path, capsys, mutate(mutate(records[method], m), m2), method)
 
     prop()
+
+
+def test_a_record_with_a_huge_gap_is_refused_by_every_method(tmp_path, capsys, records):
+    """Found by the big profile: a gap of 1e6 s made the whole-record fit's residuals non-finite."""
+    for method in ("energy", "whole-record"):
+        m = ("shift_t", "u", 1.0, 1e9, 0.25, 0.0, "u_max", "hold")
+        check_outcome(tmp_path, capsys, mutate(records[method], m), method)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import importlib
 
+import numpy as np
+
 from ..record import RunRecord
 from .common import IdentificationError, Result, check_physical
 
@@ -38,6 +40,13 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         if not any(n in str(e) for n in names):
             raise IdentificationError(f"{method} method on {', '.join(names)}: {e}") from None
         raise
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeWarning) as e:  # warnings: when made errors
+        # A numerical failure on data the checks let through (a fit whose residuals are not
+        # finite, a singular system): the method cannot use these records, which is a refusal.
+        names = ", ".join(r.name for r in records)
+        raise IdentificationError(f"{method} method on {names}: the records could not be analysed "
+                                  f"({type(e).__name__}: {' '.join(str(e).split())[:200]}); expected records "
+                                  "sampled evenly enough for the method, without long gaps in the strokes") from None
     return check_physical(result, records)
 
 
