@@ -27,6 +27,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .experiment.protocol import Experiment
+from .metrics import current_at_limit, voltage_at_limit
 from .rig.known import KnownRig
 from .rig.motor import MotorCommand
 from .rig.sensors import Reading
@@ -66,7 +67,6 @@ TRACKING_UNIT = 0.001  # rad: a tracking error of 1 mrad held for 1 s costs w_tr
 ACCURACY_UNIT = 0.01  # relative lambda66 error that costs w_accuracy
 ACCURACY_CAP = 10.0  # the accuracy term saturates at 10 units (10 %), also for a failed estimate
 CONTROL_MODES = ("current", "voltage")
-LIMIT_FRACTION = 0.999  # a command at 99.9 % of its limit counts as saturated
 
 
 @dataclass(frozen=True)
@@ -216,9 +216,9 @@ class ReverseStrokeTask:
         """Current mode: the command at the current limit; voltage mode: at the supply
         voltage, or the measured current at or over the current limit."""
         if cmd.mode == "current":
-            return abs(cmd.value) >= LIMIT_FRACTION * self.i_max
+            return bool(current_at_limit(cmd.value, self.i_max))
         if cmd.mode == "voltage":
-            return abs(cmd.value) >= LIMIT_FRACTION * self.u_max or abs(reading.i) >= self.i_max
+            return bool(voltage_at_limit(cmd.value, reading.i, self.u_max, self.i_max))
         return False
 
     def reward_terms(self, exp: Experiment, energy_before: float, cmd: MotorCommand,

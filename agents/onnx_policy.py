@@ -33,6 +33,8 @@ import numpy as np
 
 from addedinertia_env.task import OBSERVATION_FIELDS
 
+from .residual import residual_action
+
 META_PREFIX = "addedinertia."
 MAX_POLICY_BYTES = 200_000_000  # a policy network for this task is well under 1 MB
 MAX_ACTION_REPEAT = 1000  # rig samples per network evaluation (1 Hz at a 1 kHz rig)
@@ -202,8 +204,7 @@ class OnnxPolicy:
         if self.base is None:
             return self._held.copy(), state
         base_action, _ = self.base.predict(obs, deterministic=True)
-        action = np.asarray(base_action, dtype=np.float32).reshape(1) + self.residual_scale * self._held
-        return np.clip(action, -1.0, 1.0).astype(np.float32), state
+        return residual_action(base_action, self._held, self.residual_scale), state
 
 
 def _optional_int(text: str | None) -> int | None:

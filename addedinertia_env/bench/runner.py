@@ -35,7 +35,7 @@ import numpy as np
 from .. import __version__
 from ..experiment.runner import run_experiment
 from ..identify import identify
-from ..record import RunRecord
+from ..metrics import cycles_metrics
 from ..scenarios import build_rig
 from .suites import EpisodeTask
 
@@ -57,42 +57,6 @@ def git_commit() -> str:
         return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else "unknown"
     except (OSError, subprocess.SubprocessError):
         return "unknown"
-
-
-class _TrackingProbe:
-    """Passes through to the controller; records the reverse stroke's tracking error (rad)."""
-
-    def __init__(self, inner: Any):
-        self.inner = inner
-        self.errors: list[float] = []
-
-    def reset(self, context: Any) -> None:
-        self.layout = context.layout
-        self.errors = []
-        if hasattr(self.inner, "reset"):
-            self.inner.reset(context)
-
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        obs = np.asarray(observation, dtype=float).reshape(-1)
-        if self.layout.get(obs, "is_reverse") > 0.5:
-            self.errors.append(self.layout.get(obs, "tracking_error"))
-        return self.inner.predict(observation, state, episode_start, deterministic)
-
-
-def electric_energy(rec: RunRecord) -> float:
-    """Integral of ``|u i|`` over the hold and the reverse stroke, J (measured channels)."""
-    t, u, i = rec.t, rec["u"], rec["i"]
-    controlled = np.isin(rec.phase, ("hold", "reverse"))
-    dt = np.diff(t, prepend=t[0])
-    return float(np.sum(np.abs(u * i)[controlled] * dt[controlled]))
-
-
-def saturated_fraction(rec: RunRecord) -> float:
-    """Fraction of reverse-stroke samples whose current command is at the limit."""
-    rev = rec.phase == "reverse"
-    if not rev.any():
-        return 0.0
-    return float(np.mean(np.abs(rec["i_cmd"][rev]) >= 0.999 * rec.known.current_limit))
 
 
 def cycle_seed(scenario, k: int) -> np.random.SeedSequence:
@@ -161,7 +125,6 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
         row.update(task.entry)  # what an outside submission declares (bench run --entry-kind, card)
         learning = max(1, int(getattr(controller, "BENCH_CYCLES", 1))) - 1
         row["learning_cycles"] = learning
-        probe = _TrackingProbe(controller)
         records = []
         schedule = [WARMUP_SEED_BASE + j for j in range(learning)] + list(range(task.cycles))
         for n, k in enumerate(schedule):
@@ -169,16 +132,12 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
                 rig = build_rig(sc, seed=cycle_seed(sc, k))
                 if task.controller == "oracle":
                     controller.rig = rig
-            if n == learning:
-                probe.errors_all = []
-            rec = run_experiment(rig, probe, sc.plan, run_id=f"{sc.name}/cycle-{k}")
+            rec = run_experiment(rig, controller, sc.plan, run_id=f"{sc.name}/cycle-{k}")
             if n >= learning:
-                probe.errors_all += probe.errors
                 records.append(rec)
-        row["energy_J"] = float(np.mean([electric_energy(r) for r in records]))
-        row["saturated_frac"] = float(np.mean([saturated_fraction(r) for r in records]))
-        errs = probe.errors_all
-        row["tracking_rms_rad"] = float(np.sqrt(np.mean(np.square(errs)))) if errs else None
+        m = cycles_metrics(records)
+        row.update(energy_J=m.energy_J, saturated_frac=m.saturated_frac,
+                   tracking_rms_rad=m.tracking_rms_rad if math.isfinite(m.tracking_rms_rad) else None)
         try:
             corrected = identify(records, "energy")
             row["lambda66_est_corrected"] = float(corrected.lambda66)

@@ -14,6 +14,7 @@ from gymnasium import spaces
 from ..experiment.protocol import Experiment
 from ..experiment.runner import controller_context as _runner_context
 from ..identify import IdentificationError, identify
+from ..metrics import episode_metrics
 from ..record import RunRecord
 from ..rig.interface import Rig
 from ..rig.mujoco_rig import MujocoRig
@@ -223,9 +224,6 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         self.experiment.start()
         self.task = ReverseStrokeTask.for_rig(self.experiment.known, self.config.reward_weights,
                                               self.config.control_mode)
-        self._tracking_sq = 0.0
-        self._tracking_n = 0
-        self._limit_samples = 0
         self._summary: dict[str, Any] | None = None
         if self._renderer is not None:  # a new model: a new renderer at the next render()
             self._renderer.close()
@@ -250,11 +248,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
             before = exp.electric_energy
             reading = exp.step(cmd)
             e = task.tracking_error(exp, reading)
-            if e is not None:
-                self._tracking_sq += e * e
-                self._tracking_n += 1
             at_limit = task.at_limit(cmd, reading)
-            self._limit_samples += at_limit
             energy += exp.electric_energy - before
             tracking += 0.0 if e is None else e * e
             limits += at_limit
@@ -315,22 +309,20 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
 
     # --- internals --------------------------------------------------------------------
     def _score(self) -> dict[str, Any]:
-        """The benchmark numbers of the finished episode."""
-        exp = self.experiment
+        """The benchmark numbers of the finished episode (:mod:`addedinertia_env.metrics`)."""
+        record = self.record()
         out: dict[str, Any] = {"failed": False, "failure": ""}
         try:
-            result = identify([self.record()], "energy")
+            result = identify([record], "energy")
             est, ci = float(result.lambda66), [float(result.ci95[0]), float(result.ci95[1])]
         except IdentificationError as e:
             est, ci = math.nan, [math.nan, math.nan]
             out.update(failed=True, failure=str(e))
         true = self.lambda66_true()
         rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
-        controlled = max(exp.controlled_steps, 1)
-        out.update(lambda66_est=est, ci95=ci, lambda66_true=true, rel_error=rel,
-                   energy_J=float(exp.electric_energy),
-                   tracking_rms_rad=math.sqrt(self._tracking_sq / self._tracking_n) if self._tracking_n else math.nan,
-                   saturated_frac=self._limit_samples / controlled)
+        m = episode_metrics(record)
+        out.update(lambda66_est=est, ci95=ci, lambda66_true=true, rel_error=rel, energy_J=m.energy_J,
+                   tracking_rms_rad=m.tracking_rms_rad, saturated_frac=m.saturated_frac)
         return out
 
     def _title(self) -> str:

@@ -93,7 +93,6 @@ class Experiment:
         self.hull_rate = RateEstimator(rig.dt)
         self.flywheel_rate = RateEstimator(rig.dt)
         self.electric_energy = 0.0  # J, integral of measured u*i over hold and reverse
-        self.saturated_steps = 0
         self.controlled_steps = 0
         self.t_brake = self.t_release = float("nan")
         self.log_command = PASSIVE  # the command applied over the last sample period
@@ -160,9 +159,6 @@ class Experiment:
         p = self.plan
         self.controlled_steps += 1
         r = self._advance(cmd, self.phase)
-        applied = self.log_command
-        if applied.mode == "current" and abs(applied.value) >= self.known.current_limit:
-            self.saturated_steps += 1
         if self.phase == "hold" and r.t >= self.reference.t_begin - 0.5 * self.rig.dt:
             self.rig.set_brake(False)
             self.phase = "reverse"

@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
 from .common import IdentificationError, Result, largest_gap, local_fit, pooled_interval, segment, smooth_angle
@@ -301,7 +302,7 @@ class RunBalance:
         self.dW_of = None  # set by use_total_inertia once a first estimate exists
         sat = None
         if "i_cmd" in rec.samples and np.isfinite(rig.current_limit):
-            sat = np.abs(rec["i_cmd"]) >= 0.999 * rig.current_limit
+            sat = current_at_limit(rec["i_cmd"], rig.current_limit)
         self.saturated = sat
         w2 = self._fit_before.deriv()(0.0) if self._fit_before is not None else self._rest_rate(self.k2, free.start)
         w3 = w2 if hold is None else self._rest_rate(self.k3, hold.start)

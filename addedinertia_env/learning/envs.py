@@ -26,6 +26,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from agents.residual import residual_action
+
 from .toy import TOY_ENV_ID, register_toy
 
 
@@ -54,12 +56,10 @@ class ResidualWrapper(gym.Wrapper):
         return obs, info
 
     def step(self, action):
-        correction = self.scale * float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], -1.0, 1.0))
         total = 0.0
         for _ in range(self.action_repeat):
             base_action, _ = self.base.predict(self._obs, deterministic=True)
-            a = np.clip(np.asarray(base_action, dtype=np.float32).reshape(1) + correction, -1.0, 1.0)
-            obs, reward, terminated, truncated, info = self.env.step(a.astype(np.float32))
+            obs, reward, terminated, truncated, info = self.env.step(residual_action(base_action, action, self.scale))
             total += float(reward)
             self._obs = obs
             if terminated or truncated:

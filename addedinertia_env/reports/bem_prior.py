@@ -31,8 +31,8 @@ from ..atomic import atomic_write_text
 from ..hull.presets import bem_lambda66
 from ..identify import identify
 from ..machine import machine_line
+from ..metrics import episode_metrics
 from ..rig.presets import load_preset, plan_from_preset, rig_from_mapping
-from ..bench.runner import electric_energy
 from ..experiment.runner import run_experiment
 from ..rig.mujoco_rig import MujocoRig
 
@@ -42,21 +42,17 @@ CONTROLLER = "feedforward-pd"
 
 
 class Probe:
-    """Passes through to the controller; keeps the context's inertia prior and the reverse tracking error."""
+    """Passes through to the controller; keeps the context's inertia prior."""
 
     def __init__(self, inner):
         self.inner = inner
-        self.errors: list[float] = []
         self.inertia_prior = None
 
     def reset(self, context) -> None:
-        self.layout, self.errors, self.inertia_prior = context.layout, [], context.inertia_prior
+        self.inertia_prior = context.inertia_prior
         self.inner.reset(context)
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        obs = np.asarray(observation, dtype=float).reshape(-1)
-        if self.layout.get(obs, "is_reverse") > 0.5:
-            self.errors.append(self.layout.get(obs, "tracking_error"))
         return self.inner.predict(observation, state, episode_start, deterministic)
 
 
@@ -74,12 +70,13 @@ def measure(seeds: int, progress=print) -> dict:
                 probe = Probe(make_controller(CONTROLLER))
                 rec = run_experiment(MujocoRig(params, seed=seed), probe, p, run_id=f"{name}-{label}-{seed}")
                 res = identify([rec], "energy")
+                m = episode_metrics(rec)
                 truth = params.hull.lambda66  # scoring only
                 rows.append({"preset": name, "seed": seed, "prior": label, "truth": truth, "lambda66_bem": lam_bem,
                              "inertia_prior": probe.inertia_prior, "J_true": params.hull.J_hull + truth,
                              "error": res.lambda66 / truth - 1.0, "ci_half": 0.5 * (res.ci95[1] - res.ci95[0]) / truth,
-                             "tracking_rms": float(np.sqrt(np.mean(np.square(probe.errors)))) if probe.errors else None,
-                             "energy": electric_energy(rec), "rec": rec})
+                             "tracking_rms": m.tracking_rms_rad if np.isfinite(m.tracking_rms_rad) else None,
+                             "energy": m.energy_J, "rec": rec})
                 progress(f"{name} seed {seed} prior {label}: error {100 * rows[-1]['error']:+.3f} %")
         rec = next(r["rec"] for r in rows if r["preset"] == name and r["prior"] == "stroke")
         for label, start in (("generic 10", None), ("BEM", lam_bem)):

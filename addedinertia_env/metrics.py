@@ -1,0 +1,118 @@
+"""Episode metrics, computed once, from the run record: what the environment reports at
+the end of an episode, what ``bench run`` writes per row and what the identification
+checks. One definition of "at the limit" (saturation) serves them all and the reward.
+
+* ``energy_J``: integral of ``|u i|`` over the controlled samples (hold and reverse), J,
+  from the measured channels;
+* ``tracking_rms_rad``: RMS of ``phi_ref - phi`` on the reverse stroke, rad, with the
+  mirrored reference re-fitted from the record's free stroke exactly as the experiment
+  fitted it (:func:`stroke_reference`);
+* ``saturated_frac``: fraction of the controlled samples whose command was at its limit
+  (:func:`current_at_limit`, :func:`voltage_at_limit`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .experiment.reference import MirroredReference, fit_stroke
+from .record import RunRecord
+
+# A command at 99.9 % of its limit or more counts as at the limit (saturated).
+SATURATION_FRACTION = 0.999
+CONTROLLED_PHASES = ("hold", "reverse")
+DEFAULT_LEAD_S = 0.05  # s, ExperimentPlan.lead_s, for records that do not state it
+
+
+def current_at_limit(i_cmd, i_max):
+    """Whether a current command (A; float or array) is at the drive's limit ``i_max`` (A)."""
+    return np.abs(i_cmd) >= SATURATION_FRACTION * i_max
+
+
+def voltage_at_limit(u_cmd, i_measured, u_max, i_max):
+    """Whether a voltage command (V) is at the supply ``u_max`` (V), or the measured current
+    (A) at or over the drive's limit ``i_max`` (A); floats or arrays."""
+    return (np.abs(u_cmd) >= SATURATION_FRACTION * u_max) | (np.abs(i_measured) >= i_max)
+
+
+@dataclass(frozen=True)
+class EpisodeMetrics:
+    """The benchmark numbers of one reverse-symmetric run (besides the estimate)."""
+
+    energy_J: float  # J, integral of |u i| over hold and reverse
+    tracking_rms_rad: float  # rad, RMS reverse-stroke tracking error; nan without reverse samples
+    saturated_frac: float  # -, controlled samples at a limit; 0 without controlled samples
+
+
+def episode_metrics(rec: RunRecord) -> EpisodeMetrics:
+    """:class:`EpisodeMetrics` of a reverse-symmetric run record."""
+    return cycles_metrics([rec])
+
+
+def cycles_metrics(records: list[RunRecord]) -> EpisodeMetrics:
+    """:class:`EpisodeMetrics` of an episode of several cycles (one record each): the mean
+    energy and saturated fraction per cycle, the tracking RMS over all their samples."""
+    if not records:
+        raise ValueError("episode metrics of no record")
+    errors = np.concatenate([tracking_errors(r) for r in records])
+    return EpisodeMetrics(energy_J=float(np.mean([electric_energy(r) for r in records])),
+                          tracking_rms_rad=float(np.sqrt(np.mean(np.square(errors)))) if errors.size else math.nan,
+                          saturated_frac=float(np.mean([saturated_fraction(r) for r in records])))
+
+
+def controlled(rec: RunRecord) -> np.ndarray:
+    """Mask of the controlled samples (hold and reverse)."""
+    return np.isin(rec.phase, CONTROLLED_PHASES)
+
+
+def electric_energy(rec: RunRecord) -> float:
+    """Integral of ``|u i|`` over the hold and the reverse stroke, J (measured channels)."""
+    t, u, i = rec.t, rec["u"], rec["i"]
+    mask = controlled(rec)
+    dt = np.diff(t, prepend=t[0])
+    return float(np.sum(np.abs(u * i)[mask] * dt[mask]))
+
+
+def samples_at_limit(rec: RunRecord) -> np.ndarray:
+    """Per sample: the command at its limit (a current command, or a voltage command)."""
+    known = rec.known
+    n = len(rec)
+    i_cmd = rec.samples.get("i_cmd", np.zeros(n))
+    at = current_at_limit(i_cmd, known.current_limit)
+    if "u_cmd" in rec.samples:
+        u_cmd = rec["u_cmd"]
+        u_max = known.u_max if known.u_max is not None else math.inf
+        at = at | ((u_cmd != 0.0) & voltage_at_limit(u_cmd, rec["i"], u_max, known.current_limit))
+    return at
+
+
+def saturated_fraction(rec: RunRecord) -> float:
+    """Fraction of the controlled samples whose command was at its limit; 0 if there are none."""
+    mask = controlled(rec)
+    return float(np.mean(samples_at_limit(rec)[mask])) if mask.any() else 0.0
+
+
+def stroke_reference(rec: RunRecord) -> MirroredReference:
+    """The mirrored reference the experiment drove: the free stroke's law fitted, as the
+    experiment fits it, from a little before the neutral crossing to the brake."""
+    exp, known = rec.experiment, rec.known
+    sign = 1.0 if float(exp["alpha"]) > 0 else -1.0
+    free = rec.phase == "free"
+    crossed = free & (sign * (rec["phi"] - known.phi_neutral) >= 0)
+    if not crossed.any():
+        raise ValueError(f"{rec.name}: the free stroke never crosses the calibrated neutral")
+    t_cross = float(rec.t[np.argmax(crossed)])
+    t_brake = float(exp["t_brake"])
+    law = fit_stroke(rec.t, rec["phi"], t_cross - float(exp.get("lead_s", DEFAULT_LEAD_S)), t_brake)
+    return MirroredReference(law, t_begin=t_brake + float(exp["hold_s"]))
+
+
+def tracking_errors(rec: RunRecord, reference: MirroredReference | None = None) -> np.ndarray:
+    """``phi_ref - phi`` (rad) at the controlled samples inside the reverse stroke."""
+    ref = reference if reference is not None else stroke_reference(rec)
+    t = rec.t
+    window = controlled(rec) & (t > ref.t_begin) & (t <= ref.t_end + 0.5 * rec.known.dt)
+    return np.asarray(ref.phi(t[window]), dtype=float) - rec["phi"][window]
