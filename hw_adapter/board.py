@@ -41,6 +41,7 @@ class BoardLimits:
     brake_response_ms: int = 20  # ms the brake may take to follow a request
     overcurrent_factor: float = 1.25  # measured |i| above this x i_max -> fault
     angle_limit: float = 0.8  # rad from the calibrated neutral: the hull's end switches
+    encoder_rate_max: float = 20.0  # rad/s: a hull encoder step beyond this x dt is a glitch, not motion
     grace_ms: int = DEFAULT_GRACE_US // 1000  # version 2: ms a segment that ran out is held, then safe state
     batch_samples: int = 5  # version 2: samples per SAMPLE_BATCH
     rate_filter_hz: int = int(DEFAULT_RATE_FILTER_HZ)  # version 2: corner of the pd mode's rate estimate
@@ -81,6 +82,7 @@ class Board:
         self.last_command_wall = time.monotonic()
         self._mismatch_since: float | None = None  # board t when brake and request first differed
         self._glitch_done = False
+        self._phi_read_prev: float | None = None  # the last hull encoder value read (encoder check)
         self._stuck_logged = False
         self.log = FaultLog()
         self.commands: list[ReceivedCommand] = []
@@ -152,6 +154,7 @@ class Board:
         self.loop.restart()
         self.on_segments = False
         self._batch = []
+        self._phi_read_prev = None  # the hull is placed: no step across a RESET
         self.last_reading = self.rig.reset(phi0=msg.phi0, psi0=msg.psi0, omega0=msg.omega0, brake=msg.brake)
         return self.sample(self.last_reading, extra_status=m.ST_RESET_DONE)
 
@@ -242,6 +245,7 @@ class Board:
             self._glitch_done = True
             phi_offset = glitch
             self.log.add("fault_onset", time.monotonic(), self.board_t, fault="glitch")
+        self._check_encoder(r.phi + phi_offset)
         self.last_reading = r
         self._log_safe()
         return self.sample(r, phi_offset=phi_offset, extra_status=m.ST_SEGMENT_HOLD if hold else 0)
@@ -264,6 +268,15 @@ class Board:
             return []
         b, self._batch = self._batch, []
         return [m.SampleBatch(b[0].step, self.loop.late_segments, b[-1].cmd_seq, tuple(b), time_us=self._batch_t0)]
+
+    def _check_encoder(self, phi_read: float) -> None:
+        """Encoder plausibility (fault ENCODER): a step between two samples that no hull
+        motion can make (``encoder_rate_max`` x the sample period) is a glitch or a
+        miscount; armed, the board goes safe at that sample (PROTOCOL.md section 5)."""
+        prev, self._phi_read_prev = self._phi_read_prev, phi_read
+        step_max = self.limits.encoder_rate_max * self.period_us * 1e-6
+        if self.armed and prev is not None and abs(phi_read - prev) > step_max and not self.fault_bits & m.F_ENCODER:
+            self.go_safe(m.F_ENCODER, phi_read - prev)
 
     def _supervise(self, r: Reading, request: bool) -> None:
         lim, p = self.limits, self.params

@@ -102,7 +102,7 @@ FAULTS = {
     "corrupt": ("corrupt=0.5@0.3", {"link"}),
     "latency": ("latency=1500@0.3", {"link", "watchdog"}),  # beyond the 1 s lock-step watchdog
     "disconnect": ("disconnect@0.3", {"link"}),
-    "glitch": ("glitch=0.2@0.3", {"rate"}),
+    "glitch": ("glitch=0.2@0.3", {"rate", "board_fault"}),  # the board's encoder check or the host's rate check
     "stuck_brake": ("stuck_brake@0.05", {"brake", "board_fault"}),
 }
 

@@ -99,10 +99,14 @@ def test_stuck_brake_is_latched_by_the_board_within_its_response_time():
 
 def test_glitch_offsets_exactly_one_sample():
     board = armed_board(faults=parse_faults("glitch=0.3@0.005"))
-    phis = [board.handle(m.Command("passive", 0.0, True, 0))[-1].phi_count * 2 * math.pi / board.phi_counts
-            for _ in range(10)]
+    samples = [[x for x in board.handle(m.Command("passive", 0.0, True, 0)) if isinstance(x, m.Sample)][-1]
+               for _ in range(10)]
+    phis = [s.phi_count * 2 * math.pi / board.phi_counts for s in samples]
     jumps = [k for k in range(10) if abs(phis[k] + 0.1) > 0.01]
     assert len(jumps) == 1 and abs(phis[jumps[0]] - 0.2) < 1e-3
+    # the board's encoder check latches ENCODER and goes safe at that very sample
+    faulted = [k for k, s in enumerate(samples) if s.faults & m.F_ENCODER]
+    assert faulted and faulted[0] == jumps[0] and not board.armed
 
 
 def test_bench_rig_over_loopback_runs_the_rig_protocol():
