@@ -39,7 +39,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable
 
-from addedinertia_env.rig.board_loop import HORIZON_PERIODS, Segment, elapsed_us, zoh_segment
+from addedinertia_env.rig.board_loop import Segment, elapsed_us, zoh_segment
 from addedinertia_env.rig.known import KnownRig
 from addedinertia_env.rig.motor import MotorCommand
 from addedinertia_env.rig.sensors import Reading
@@ -168,11 +168,9 @@ class BenchRig:
         self.envelope = SafetyEnvelope(self.limits, self.lab.constants["phi_neutral"])
         if self._watchdog_s is None:
             self._watchdog_s = LOCKSTEP_WATCHDOG_S if self.lockstep else REALTIME_WATCHDOG_S
-            if self.two_rate and not self.lockstep:
-                # The board's own bound for a silent host (a segment's horizon + its grace),
-                # never beyond its watchdog: samples come in batches and the board guards itself.
-                self._watchdog_s = min(HORIZON_PERIODS / self.host_rate_hz + 1e-3 * self.caps.grace_ms,
-                                       1e-3 * self.caps.watchdog_ms)
+            # Two-rate mode keeps the single-rate default (20 ms) so that no link fault takes
+            # longer to stop than before; a slower host may relax it to the board's own bound
+            # for a silent host, --watchdog-ms 50 (3 host periods + grace at 100 Hz).
         if self.watchdog is None:
             self.watchdog = Watchdog(self._watchdog_s, self._watchdog_expired)
         return self.caps

@@ -8,6 +8,7 @@ the control loop is blocked reading.
 
 from __future__ import annotations
 
+import socket
 import threading
 import time
 from collections import deque
@@ -43,6 +44,12 @@ class Link:
             self.port = serial.serial_for_url(url, baudrate=baudrate, timeout=open_timeout_s, write_timeout=1.0)
         except (serial.SerialException, ValueError, OSError) as e:
             raise LinkError(f"cannot open bench link {url!r}: {e}") from None
+        sock = getattr(self.port, "_socket", None)  # socket:// (the emulator): no Nagle delay on small frames,
+        if sock is not None:                        # else a silent board's delayed ACKs hold the host's safe stop ~40 ms
+            try:
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            except OSError:
+                pass
         self.parser = FrameParser()
         self.stats = LinkStats()
         self.board_clock = ClockUnwrapper()
