@@ -133,6 +133,8 @@ def smooth_angle(t: np.ndarray, angle: np.ndarray, window_s: float = 0.04, degre
     """
     from scipy.signal import savgol_filter  # noqa: PLC0415
 
+    if len(t) < 2:  # a block of one sample (a bench's sensed brake a sample off the phase change)
+        return np.asarray(angle, dtype=float)
     dt = float(np.median(np.diff(t)))
     n = max(degree + 2, int(round(window_s / dt)) | 1)
     if len(angle) <= n:
