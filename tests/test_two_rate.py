@@ -106,3 +106,19 @@ def test_the_environment_holds_its_action_exactly_as_the_board_loop_does():
     for col in ("t", "phi", "i", "i_cmd", "brake"):
         assert np.array_equal(env_rec.samples[col], board_rec.samples[col]), col
 
+
+
+def test_the_host_link_to_the_emulator_sends_small_frames_at_once():
+    """TCP_NODELAY on socket:// links: without it, once the board goes silent (a dropped
+    link), its delayed ACKs held the host's safe stop back by about 40 ms (docs/BENCH.md)."""
+    import socket
+
+    from hw_adapter.link import Link
+
+    server = start_emulator(RIG, fast=True)
+    try:
+        link = Link(server.url)
+        assert link.port._socket.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY)
+        link.close()
+    finally:
+        server.stop()
