@@ -61,7 +61,7 @@ leaderboard: $(STAMP)
 
 # Retrain and re-export the shipped policy (docs/LEARNING.md; about 20 min on 2 shared cores).
 policy: $(STAMP)
-	$(BIN)/addedinertia train --algo ppo --residual --timesteps 40000 --seed 1 --out out/train/ppo-residual
+	$(BIN)/addedinertia train --algo ppo --config configs/algos/ppo_residual.yaml --residual --timesteps 40000 --seed 1 --out out/train/ppo-residual
 	$(BIN)/addedinertia export out/train/ppo-residual --onnx agents/policies/reverse_stroke.onnx
 
 accuracy-table: $(STAMP)
@@ -76,7 +76,7 @@ detection-table: $(STAMP)
 
 # docs/PERFORMANCE.md: single MuJoCo env vs batched physics, 1..16384 envs, one run.
 perf: $(STAMP)
-	$(BIN)/addedinertia perf --max-envs 16384 --vector --out docs/PERFORMANCE.md
+	$(BIN)/addedinertia perf --max-envs 16384 --out docs/PERFORMANCE.md
 
 # docs/LEADERBOARD_realistic.md: the same controllers on realistic-v0 (realistic sensors everywhere).
 leaderboard-realistic:

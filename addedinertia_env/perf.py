@@ -206,6 +206,15 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
         f"{result['memory']['bytes_per_env_arrays']:.0f} bytes |",
         f"| memory per environment (tracemalloc peak, build + 3 steps) | "
         f"{result['memory']['bytes_per_env_tracemalloc_peak']:.0f} bytes |",
+    ]
+    if "vector_env_samples_per_s" in result:
+        lines += [
+            f"| whole task, batched vector env, n = {result['vector_n_envs']} | "
+            f"{result['vector_env_samples_per_s']:,.0f} samples/s ({result['vector_env_agent_steps_per_s']:,.0f} agent steps/s) |",
+            f"| whole task, `gym.make_vec` sync | {result['sync_vector_env_samples_per_s']:,.0f} samples/s |",
+            f"| ratio batched / `make_vec` sync (same run) | {result['vector_ratio_to_sync']:,.0f} x |",
+        ]
+    lines += [
         "",
         "The single-environment figure is the better of two measurements, before and after the",
         f"sweep ({result['single_env']['before_sweep']['steps_per_s']:,.0f} and "
@@ -228,24 +237,31 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
     ]
     if figure:
         lines += [f"![time per step against n]({figure})", ""]
-    vec = result.get("vector_env")
+    vec = result.get("vector_task")
     if vec:
-        lines += ["## Vector environment (the whole task, not only physics)", "",
-                  "Environment steps per second of `AddedInertia/ReverseStroke-v0` with n copies, action",
-                  "from a fixed random policy, autoreset, resets (free strokes) included:", "",
-                  "| vector env | n | env steps/s |", "|---|---:|---:|"]
-        for row in vec["rows"]:
-            lines.append(f"| {row['kind']} | {row['n_envs']} | {row['env_steps_per_s']:,.0f} |")
-        faster = vec["ratio_batched_to_sync"] > 1.0
-        lines += ["", vec.get("note", ""), "",
-                  ("The batched vector env is faster here; select it with "
-                   "`addedinertia_env.envs.batched_vector.vector_env(n, batched=True, **options)`."
-                   if faster else
-                   "The batched vector env is **not** faster than `gym.make_vec` here: each copy's Python "
-                   "bookkeeping (experiment log, rate filters, reference, observation) is untouched by the batch, and the free strokes run on one-environment numpy "
-                   "rigs, slower than MuJoCo at n = 1. Training and benchmark should keep `gym.make_vec` "
-                   "(what `vector_env(n)` returns by default) until the experiment protocol itself is "
-                   "vectorised (free strokes in batch, reference evaluated in batch)."), ""]
+        rows = vec["rows"]
+        lines += ["## The whole task: single env, `gym.make_vec` and the batched vector env", "",
+                  "`AddedInertia/ReverseStroke-v0` with `action_repeat` = "
+                  f"{vec['action_repeat']} (the agent at 100 Hz on the 1 kHz rig), actions from a",
+                  "fixed random policy (uniform in [-0.3, 0.3]), domain randomisation on. A *sample* is one",
+                  "rig sample of one environment under the agent's command; settle, free strokes, resets and",
+                  "the end-of-episode identification (energy method, the accuracy reward) are in the time but",
+                  "not counted as samples. Single env and `make_vec` sync are timed from `reset`; the batched",
+                  "env after its first reset and a warm-up (the first episodes all start together), so",
+                  "the window holds autoresets and identifications at their steady rate.", "",
+                  "| engine | n envs | samples/s | agent steps/s | episodes ended | wall s |",
+                  "|---|---:|---:|---:|---:|---:|"]
+        for row in rows:
+            lines.append(f"| {row['kind']} | {row['n_envs']} | {row['samples_per_s']:,.0f} | "
+                         f"{row['agent_steps_per_s']:,.0f} | {row['episodes_ended']} | {row['wall_s']:.1f} |")
+        b = rows[-1]
+        lines += ["", f"Batched / `make_vec` sync = **{result['vector_ratio_to_sync']:,.0f} x** (same run). The batched",
+                  f"env's first reset ({b['n_envs']} free strokes at once) took {b['reset_s']:.1f} s; its timed window used "
+                  f"{b['cpu_s']:.1f} CPU-s in {b['wall_s']:.1f} s of wall time; {b['episodes_per_s']:.0f} episodes ended per second,",
+                  f"median |rel_error| {100 * b['median_abs_rel_error']:.2f} % under the random policy.", "",
+                  "`gym.make_vec(\"AddedInertia/ReverseStroke-v0\", num_envs=N)` gives the batched env (its",
+                  "`vector_entry_point`); `vectorization_mode=\"sync\"` gives N single envs. The torch backend",
+                  "does not exist: the batched env is numpy on the CPU, and no GPU was measured.", ""]
     lines += [
         "## What the batched rig is",
         "",

@@ -5,16 +5,22 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from addedinertia_env.cli import main
 from addedinertia_env.perf import measure_batched, render_markdown
 
 
 def test_perf_json_has_the_contract_fields(capsys, tmp_path):
     out = tmp_path / "PERF.md"
-    assert main(["perf", "--max-envs", "16", "--seconds", "0.01", "--repeats", "1", "--json", "--out", str(out)]) == 0
+    assert main(["perf", "--max-envs", "16", "--seconds", "0.01", "--repeats", "1", "--vector-envs", "4",
+                 "--vector-steps", "3", "--vector-seconds", "0.2", "--json", "--out", str(out)]) == 0
     result = json.loads(capsys.readouterr().out)
-    for key in ("single_env_steps_per_s", "batched_physics_steps_per_s", "n_envs"):
+    for key in ("single_env_steps_per_s", "batched_physics_steps_per_s", "n_envs", "vector_env_samples_per_s",
+                "vector_env_agent_steps_per_s", "sync_vector_env_samples_per_s", "vector_n_envs"):
         assert key in result
+    assert result["vector_n_envs"] == 4 and result["vector_env_samples_per_s"] > 0
+    assert result["vector_env_samples_per_s"] == pytest.approx(10 * result["vector_env_agent_steps_per_s"])  # repeat 10
     assert result["n_envs"] == 16
     assert [r["n_envs"] for r in result["sweep"]] == [1, 4, 16]
     assert all(r["steps_per_s"] > 0 and r["time_per_step_us"] > 0 for r in result["sweep"])

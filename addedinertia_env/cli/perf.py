@@ -14,8 +14,12 @@ def register(sub) -> None:
                    help="largest batch; the sweep is 1, 4, 16, ... up to it (default 16384)")
     p.add_argument("--seconds", type=float, default=0.3, help="wall time of one measurement, s (default 0.3)")
     p.add_argument("--repeats", type=positive_int, default=5, help="repeats per measurement; the best counts")
-    p.add_argument("--vector", action="store_true",
-                   help="also measure the vector environments (gym.make_vec sync vs batched)")
+    p.add_argument("--vector-envs", type=positive_int, default=1024,
+                   help="environments of the batched vector env for the whole-task figures (default 1024)")
+    p.add_argument("--vector-steps", type=positive_int, default=300,
+                   help="timed agent steps of the batched vector env, after a warm-up of as many again + 100")
+    p.add_argument("--vector-seconds", type=float, default=20.0,
+                   help="wall time of the single-env and gym.make_vec sync measurements, s (default 20)")
     p.add_argument("--out", default=None, help="write the report to this Markdown file (e.g. docs/PERFORMANCE.md)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
@@ -31,11 +35,14 @@ def run(args) -> int:
         sizes.append(sizes[-1] * 4)
     if sizes[-1] != args.max_envs:
         sizes.append(args.max_envs)
+    if not (0 < args.vector_seconds <= 600):
+        raise BadInput(f"--vector-seconds {args.vector_seconds!r}: expected a time in (0, 600] s")
     result = run_perf(tuple(sizes), seconds=args.seconds, repeats=args.repeats, progress=info)
-    if args.vector:
-        from ..envs.batched_vector import measure_vector_envs  # noqa: PLC0415
+    from ..vector.measure import measure_vector_task  # noqa: PLC0415
 
-        result["vector_env"] = measure_vector_envs(progress=info)
+    result.update(measure_vector_task(args.vector_envs, steps=args.vector_steps, warmup_steps=args.vector_steps + 100,
+                                      seconds=args.vector_seconds, progress=info))
+    result["machine"]["load_avg_at_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
     info(f"single MuJoCo env: {result['single_env_steps_per_s']:,.0f} steps/s; batched n={result['n_envs']}: "
          f"{result['batched_physics_steps_per_s']:,.0f} steps/s; ratio {result['ratio_batched_to_single']:,.0f}x")
     if args.out:
@@ -47,7 +54,8 @@ def run(args) -> int:
         fig = fig_dir / "perf_time_vs_n.png"
         plot_time_vs_n(result, str(fig))
         command = "addedinertia perf " + " ".join(
-            [f"--max-envs {args.max_envs}"] + (["--vector"] if args.vector else []) + [f"--out {args.out}"])
+            [f"--max-envs {args.max_envs}", f"--vector-envs {args.vector_envs}", f"--vector-steps {args.vector_steps}",
+             f"--vector-seconds {args.vector_seconds:g}", f"--out {args.out}"])
         text = render_markdown(result, command, os.path.relpath(fig, out.parent))
         tmp = out.with_suffix(out.suffix + ".tmp")
         tmp.write_text(text)

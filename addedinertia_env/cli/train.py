@@ -18,7 +18,9 @@ def register(sub) -> None:
     p.add_argument("--timesteps", type=positive_int, default=None, help="agent steps in all (default: the config's)")
     p.add_argument("--seed", type=int, default=0, help="training seed (env k is seeded with seed + k)")
     p.add_argument("--n-envs", type=positive_int, default=None, help="parallel environments (default: the config's)")
-    p.add_argument("--vec-env", choices=["dummy", "subproc"], default=None, help="vectorisation (default: the config's)")
+    p.add_argument("--vec-env", choices=["batched", "dummy", "subproc"], default=None,
+                   help="vectorisation: batched (the batched engine; the configs' default for the reverse stroke), "
+                        "dummy or subproc (single envs)")
     p.add_argument("--residual", action="store_true",
                    help="learn a correction on top of the config's base controller (default feedforward-pd)")
     p.add_argument("--resume", default=None, metavar="CHECKPOINT", help="model_<N>_steps.zip or model.zip to go on from")

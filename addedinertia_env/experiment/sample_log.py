@@ -43,9 +43,15 @@ class SampleLog:
     def record(self, rig: Rig, experiment: dict[str, Any], run_id: str) -> RunRecord:
         """The record so far; a simulated rig adds its ``truth`` block (for scoring only)."""
         samples = {k: np.asarray(v, dtype=str if k == "phase" else float) for k, v in self.columns.items()}
-        meta: dict[str, Any] = {"format": FORMAT, "run_id": run_id, "source": getattr(rig, "source", "sim"),
-                                "rig": rig.known.to_block(), "experiment": experiment}
-        truth = getattr(rig, "truth", None)
-        if callable(truth) and truth() is not None:
-            meta["truth"] = truth()
-        return RunRecord(samples=samples, meta=meta)
+        return make_record(samples, rig, experiment, run_id)
+
+
+def make_record(samples: dict[str, np.ndarray], rig: Rig, experiment: dict[str, Any], run_id: str) -> RunRecord:
+    """A :class:`RunRecord` of ``samples`` (the :data:`LOG_COLUMNS`) taken on ``rig`` (a :class:`Rig`: its
+    ``source``, ``known`` and ``truth()``): the one place where a record's metadata is assembled."""
+    meta: dict[str, Any] = {"format": FORMAT, "run_id": run_id, "source": getattr(rig, "source", "sim"),
+                            "rig": rig.known.to_block(), "experiment": experiment}
+    truth = getattr(rig, "truth", None)
+    if callable(truth) and truth() is not None:
+        meta["truth"] = truth()
+    return RunRecord(samples=samples, meta=meta)

@@ -9,7 +9,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
+
+METRICS = ("rel_error", "energy_J", "tracking_rms_rad", "saturated_frac")  # the benchmark numbers of an episode
 
 
 class TrainingClock:
@@ -59,21 +62,87 @@ class TrainingClock:
         return {"env_steps": int(env_steps), "wall_s": round(self.wall_s, 2), "cpu_s": round(self.cpu_s, 2)}
 
 
-class SeededEvalCallback(EvalCallback):
-    """:class:`EvalCallback` that re-seeds the evaluation env before every evaluation.
+def episode_metrics(infos: list[dict[str, Any]], dones) -> list[dict[str, float]]:
+    """The benchmark numbers of the episodes that ended in one vectorised step."""
+    out = []
+    for done, info in zip(dones, infos):
+        if done and "rel_error" in info:
+            row = {k: float(info[k]) for k in METRICS if k in info}
+            row.update({f"reward_{k}": float(v) for k, v in (info.get("episode_reward_terms") or {}).items()})
+            out.append(row)
+    return out
 
-    Every evaluation then runs the same episodes (scenarios drawn from ``eval_seed``),
-    so the curve compares policies, not scenario luck.
-    """
 
-    def __init__(self, eval_env, eval_seed: int, **kwargs: Any):
-        super().__init__(eval_env, **kwargs)
-        self.eval_seed = int(eval_seed)
+class EpisodeMetricsCallback(BaseCallback):
+    """Training episodes' benchmark numbers to TensorBoard (``episode/abs_rel_error`` and
+    ``episode/rel_error``, ``episode/energy_J``, ``episode/tracking_rms_rad``,
+    ``episode/saturated_frac``, ``episode/reward_<term>``: means over the episodes that
+    ended since the last log)."""
 
     def _on_step(self) -> bool:
-        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+        for row in episode_metrics(self.locals.get("infos", []), self.locals.get("dones", [])):
+            if np.isfinite(row.get("rel_error", np.nan)):
+                self.logger.record_mean("episode/abs_rel_error", abs(row["rel_error"]))
+            for key, value in row.items():
+                if np.isfinite(value):
+                    self.logger.record_mean(f"episode/{key}", value)
+        return True
+
+
+class SeededEvalCallback(EvalCallback):
+    """:class:`EvalCallback` that re-seeds the evaluation env before every evaluation, and
+    records the benchmark numbers of the evaluation episodes.
+
+    Every evaluation then runs the same episodes (scenarios drawn from ``eval_seed``),
+    so the curve compares policies, not scenario luck. Each evaluation appends one line
+    to ``<log_path>/curve.jsonl``: agent steps, wall and CPU seconds so far (``clock``),
+    mean reward, and the median and mean ``|rel_error|`` (the benchmark metric), mean
+    energy and tracking RMS of its episodes; the same go to TensorBoard under ``eval/``.
+    """
+
+    def __init__(self, eval_env, eval_seed: int, clock: "TrainingClock | None" = None, **kwargs: Any):
+        super().__init__(eval_env, **kwargs)
+        self.eval_seed = int(eval_seed)
+        self.clock = clock
+        self._episodes: list[dict[str, float]] = []
+
+    def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
+        super()._log_success_callback(locals_, globals_)
+        self._episodes += episode_metrics([locals_["info"]], [locals_["done"]])
+
+    def _on_step(self) -> bool:
+        evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0
+        if evaluating:
             self.eval_env.seed(self.eval_seed)
-        return super()._on_step()
+            self._episodes = []
+        result = super()._on_step()
+        if evaluating:
+            self._record_curve()
+        return result
+
+    def _record_curve(self) -> None:
+        rel = np.array([abs(e["rel_error"]) for e in self._episodes if "rel_error" in e])
+        row: dict[str, Any] = {"timesteps": int(self.num_timesteps), "mean_reward": float(self.last_mean_reward),
+                               "n_episodes": len(self._episodes)}
+        if self.clock is not None:
+            row.update(wall_s=round(self.clock.wall_s, 2), cpu_s=round(self.clock.cpu_s, 2))
+        finite = rel[np.isfinite(rel)]
+        row["failed"] = int(len(rel) - len(finite))
+        if len(finite):
+            row["median_abs_rel_error"] = float(np.median(finite))
+            row["mean_abs_rel_error"] = float(np.mean(finite))
+            self.logger.record("eval/median_abs_rel_error", row["median_abs_rel_error"])
+        for key in ("energy_J", "tracking_rms_rad", "saturated_frac"):
+            values = [e[key] for e in self._episodes if np.isfinite(e.get(key, np.nan))]
+            if values:
+                row[f"mean_{key}"] = float(np.mean(values))
+                self.logger.record(f"eval/mean_{key}", row[f"mean_{key}"])
+        if self.log_path is not None:
+            path = Path(self.log_path).parent / "curve.jsonl" if str(self.log_path).endswith("evaluations") \
+                else Path(self.log_path) / "curve.jsonl"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with open(path, "a") as fh:
+                fh.write(json.dumps(row) + "\n")
 
 
 class CostCheckpointCallback(CheckpointCallback):

@@ -6,7 +6,8 @@ Each file maps a Gymnasium id to one block::
       policy: MlpPolicy
       n_timesteps: 200000          # environment (agent) steps
       n_envs: 2                    # parallel environments
-      vec_env: dummy               # dummy (one process) | subproc (one process per env)
+      vec_env: batched             # batched (the reverse stroke on the batched engine, one process;
+                                   # residual runs fall back to dummy) | dummy (one process) | subproc
       normalize: {norm_obs: true, norm_reward: false, clip_obs: 10.0}   # VecNormalize
       env_kwargs: {action_repeat: 10, randomize: true}
       residual: {enabled: false, base: feedforward-pd, scale: 0.2}
@@ -39,6 +40,7 @@ ALGOS: dict[str, tuple[str, str]] = {
     "td3": ("td3", "stable_baselines3:TD3"),
     "recurrent-ppo": ("recurrent_ppo", "sb3_contrib:RecurrentPPO"),
 }
+VEC_ENVS = ("batched", "dummy", "subproc")
 BLOCK_KEYS = {"policy", "n_timesteps", "n_envs", "vec_env", "normalize", "env_kwargs", "residual", "eval",
               "checkpoint_freq", "hyperparams"}
 NORMALIZE_KEYS = {"norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma"}
@@ -123,8 +125,8 @@ def load_config(algo: str, path: str | Path | None = None, env_id: str = DEFAULT
     for key in ("n_timesteps", "n_envs", "checkpoint_freq"):
         if key in block:
             setattr(cfg, key, _positive_int(block[key], f"{where}: {key}"))
-    if cfg.vec_env not in ("dummy", "subproc"):
-        raise ConfigError(f"{where}: vec_env = {cfg.vec_env!r}; expected 'dummy' or 'subproc'")
+    if cfg.vec_env not in VEC_ENVS:
+        raise ConfigError(f"{where}: vec_env = {cfg.vec_env!r}; expected one of {', '.join(VEC_ENVS)}")
     for key, allowed in (("normalize", NORMALIZE_KEYS), ("residual", RESIDUAL_KEYS), ("eval", EVAL_KEYS)):
         if key in block:
             sub = block[key] or {}

@@ -101,11 +101,27 @@ def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None, residual: di
     return gym.make(env_id, **kwargs)
 
 
+BATCHED_ENV_ID = "AddedInertia/ReverseStroke-v0"
+
+
+def uses_batched(env_id: str, residual: dict[str, Any] | None, vec_env: str) -> bool:
+    """Whether ``vec_env="batched"`` applies: the reverse stroke without a residual base (the base
+    controllers run per environment in Python, so residual training uses single envs)."""
+    return vec_env == "batched" and env_id == BATCHED_ENV_ID and not (residual and residual.get("enabled"))
+
+
 def make_vec(env_id: str, env_kwargs: dict[str, Any], residual: dict[str, Any] | None, n_envs: int, seed: int,
              vec_env: str = "dummy"):
-    """``n_envs`` monitored copies (env ``k`` seeded with ``seed + k`` at its first reset)."""
+    """``n_envs`` monitored environments (env ``k`` seeded with ``seed + k`` at its first reset):
+    the batched engine (:class:`~addedinertia_env.vector.sb3.BatchedVecEnv` in ``VecMonitor``)
+    where :func:`uses_batched`, else ``make_vec_env`` copies (``"batched"`` falls back to dummy)."""
     from stable_baselines3.common.env_util import make_vec_env  # noqa: PLC0415
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv  # noqa: PLC0415
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor  # noqa: PLC0415
+
+    if uses_batched(env_id, residual, vec_env):
+        from ..vector.sb3 import BatchedVecEnv  # noqa: PLC0415
+
+        return VecMonitor(BatchedVecEnv(n_envs, seed=seed, **dict(env_kwargs or {})))
 
     factory = functools.partial(make_env, env_id, env_kwargs, residual)
     cls = SubprocVecEnv if (vec_env == "subproc" and n_envs > 1) else DummyVecEnv

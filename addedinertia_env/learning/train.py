@@ -28,7 +28,7 @@ import numpy as np
 
 from ..rig.presets import ConfigError
 from ..task import OBSERVATION_FIELDS
-from .callbacks import CostCheckpointCallback, SeededEvalCallback, TrainingClock, write_json_atomic
+from .callbacks import CostCheckpointCallback, EpisodeMetricsCallback, SeededEvalCallback, TrainingClock, write_json_atomic
 from .config import TrainConfig
 from .envs import effective_action_repeat, make_vec, pinned_base_params
 
@@ -105,14 +105,14 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
                           f"n_timesteps {cfg.n_timesteps}; pass a larger --timesteps")
 
     eval_env = _normalizer(make_vec(cfg.env_id, cfg.env_kwargs, cfg.residual, 1, cfg.eval["seed"]), cfg, False)
-    evaluator = SeededEvalCallback(eval_env, cfg.eval["seed"], n_eval_episodes=cfg.eval["n_episodes"],
+    evaluator = SeededEvalCallback(eval_env, cfg.eval["seed"], clock=clock, n_eval_episodes=cfg.eval["n_episodes"],
                                    eval_freq=max(cfg.eval["freq"] // cfg.n_envs, 1),
                                    best_model_save_path=str(out / "best"), log_path=str(out / "eval"),
                                    deterministic=True, verbose=verbose)
     checkpoints = CostCheckpointCallback(clock, save_freq=max(cfg.checkpoint_freq // cfg.n_envs, 1),
                                          save_path=str(out / "checkpoints"), name_prefix="model",
                                          save_vecnormalize=True, save_replay_buffer=cfg.algo in OFF_POLICY)
-    model.learn(total_timesteps=remaining, callback=[evaluator, checkpoints], reset_num_timesteps=not resume,
+    model.learn(total_timesteps=remaining, callback=[evaluator, checkpoints, EpisodeMetricsCallback()], reset_num_timesteps=not resume,
                 tb_log_name=cfg.algo, progress_bar=False)
     model.save(str(out / "model.zip"))
     venv.save(str(out / "vecnormalize.pkl"))
@@ -161,9 +161,16 @@ def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]
                                        return_episode_rewards=True, callback=grab)
     result: dict[str, Any] = {"n_episodes": n_episodes, "mean_reward": float(np.mean(rewards)),
                               "std_reward": float(np.std(rewards)), "mean_length": float(np.mean(lengths))}
-    rel = [abs(float(i["rel_error"])) for i in finals if i.get("rel_error") is not None]
+    rel_all = [abs(float(i["rel_error"])) for i in finals if i.get("rel_error") is not None]
+    rel = [r for r in rel_all if np.isfinite(r)]
+    if rel_all:
+        result["failed_estimates"] = len(rel_all) - len(rel)
     if rel:
         result["mean_abs_rel_error"] = float(np.mean(rel))
+        result["median_abs_rel_error"] = float(np.median(rel))
+    energy = [float(i["energy_J"]) for i in finals if i.get("energy_J") is not None]
+    if energy:
+        result["mean_energy_J"] = float(np.mean(energy))
     return result
 
 

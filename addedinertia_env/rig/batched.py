@@ -50,9 +50,10 @@ import numpy as np
 
 from . import forces
 from .batched_params import BatchedParams
-from .batched_sensors import BatchedReading, BatchedSensors
 from .motor import MODES, current_step, terminal_voltage
+from .noise import batch_keys
 from .params import RigParams
+from .sensors import BatchedReading, SensorModel
 
 PASSIVE, CURRENT, VOLTAGE = (MODES.index(m) for m in ("passive", "current", "voltage"))
 # Rows of the state block: the moving state, then the inputs held over a physics step.
@@ -130,15 +131,17 @@ def reference_substep(x, h: float, kind: int, c, J, J_f, k_t, R, L):
 def substep_matrix(h: float, kind: int, c, J, J_f, k_t, R, L) -> np.ndarray:
     """The linear map of :func:`reference_substep`: ``new = G @ x``, shape ``(5, 8, n)``.
 
-    Obtained by running :func:`reference_substep` on each unit vector (float64).
+    Obtained by running :func:`reference_substep` on each unit vector (float64), all
+    eight at once (the parameters repeated for each).
     """
     n = np.broadcast(c, J, J_f, k_t, R, L).size
-    G = np.zeros((N_OUT, len(STATE), n))
-    for j in range(len(STATE)):
-        unit = tuple(np.full(n, 1.0 if k == j else 0.0) for k in range(len(STATE)))
-        out = reference_substep(unit, h, kind, c, J, J_f, k_t, R, L)
-        for i in range(N_OUT):
-            G[i, j] = out[i]
+    m = len(STATE)
+    args = [np.tile(np.broadcast_to(np.asarray(a, float), (n,)), m) for a in (c, J, J_f, k_t, R, L)]
+    unit = tuple(np.repeat(np.eye(m)[j], n) for j in range(m))  # env fastest: block j is unit vector j
+    out = reference_substep(unit, h, kind, *args)
+    G = np.zeros((N_OUT, m, n))
+    for i in range(N_OUT):
+        G[i] = np.broadcast_to(out[i], (m * n,)).reshape(m, n)
     return G
 
 
@@ -172,11 +175,11 @@ class BatchedRig:
     """``n`` simulated rigs stepped together; each may have its own parameters.
 
     ``params``: one :class:`RigParams` (repeated ``n_envs`` times), a list of them, or a
-    :class:`BatchedParams`. ``seed``: one seed for a batched noise Generator, or a list
-    of per-environment seeds (each environment then reproduces the sensor noise of a
-    :class:`MujocoRig` with that seed), or a list of Generators (used as they are).
+    :class:`BatchedParams`. ``seed``: one seed (per-environment noise keys derived from
+    it) or a list of per-environment seeds (each environment then reproduces the sensor
+    readings of a :class:`MujocoRig` with that seed; :mod:`.noise`).
     ``dtype``: float64 (default) or float32. ``initial_reading``: reset and read once on
-    construction, as :class:`MujocoRig` does (False: draw nothing from the Generators).
+    construction, as :class:`MujocoRig` does (False: take no reading).
     """
 
     source = "sim"
@@ -191,12 +194,8 @@ class BatchedRig:
             raise ValueError(f"BatchedRig: n_envs = {n_envs} but {params.n} parameter sets were given")
         self.n = n = params.n
         self.dtype = dtype = params.dtype
-        if seed is not None and not np.isscalar(seed) and not isinstance(seed, (np.random.SeedSequence,
-                                                                               np.random.Generator)):
-            rng = [np.random.default_rng(s) for s in seed]  # a Generator passes through unchanged
-        else:
-            rng = np.random.default_rng(seed)
-        self._build(params, rng)
+        self.sensors = SensorModel(params, keys=batch_keys(seed, n))
+        self._build(params)
         self._X = np.zeros((len(STATE), n), dtype=dtype)  # the state block (rows: STATE)
         self._Xn = np.zeros_like(self._X)  # the next one (double buffer)
         self.water_rate = np.zeros(n, dtype=dtype)
@@ -204,57 +203,86 @@ class BatchedRig:
         self.t = np.zeros(n)  # s, float64 always (phase timing)
         self.brake = np.zeros(n, dtype=bool)
         self._tmp = np.zeros(n, dtype=dtype)
-        if initial_reading:  # as MujocoRig: reset and read (draws noise from the seeded stream)
+        if initial_reading:  # as MujocoRig: reset and read (takes the first noise sample)
             self.reset()
-        else:  # for Generators already in use elsewhere: nothing drawn
+        else:
             self.set_brake(True)
 
-    def _build(self, p: BatchedParams, rng) -> None:
-        """Everything that follows from the parameters: true constants, step maps, sensors."""
+    def _build(self, p: BatchedParams) -> None:
+        """Everything that follows from the parameters: true constants, step maps, sensor delays."""
         self.params = p
         self.physics_dt = h = p.physics_dt
-        m = p.motor
         self.k_t = forces.true_torque_constant(p)  # N m/A, true (scalar when shared)
         self._k_t_env = p.per_env(self.k_t)
         self._spring_offset = p.spring.c * forces.true_neutral(p)  # c phi_n, N m
-        J = np.asarray(p.hull.J_hull, float) + np.asarray(p.hull.lambda66, float)
-        args = (np.asarray(p.spring.c, float), J, np.asarray(m.J_flywheel, float), np.asarray(self.k_t, float),
-                np.asarray(m.R, float), np.asarray(m.L, float))
+        table = np.stack([substep_matrix(h, kind, *self._map_args(p)) for kind in range(4)])
         # (kind, out, in, n) in float64, then cast; one column when the physics is shared.
-        table = np.stack([substep_matrix(h, kind, *args) for kind in range(4)])
         self._G_table = table.astype(self.dtype)
         self._shared = table.shape[-1] == 1  # one map for the whole batch
         self._terms = [[j for j in range(len(STATE)) if np.any(table[:, i, j] != 0)] for i in range(N_OUT)]
         self._G_env = None  # (5, 8, n) per-environment map for mixed kinds / parameters
         self._kind_env = None
-        self.sensors = BatchedSensors(p, rng)
+        self.sensors.p = p
+        self.sensors._update_delay()
 
-    def set_env_params(self, k: int, rig: RigParams, rng: np.random.Generator | None = None) -> None:
-        """Give environment ``k`` new parameters (a new episode's rig), keeping every state.
+    @staticmethod
+    def _map_args(p: BatchedParams, idx=None):
+        """(c, J, J_f, k_t, R, L) for :func:`substep_matrix`, of environments ``idx`` (all: None)."""
+        m = p.motor
+        sel = slice(None) if idx is None else idx
+        J = np.asarray(p.hull.J_hull, float) + np.asarray(p.hull.lambda66, float)
+        values = (p.spring.c, J, m.J_flywheel, forces.true_torque_constant(p), m.R, m.L)
+        out = []
+        for v in values:
+            v = np.asarray(v, float)
+            out.append(v if v.ndim == 0 or idx is None else v[sel])
+        return out
 
-        ``rng``: its new noise Generator (only for a batch with per-environment Generators).
-        """
-        old = self.sensors
-        rigs = list(self.params.rigs)
-        rigs[k] = rig
-        if old.rngs is not None:
-            rngs = list(old.rngs)
-            if rng is not None:
-                rngs[k] = rng
-        else:
-            rngs = old.rng
-        histories = [old.history(e) for e in range(self.n)]
-        self._build(BatchedParams.stack(rigs, dtype=self.dtype), rngs)
-        for e, entries in enumerate(histories):
-            self.sensors.set_history(e, entries)
+    def set_envs(self, envs, rigs: Sequence[RigParams], seeds) -> None:
+        """Environments ``envs`` get new parameters ``rigs`` and sensor seeds ``seeds`` (a new
+        episode's rig): step maps updated for those columns only; the state is left as it is
+        (call :meth:`reset` next)."""
+        idx = self._envs(envs)
+        p = self.params
+        p.set_envs(idx, rigs)
+        if self._shared or self._G_table.shape[-1] != self.n:  # from now on one map per environment
+            self._G_table = np.ascontiguousarray(np.broadcast_to(self._G_table, self._G_table.shape[:3] + (self.n,)))
+            self._shared = False
+        h = self.physics_dt
+        args = self._map_args(p, idx)
+        for kind in range(4):
+            self._G_table[kind][:, :, idx] = substep_matrix(h, kind, *args)
+        terms = [[j for j in range(len(STATE)) if np.any(self._G_table[:, i, j] != 0)] for i in range(N_OUT)]
+        self._terms = terms
+        self.k_t = forces.true_torque_constant(p)
+        self._k_t_env = p.per_env(self.k_t)
+        self._spring_offset = p.spring.c * forces.true_neutral(p)
+        if self._G_env is not None:  # refresh those columns of the per-environment maps
+            k = self._kind_env[idx]
+            self._G_env[:, :, idx] = np.moveaxis(self._G_table[k, :, :, idx], 0, -1)
+        self.sensors.set_envs(idx, batch_keys(list(seeds), len(idx)))
+
+    def set_env_params(self, k: int, rig: RigParams, seed=None) -> None:
+        """Give environment ``k`` new parameters (and, if given, a new sensor seed), keeping every state."""
+        keys = self.sensors.keys[[k]] if seed is None else None
+        history = self.sensors.history(k)
+        counter = self.sensors.counters[k]
+        self.set_envs([k], [rig], [0] if seed is None else [seed])
+        if keys is not None:
+            self.sensors.keys[k] = keys[0]
+            self.sensors.counters[k] = counter
+        self.sensors.set_history(k, history)
 
     def copy_env(self, k: int, source: "BatchedRig", j: int = 0) -> None:
-        """Environment ``k`` takes the state of ``source``'s environment ``j`` (same parameters)."""
+        """Environment ``k`` takes the state of ``source``'s environment ``j`` (same parameters),
+        its noise stream and delay line included."""
         self._X[:, k] = source._X[:, j]
         self.water_rate[k] = source.water_rate[j]
         self._w_prev[k] = source._w_prev[j]
         self.t[k] = source.t[j]
         self.brake[k] = source.brake[j]
+        self.sensors.keys[k] = source.sensors.keys[j]
+        self.sensors.counters[k] = source.sensors.counters[j]
         self.sensors.set_history(k, source.sensors.history(j))
 
     # --- the state, by name -----------------------------------------------------------
@@ -323,17 +351,21 @@ class BatchedRig:
         return self.sensors.read(self.t[idx], X[PHI, idx], X[PSI, idx], X[U, idx], X[I, idx],
                                  self.brake[idx], envs=idx)
 
-    def step(self, mode, value=0.0) -> BatchedReading:
-        """Advance one sample period under per-environment commands; returns the readings."""
-        self.physics_step(mode, value)
-        return self.read()
+    def step(self, mode, value=0.0, active=None) -> BatchedReading:
+        """Advance one sample period under per-environment commands; returns the readings
+        (``active``: see :meth:`physics_step`; inactive environments take no reading)."""
+        self.physics_step(mode, value, active=active)
+        X = self._X
+        return self.sensors.read(self.t, X[PHI], X[PSI], X[U], X[I], self.brake, active=active)
 
     # --- physics ------------------------------------------------------------------------
-    def physics_step(self, mode, value=0.0) -> None:
+    def physics_step(self, mode, value=0.0, active=None) -> None:
         """Advance every environment one sample period (no sensor reading).
 
         ``mode``: ``"passive"``/``"current"``/``"voltage"`` or codes 0/1/2, scalar or per
         environment; ``value``: A (current mode) or V (voltage mode), scalar or array.
+        ``active``: bool per environment, or None (all); the others stay exactly as they
+        are (paused; give them ``passive``).
         """
         p = self.params
         code = mode_codes(mode, self.n)
@@ -350,6 +382,7 @@ class BatchedRig:
             G = self._G_table[int(kind if np.isscalar(kind) else kind[0]), :, :, 0]
         else:
             self._select_maps(np.broadcast_to(kind, (self.n,)))
+        paused = None if active is None or np.all(active) else ~np.asarray(active, dtype=bool)
         h = self.physics_dt
         for _ in range(p.physics_substeps):
             X = self._X
@@ -364,15 +397,22 @@ class BatchedRig:
             np.add(q_hull, self._spring_offset, out=X[F1])
             X[F2] = forces.flywheel_friction_torque(X[OMEGA], p)
             if forces.has_water_memory(p):
-                self.water_rate += h * forces.water_rate_derivative(X[W], self.water_rate, p)
+                dw = h * forces.water_rate_derivative(X[W], self.water_rate, p)
+                if paused is not None:
+                    dw = np.where(paused, 0.0, dw)
+                self.water_rate += dw
             Xn = self._Xn
             if G is not None:
                 np.matmul(G, X, out=Xn[:N_OUT])
             else:
-                self._apply_maps(X, Xn)
+                np.einsum("ijm,jm->im", self._G_env, X, out=Xn[:N_OUT])
             Xn[U] = X[U]
+            if paused is not None:
+                np.copyto(Xn[:N_OUT], X[:N_OUT], where=paused)
+                self.t += np.where(paused, 0.0, h)
+            else:
+                self.t += h
             self._X, self._Xn = Xn, X
-            self.t += h
 
     def _set_terminal_voltage(self, code, value) -> None:
         """The drive's voltage for the coming sample (motor.terminal_voltage), into row U."""
@@ -389,27 +429,18 @@ class BatchedRig:
                 np.copyto(X[U], np.broadcast_to(u, (self.n,)), where=mask, casting="unsafe")
 
     def _select_maps(self, kind: np.ndarray) -> None:
-        """Per-environment maps for this sample's kinds (rebuilt only when kinds change)."""
-        if self._kind_env is not None and np.array_equal(kind, self._kind_env):
-            return
+        """Per-environment maps for this sample's kinds (only changed columns are rebuilt)."""
         table = self._G_table  # (4, 5, 8, n or 1)
-        cols = np.arange(self.n) if table.shape[-1] == self.n else np.zeros(self.n, dtype=np.int64)
-        self._G_env = np.ascontiguousarray(np.moveaxis(table[kind, :, :, cols], 0, -1))
-        self._kind_env = kind.copy()
-
-    def _apply_maps(self, X: np.ndarray, Xn: np.ndarray) -> None:
-        """``Xn[:5] = G_env x`` environment by environment (multiply-adds over the batch)."""
-        G, tmp = self._G_env, self._tmp
-        for i in range(N_OUT):
-            out = Xn[i]
-            first = True
-            for j in self._terms[i]:
-                if first:
-                    np.multiply(G[i, j], X[j], out=out)
-                    first = False
-                else:
-                    np.multiply(G[i, j], X[j], out=tmp)
-                    np.add(out, tmp, out=out)
+        if self._G_env is None:
+            cols = np.arange(self.n) if table.shape[-1] == self.n else np.zeros(self.n, dtype=np.int64)
+            self._G_env = np.ascontiguousarray(np.moveaxis(table[kind, :, :, cols], 0, -1))
+            self._kind_env = kind.copy()
+            return
+        changed = np.nonzero(kind != self._kind_env)[0]
+        if len(changed):
+            cols = changed if table.shape[-1] == self.n else np.zeros(len(changed), dtype=np.int64)
+            self._G_env[:, :, changed] = np.moveaxis(table[kind[changed], :, :, cols], 0, -1)
+            self._kind_env[changed] = kind[changed]
 
     # --- bookkeeping ----------------------------------------------------------------------
     def state_nbytes(self) -> int:

@@ -118,6 +118,49 @@ class BatchedParams:
             raise ValueError(f"BatchedParams.repeat: n = {n}; expected at least 1 environment")
         return cls([rig] * n, dtype=dtype)
 
+    def set_envs(self, envs: np.ndarray, rigs: Sequence[RigParams]) -> None:
+        """Environments ``envs`` take the parameters ``rigs`` (every column becomes per-environment)."""
+        envs = np.asarray(envs, dtype=np.int64)
+        rigs = list(rigs)
+        if len(rigs) != len(envs):
+            raise ValueError(f"BatchedParams.set_envs: {len(rigs)} rigs for {len(envs)} environments")
+        for r in rigs:
+            if r.physics_substeps != self.physics_substeps or float(r.sensors.sample_rate) != self.sample_rate:
+                raise ValueError("BatchedParams.set_envs: a rig with another clock (sample rate or physics "
+                                 "substeps) than the batch's")
+        all_rigs = list(self.rigs)
+        for k, r in zip(envs, rigs):
+            all_rigs[int(k)] = r
+        self.rigs = tuple(all_rigs)
+        self.uniform = False
+        for group in _GROUPS:
+            ns = getattr(self, group)
+            for name in _numeric_fields(getattr(rigs[0], group)):
+                if name in _COMMON:
+                    continue
+                column = getattr(ns, name)
+                if np.ndim(column) == 0:
+                    column = np.full(self.n, column, dtype=np.asarray(column).dtype)
+                    setattr(ns, name, column)
+                column[envs] = [getattr(getattr(r, group), name) for r in rigs]
+        self.brake_torque[envs] = [r.brake_torque for r in rigs]
+        for spec in registry.specs():
+            present = [getattr(r.effects, spec.name) for r in rigs]
+            ns = getattr(self.effects, spec.name, None)
+            neutral_values = spec.neutral_values()
+            if ns is None:
+                if all(e is None for e in present):
+                    continue
+                ns = SimpleNamespace(**{k: np.full(self.n, v, dtype=self.dtype) for k, v in neutral_values.items()})
+                setattr(self.effects, spec.name, ns)
+            for key, neutral in neutral_values.items():
+                column = getattr(ns, key)
+                if np.ndim(column) == 0:
+                    column = np.full(self.n, column, dtype=self.dtype)
+                    setattr(ns, key, column)
+                column[envs] = [neutral if e is None else getattr(e, key) for e in present]
+        self.effects._hooked = registry.hook_table(self.effects)  # read every physics step
+
     # Derived quantities with the same names as RigParams ---------------------------------
     @property
     def physics_dt(self) -> float:

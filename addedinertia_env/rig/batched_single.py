@@ -27,7 +27,7 @@ class BatchedSingleRig(SimulatedRigBase):
 
     def __init__(self, params: RigParams, seed: int | np.random.SeedSequence | None = None, dtype=np.float64):
         self.params = params
-        self.batch = BatchedRig(params, n_envs=1, seed=seed, dtype=dtype)
+        self.batch = BatchedRig(params, n_envs=1, seed=[seed], dtype=dtype)
         self.k_t = float(forces.true_torque_constant(params))
 
     @property

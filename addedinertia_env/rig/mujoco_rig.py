@@ -110,7 +110,7 @@ class MujocoRig(SimulatedRigBase):
         self._motor = self.model.actuator(MOTOR).id
         self._brake = self.model.equality(BRAKE).id
         self.k_t = forces.true_torque_constant(params)
-        self.sensors = Sensors(params, np.random.default_rng(seed))
+        self.sensors = Sensors(params, seed)
         self.reset()
 
     # --- protocol -------------------------------------------------------------------

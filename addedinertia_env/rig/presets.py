@@ -8,6 +8,7 @@ types in a number that a closed form gives.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from pathlib import Path
@@ -51,9 +52,20 @@ REQUIRED_BLOCKS = ("hull", "spring", "motor")  # what a rig file must state; sen
 TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps", "effects", "experiment")
 
 
+_PRESET_CACHE: dict[tuple[str, int], dict[str, Any]] = {}
+
+
 def load_preset(name: str) -> dict[str, Any]:
-    """The raw preset mapping (validated for top-level keys)."""
+    """The raw preset mapping (validated for top-level keys); a fresh copy each call, parsed
+    once per file version (environments draw a scenario per episode)."""
     path = rig_path(name)
+    key = (str(path.resolve()), path.stat().st_mtime_ns)
+    if key not in _PRESET_CACHE:
+        _PRESET_CACHE[key] = _parse_preset(path)
+    return copy.deepcopy(_PRESET_CACHE[key])
+
+
+def _parse_preset(path: Path) -> dict[str, Any]:
     data = read_yaml(path, "rig preset")
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")

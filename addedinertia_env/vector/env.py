@@ -1,0 +1,314 @@
+"""``AddedInertia/ReverseStroke-v0`` for ``num_envs`` environments on the batched engine.
+
+``gym.make_vec("AddedInertia/ReverseStroke-v0", num_envs=N)`` (or
+``vectorization_mode="vector_entry_point"``) gives :class:`ReverseStrokeVectorEnv`: the
+same task as ``num_envs`` copies of :class:`~addedinertia_env.envs.ReverseStrokeEnv` (same
+options, spaces, observations, rewards and end-of-episode scoring), with every rig sample
+of every environment taken in one call of the batched rig, and the experiment protocol,
+observation and reward computed on arrays (:mod:`.pool`, :mod:`.observe`).
+
+Resets cost nothing at step time: a pool of spare slots runs the next episodes' settle
+and free strokes in the background (in the same batch), and an environment that resets
+takes a slot already braked at its stop. Spare episodes draw their scenario seeds from
+the vector environment's own generator (seeded by ``reset(seed=...)``); the first
+episode of environment ``e`` after ``reset(seed=s)`` is the single environment's
+``reset(seed=s + e)``. Every episode reports its ``scenario_seed``: the single
+environment with ``scenario_seed=`` that number runs the same episode
+(tests/test_vector_env.py holds the two equal).
+
+Differences from ``num_envs`` single environments, by design: the passive tail after the
+reverse stroke is not simulated, so the terminal observation is the one at the end of the
+reverse stroke (``is_reverse`` 0) instead of 0.1 s later, and the episode's record ends
+there; rendering is not offered (render one ``gym.make`` environment instead).
+
+Autoreset (Gymnasium 1.x): ``autoreset_mode="next_step"`` (default; the step after an
+episode ends resets that environment, ignores its action and returns reward 0) or
+``"same_step"`` (or the ``AutoresetMode`` members; the new episode's first observation is returned at once; the terminal
+observation and info are in ``info["final_obs"]`` and ``info["final_info"]``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from threadpoolctl import ThreadpoolController
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ..envs.config import EnvConfig
+from ..identify import IdentificationError, identify
+from ..scenarios import load_ranges
+from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
+from .observe import observe
+from .pool import ENDED, READY, SETTLE, FREE, EMPTY, ExperimentPool
+
+_BLAS = ThreadpoolController()  # the small least-squares fits run on one BLAS thread (16x faster on a busy 2-core machine)
+SPARE_FRACTION = 0.5  # spare slots per environment (free strokes running ahead)
+METRIC_KEYS = ("lambda66_est", "lambda66_true", "rel_error", "energy_J", "tracking_rms_rad", "saturated_frac")
+
+
+class ReverseStrokeVectorEnv(VectorEnv):
+    """``num_envs`` reverse-stroke environments on one batched rig (module docstring).
+
+    Keyword arguments: those of :class:`~addedinertia_env.envs.ReverseStrokeEnv` (``preset``,
+    ``randomize``, ``ranges``, ``fixed``, ``sensor_quality``, ``hold_s``, ``alpha``,
+    ``scenario_seed``, ``action_repeat``, ``control_mode``, ``reward_weights``), plus
+    ``autoreset_mode`` and ``spare_fraction`` (spare slots per environment, >= 0.1).
+    """
+
+    def __init__(self, num_envs: int = 1, *, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 spare_fraction: float = SPARE_FRACTION, render_mode: str | None = None, **env_kwargs: Any):
+        if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs >= 1):
+            raise ValueError(f"ReverseStrokeVectorEnv option num_envs={num_envs!r}: expected an integer >= 1")
+        if render_mode is not None:
+            raise ValueError(f"ReverseStrokeVectorEnv option render_mode={render_mode!r}: the vector environment "
+                             "does not render; render one gym.make('AddedInertia/ReverseStroke-v0') instead")
+        for key in ("rig_factory", "width", "height"):
+            if key in env_kwargs:
+                raise ValueError(f"ReverseStrokeVectorEnv option {key}: not available on the batched engine "
+                                 "(it simulates its own rigs); use gym.make_vec(..., vectorization_mode='sync')")
+        names = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
+        mode = names.get(autoreset_mode, autoreset_mode) if isinstance(autoreset_mode, str) else autoreset_mode
+        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"ReverseStrokeVectorEnv option autoreset_mode={autoreset_mode!r}: expected "
+                             "'next_step' or 'same_step'")
+        if not (isinstance(spare_fraction, (int, float)) and 0.1 <= spare_fraction <= 4):
+            raise ValueError(f"ReverseStrokeVectorEnv option spare_fraction={spare_fraction!r}: expected a number "
+                             "in [0.1, 4] (spare slots per environment)")
+        env_kwargs.pop("max_episode_steps", None)  # from the registration; an episode ends well before it
+        weights = env_kwargs.pop("reward_weights", None) or RewardWeights()
+        self.config = EnvConfig(reward_weights=weights, **env_kwargs)
+        self.metadata = {"autoreset_mode": mode, "render_modes": []}
+        self.num_envs = num_envs
+        self.n_spare = max(2, int(math.ceil(spare_fraction * num_envs)))
+        self.n_slots = num_envs + self.n_spare
+        n_obs = ReverseStrokeTask.layout.size
+        self.single_observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (n_obs,), np.float32)
+        self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._default_ranges = load_ranges()
+        self.pool: ExperimentPool | None = None
+        self._env_rngs: list[np.random.Generator | None] = [None] * num_envs
+        self._spare_rng: np.random.Generator | None = None
+        self._needs_reset = np.zeros(num_envs, dtype=bool)
+        self.env_slot = np.zeros(num_envs, dtype=np.int64)
+        self._owned = np.zeros(self.n_slots, dtype=bool)
+        self.episode_config = self.config
+        self._task: ReverseStrokeTask | None = None
+        self.episodes_ended = 0
+
+    # --- scenarios and slots ---------------------------------------------------------------
+    def _scenario(self, seed: int):
+        return self.episode_config.scenario(seed, self._default_ranges)
+
+    def _draw(self, rng: np.random.Generator) -> int:
+        drawn = int(rng.integers(0, 2**63 - 1))  # as ReverseStrokeEnv.reset: always drawn
+        pinned = self.episode_config.scenario_seed
+        return pinned if pinned is not None else drawn
+
+    def _start_spares(self, minimum: int = 1) -> None:
+        pool = self.pool
+        free = np.nonzero((pool.stage == EMPTY) & ~self._owned)[0]
+        if len(free) >= minimum:
+            pool.begin(free, [self._scenario(self._draw(self._spare_rng)) for _ in free])
+
+    def _claim(self, envs: np.ndarray) -> None:
+        """Environments ``envs`` take ready slots (running the spares on until enough are ready)."""
+        pool = self.pool
+        old = self.env_slot[envs]
+        self._owned[old] = False
+        pool.stage[old[pool.stage[old] == ENDED]] = EMPTY
+        ready = np.nonzero((pool.stage == READY) & ~self._owned)[0]
+        if len(ready) < len(envs):
+            self._start_spares()
+            no_control = np.zeros(pool.n, dtype=bool)
+            zeros = np.zeros(pool.n)
+            while len(ready) < len(envs):
+                if not np.any((pool.stage == SETTLE) | (pool.stage == FREE)):
+                    self._start_spares()
+                pool.sample(zeros, no_control)
+                ready = np.nonzero((pool.stage == READY) & ~self._owned)[0]
+        take = np.sort(ready)[:len(envs)]
+        self.env_slot[envs] = take
+        self._owned[take] = True
+        pool.take(take)
+
+    # --- Gymnasium vector API ------------------------------------------------------------------
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
+        with _BLAS.limit(limits=1, user_api="blas"):
+            return self._reset(seed, options)
+
+    def _reset(self, seed, options):
+        if seed is None or isinstance(seed, (int, np.integer)):
+            seeds = [None if seed is None else int(seed) + e for e in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"reset(seed=...): {len(seeds)} seeds for {self.num_envs} environments")
+        for e, s in enumerate(seeds):
+            if s is not None or self._env_rngs[e] is None:
+                self._env_rngs[e], _ = seeding.np_random(s)
+        if seed is not None or self._spare_rng is None:
+            base = seeds[0] if seeds[0] is not None else None
+            self._spare_rng = np.random.default_rng(None if base is None else [int(base), 0x5EA5])
+        self.episode_config = self.config.with_options(options)
+        firsts = [self._scenario(self._draw(rng)) for rng in self._env_rngs]
+        spares = [self._scenario(self._draw(self._spare_rng)) for _ in range(self.n_spare)]
+        self.pool = pool = ExperimentPool(self.n_slots, firsts[0], self.config.control_mode)
+        pool.begin(np.arange(self.n_slots), firsts + spares)
+        mine = np.arange(self.num_envs)
+        zeros, no_control = np.zeros(pool.n), np.zeros(pool.n, dtype=bool)
+        while np.any(pool.stage[mine] != READY):
+            pool.sample(zeros, no_control)
+        self._owned[:] = False
+        self.env_slot[:] = mine
+        self._owned[mine] = True
+        pool.take(mine)
+        self._task = ReverseStrokeTask(i_max=1.0, weights=self.config.reward_weights)
+        self._needs_reset[:] = False
+        return observe(pool, self.env_slot), self._reset_info(mine)
+
+    def _reset_info(self, envs: np.ndarray) -> dict[str, Any]:
+        pool, n = self.pool, self.num_envs
+        mask = np.zeros(n, dtype=bool)
+        mask[envs] = True
+        seeds = np.zeros(n, dtype=np.int64)
+        names = np.full(n, None, dtype=object)
+        quality = np.full(n, None, dtype=object)
+        for e in envs:
+            s = pool.scenarios[self.env_slot[e]]
+            seeds[e], names[e], quality[e] = s.seed, s.name, s.sensor_quality
+        return {"scenario": names, "_scenario": mask, "scenario_seed": seeds, "_scenario_seed": mask,
+                "sensor_quality": quality, "_sensor_quality": mask.copy()}
+
+    def step(self, actions):
+        with _BLAS.limit(limits=1, user_api="blas"):
+            return self._step(actions)
+
+    def _step(self, actions):
+        pool = self.pool
+        if pool is None:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        n = self.num_envs
+        a = np.asarray(actions, dtype=np.float64).reshape(n, -1)
+        if a.shape != (n, 1):
+            raise ValueError(f"actions of shape {np.shape(actions)}: expected ({n}, 1), one number per environment")
+        resetting = np.nonzero(self._needs_reset)[0]
+        stepping = np.nonzero(~self._needs_reset)[0]
+        if not np.all(np.isfinite(a[stepping])):
+            bad = int(stepping[~np.isfinite(a[stepping, 0])][0])
+            raise ValueError(f"actions[{bad}] = {a[bad]!r}: expected finite numbers in [-1, 1]")
+        if len(resetting):
+            self._claim(resetting)
+        slots = self.env_slot[stepping]
+        scale = pool.i_max if self.config.control_mode == "current" else pool.u_max
+        value = np.zeros(pool.n)
+        value[slots] = np.clip(a[stepping, 0], -1.0, 1.0) * scale[slots]
+        controlled = np.zeros(pool.n, dtype=bool)
+        controlled[slots] = True
+        tracking, energy, limits = np.zeros(pool.n), np.zeros(pool.n), np.zeros(pool.n, dtype=np.int64)
+        ended: list[np.ndarray] = []
+        for _ in range(self.config.action_repeat):
+            out = pool.sample(value, controlled)
+            if out:
+                tracking += out["tracking_sq"]
+                energy += out["energy"]
+                limits += out["limit"]
+                if len(out["ended"]):
+                    controlled[out["ended"]] = False
+                    ended.append(out["ended"])
+            if not controlled.any():
+                break
+        self._start_spares(minimum=max(1, self.n_spare // 8))
+        env_of_slot = np.full(pool.n, -1)
+        env_of_slot[self.env_slot] = np.arange(n)
+        terms = self._task.terms(tracking_sq=tracking[self.env_slot], energy=energy[self.env_slot],
+                                 limit_samples=limits[self.env_slot], dt=pool.dt)
+        terms["accuracy"] = np.zeros(n)
+        terminated = np.zeros(n, dtype=bool)
+        infos: dict[str, Any] = {}
+        ended_envs = env_of_slot[np.concatenate(ended)] if ended else np.zeros(0, dtype=np.int64)
+        if len(ended_envs):
+            terminated[ended_envs] = True
+            metrics = self._score(ended_envs)
+            terms["accuracy"][ended_envs] = metrics.pop("_accuracy")
+            infos.update(metrics)
+        not_stepping = np.zeros(n, dtype=bool)
+        not_stepping[resetting] = True
+        for key in terms:
+            terms[key][not_stepping] = 0.0
+        rewards = sum(terms.values())
+        obs = observe(pool, self.env_slot)
+        infos["reward_terms"] = terms
+        infos["_reward_terms"] = ~not_stepping
+        infos["t"] = pool.t[self.env_slot].copy()
+        infos["_t"] = np.ones(n, dtype=bool)
+        if len(resetting):
+            infos.update(self._reset_info(resetting))
+        truncated = np.zeros(n, dtype=bool)
+        self.episodes_ended += len(ended_envs)
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and len(ended_envs):
+            final_info = {k: v for k, v in infos.items()}
+            infos["final_obs"] = np.where(terminated[:, None], obs, 0.0).astype(np.float32)
+            infos["_final_obs"] = terminated.copy()
+            infos["final_info"] = final_info
+            infos["_final_info"] = terminated.copy()
+            self._claim(ended_envs)
+            obs[ended_envs] = observe(pool, self.env_slot[ended_envs])
+            infos.update(self._reset_info(ended_envs))
+        else:
+            self._needs_reset = terminated | truncated
+        return obs, rewards.astype(np.float64), terminated, truncated, infos
+
+    def _score(self, envs: np.ndarray) -> dict[str, Any]:
+        """The benchmark numbers of the episodes that ended (ReverseStrokeEnv._score), as info arrays."""
+        pool, n = self.pool, self.num_envs
+        mask = np.zeros(n, dtype=bool)
+        mask[envs] = True
+        out: dict[str, Any] = {k: np.full(n, np.nan) for k in METRIC_KEYS}
+        out["ci95"] = np.full((n, 2), np.nan)
+        out["failed"] = np.zeros(n, dtype=bool)
+        out["failure"] = np.full(n, "", dtype=object)
+        out["scenario_seed"] = np.zeros(n, dtype=np.int64)
+        accuracy = np.zeros(len(envs))
+        for j, e in enumerate(envs):
+            k = int(self.env_slot[e])
+            failed = False
+            try:
+                result = identify([pool.record(k)], "energy")
+                est, ci = float(result.lambda66), [float(result.ci95[0]), float(result.ci95[1])]
+            except IdentificationError as err:
+                est, ci = math.nan, [math.nan, math.nan]
+                failed = True
+                out["failure"][e] = str(err)
+            true = float(pool.scenarios[k].rig.hull.lambda66)
+            rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
+            tn = int(pool.tracking_n[k])
+            values = {"lambda66_est": est, "lambda66_true": true, "rel_error": rel, "energy_J": float(pool.energy[k]),
+                      "tracking_rms_rad": math.sqrt(pool.tracking_sq[k] / tn) if tn else math.nan,
+                      "saturated_frac": pool.limit_samples[k] / max(int(pool.controlled[k]), 1)}
+            for key, v in values.items():
+                out[key][e] = v
+            out["ci95"][e] = ci
+            out["failed"][e] = failed
+            out["scenario_seed"][e] = pool.scenarios[k].seed
+            accuracy[j] = self._task.accuracy_term(rel, failed=failed)
+        for key in list(out):
+            out["_" + key] = mask.copy()
+        out["_accuracy"] = accuracy
+        return out
+
+    def record(self, env: int = 0, run_id: str = "run"):
+        """Environment ``env``'s current (or just finished) episode as a run record (no tail)."""
+        if self.pool is None:
+            raise gym.error.ResetNeeded("call reset() before record()")
+        return self.pool.record(int(self.env_slot[env]), run_id)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self.pool = None

@@ -1,0 +1,104 @@
+"""Throughput of the whole task: the batched vector env against ``gym.make_vec`` and one env.
+
+A *sample* is one rig sample (1 ms at 1 kHz) of one environment under the agent's
+command (hold or reverse stroke); an *agent step* is ``action_repeat`` samples. The
+settle, free strokes, resets and end-of-episode identification are not counted as
+samples but their time is in the wall time. Same task options and the same random
+policy (uniform actions in [-0.3, 0.3]) for every engine.
+
+For the batched env, the clock starts after ``reset`` and a warm-up of ``warmup_steps``
+agent steps (long enough for the first episodes, which all start together, to spread
+out); the measured window then holds autoresets and identifications at their steady
+rate. ``gym.make_vec`` (sync) and the single env are timed from ``reset`` on, for
+``seconds`` of wall time each (their resets are part of every episode).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, Callable
+
+import gymnasium as gym
+import numpy as np
+
+ENV_ID = "AddedInertia/ReverseStroke-v0"
+
+
+def _policy(rng: np.random.Generator, n: int) -> np.ndarray:
+    return rng.uniform(-0.3, 0.3, size=(n, 1)).astype(np.float32)
+
+
+def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 400, action_repeat: int = 10,
+                    seed: int = 0, **env_kwargs: Any) -> dict[str, Any]:
+    """Samples and agent steps per second of ``gym.make_vec`` (the batched vector env)."""
+    env = gym.make_vec(ENV_ID, num_envs=num_envs, action_repeat=action_repeat, **env_kwargs)
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    env.reset(seed=seed)
+    reset_s = time.perf_counter() - t0
+    for _ in range(warmup_steps):
+        env.step(_policy(rng, num_envs))
+    ended = 0
+    rel = []
+    t0 = time.perf_counter()
+    cpu0 = time.process_time()
+    for _ in range(steps):
+        _, _, term, trunc, info = env.step(_policy(rng, num_envs))
+        if term.any():
+            ended += int(term.sum())
+            rel.extend(np.abs(info["rel_error"][term]).tolist())
+    wall = time.perf_counter() - t0
+    cpu = time.process_time() - cpu0
+    env.close()
+    agent_steps = num_envs * steps
+    return {"kind": "batched (gym.make_vec, vector_entry_point)", "n_envs": num_envs, "action_repeat": action_repeat,
+            "agent_steps": agent_steps, "samples": agent_steps * action_repeat, "wall_s": wall, "cpu_s": cpu,
+            "samples_per_s": agent_steps * action_repeat / wall, "agent_steps_per_s": agent_steps / wall,
+            "episodes_ended": ended, "episodes_per_s": ended / wall, "reset_s": reset_s,
+            "warmup_steps": warmup_steps, "median_abs_rel_error": float(np.median(rel)) if rel else float("nan")}
+
+
+def measure_loop(make: Callable[[], Any], n: int, kind: str, seconds: float, action_repeat: int,
+                 seed: int = 0) -> dict[str, Any]:
+    """Samples per second of a Gymnasium env (n = 1) or vector env stepped for ``seconds`` from reset."""
+    env = make()
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    env.reset(seed=seed)
+    steps = ended = 0
+    while steps < 3 or time.perf_counter() - t0 < seconds:  # at least a few steps after the reset
+        a = _policy(rng, n)
+        _, _, term, trunc, _ = env.step(a if n > 1 else a[0])
+        steps += 1
+        done = np.atleast_1d(term) | np.atleast_1d(trunc)
+        ended += int(done.sum())
+        if n == 1 and done[0]:
+            env.reset()
+    wall = time.perf_counter() - t0
+    env.close()
+    return {"kind": kind, "n_envs": n, "action_repeat": action_repeat, "agent_steps": steps * n,
+            "samples": steps * n * action_repeat, "wall_s": wall, "samples_per_s": steps * n * action_repeat / wall,
+            "agent_steps_per_s": steps * n / wall, "episodes_ended": ended}
+
+
+def measure_vector_task(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 400, sync_envs: int = 8,
+                        seconds: float = 20.0, action_repeat: int = 10,
+                        progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """The three engines on the same task in one run; the keys of ``addedinertia perf --json``."""
+    say = progress or (lambda _m: None)
+    single = measure_loop(lambda: gym.make(ENV_ID, action_repeat=action_repeat), 1,
+                          "single env (gym.make, MujocoRig)", seconds, action_repeat)
+    say(f"single env: {single['samples_per_s']:,.0f} samples/s")
+    sync = measure_loop(lambda: gym.make_vec(ENV_ID, num_envs=sync_envs, vectorization_mode="sync",
+                                             action_repeat=action_repeat),
+                        sync_envs, "gym.make_vec sync (MujocoRig)", seconds, action_repeat)
+    say(f"gym.make_vec sync n={sync_envs}: {sync['samples_per_s']:,.0f} samples/s")
+    batched = measure_batched(num_envs, steps, warmup_steps, action_repeat)
+    say(f"batched n={num_envs}: {batched['samples_per_s']:,.0f} samples/s, "
+        f"{batched['episodes_per_s']:.0f} episodes/s")
+    return {"vector_env_samples_per_s": batched["samples_per_s"],
+            "vector_env_agent_steps_per_s": batched["agent_steps_per_s"],
+            "sync_vector_env_samples_per_s": sync["samples_per_s"],
+            "vector_n_envs": num_envs,
+            "vector_ratio_to_sync": batched["samples_per_s"] / sync["samples_per_s"],
+            "vector_task": {"rows": [single, sync, batched], "action_repeat": action_repeat}}

@@ -1,0 +1,447 @@
+"""Reverse-symmetric experiments in many slots of one batched rig: the protocol on arrays.
+
+:class:`ExperimentPool` runs :class:`~addedinertia_env.experiment.protocol.Experiment`'s
+state machine for every slot of a :class:`~addedinertia_env.rig.batched.BatchedRig` at
+once, one rig sample per :meth:`ExperimentPool.sample`:
+
+``settle`` (braked, passive) -> ``free`` (released; the hull swings through neutral; the
+stop is predicted by the same quadratic over the last ``stop_window_s`` of encoder
+samples, and the brake set there) -> ``ready`` (braked at the stop, paused until an
+environment takes the slot) -> ``hold`` (the agent's commands; brake on) -> ``reverse``
+(brake off, the agent tracks the mirrored reference) -> ``ended`` (paused; the record
+is identified and the slot recycled).
+
+What is shared with the single experiment, not copied: the rig's forces, motor and
+sensor model (the batched rig), the causal rate filter's weights
+(:func:`~addedinertia_env.experiment.filters.endpoint_slope_weights`), the stroke fit
+(:func:`~addedinertia_env.experiment.reference.fit_stroke`, called per slot on its own
+encoder record), the reference law (evaluated by :mod:`.reference` as ``chebval``
+does), the run record's assembly (:func:`~addedinertia_env.experiment.sample_log.make_record`)
+and the identification (:func:`~addedinertia_env.identify.identify`).
+
+One difference, by design: the passive tail after the reverse stroke (``tail_s``) is
+not simulated; a slot's record ends with its last reverse-stroke sample. The tail
+carries no reward and no term of the energy balance (tests/test_vector_env.py checks
+that the identified lambda66 equals the single environment's).
+
+Paused slots (``empty``, ``ready``, ``ended``) keep their state, clock, noise counter
+and delay line: the rig's ``active`` mask. Every slot's samples go to a staging block
+(``STAGE`` samples x columns x slots) and from there to the slot's own log arrays.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..experiment.filters import endpoint_slope_weights
+from ..experiment.reference import fit_stroke
+from ..experiment.sample_log import make_record
+from ..rig import forces
+from ..rig.batched import CURRENT, PASSIVE, VOLTAGE, BatchedRig
+from ..rig.interface import SimulatedRigBase
+from ..scenarios import Scenario
+from .reference import MirroredReferences
+
+EMPTY, SETTLE, FREE, READY, HOLD, REVERSE, ENDED = range(7)
+STAGE_NAMES = ("empty", "settle", "free", "ready", "hold", "reverse", "ended")
+RING = 64  # samples of encoder history kept for the rate filters and the stop fit
+STAGE = 256  # samples staged before they are copied to the slots' logs
+COLUMNS = ("phi", "psi", "u", "i", "i_cmd", "u_cmd")
+RATE_WINDOW_S = 0.04  # s, as RateEstimator's default
+LIMIT_FRACTION = 0.999
+
+
+class SlotRig(SimulatedRigBase):
+    """What a slot's run record says about its rig: known constants and (simulator) truth."""
+
+    source = "sim"
+
+    def __init__(self, params):
+        self.params = params
+
+    def truth(self) -> dict:
+        h = self.params.hull
+        return {"lambda66": h.lambda66, "effects": self.params.effects.to_dict(),
+                "damping": {"b1": h.b1, "b2": h.b2}, "k_t": float(forces.true_torque_constant(self.params)),
+                "phi_neutral": forces.true_neutral(self.params)}
+
+
+def sample_times(n: int, sample_dt: float, substeps: int) -> np.ndarray:
+    """The rig clock after 0..n-1 samples, accumulated physics step by physics step as the rigs do, s."""
+    steps = np.full(1 + max(n - 1, 0) * substeps, sample_dt / substeps)
+    steps[0] = 0.0
+    return np.add.accumulate(steps)[::substeps][:n]
+
+
+class ExperimentPool:
+    """``n`` experiment slots on one batched rig (module docstring).
+
+    ``control_mode``: ``"current"`` or ``"voltage"`` (the agent's commands).
+    """
+
+    def __init__(self, n: int, first: Scenario, control_mode: str = "current"):
+        self.n = n
+        self.control_mode = control_mode
+        self.mode_code = CURRENT if control_mode == "current" else VOLTAGE
+        rig = first.rig
+        self.dt = rig.sensors.dt
+        self.substeps = rig.physics_substeps
+        self.rig = BatchedRig([rig] * n, seed=list(range(n)), initial_reading=False)
+        self.stage = np.full(n, EMPTY, dtype=np.int8)
+        self.scenarios: list[Scenario | None] = [None] * n
+        self.views: list[SlotRig | None] = [None] * n
+        self.refs = MirroredReferences(n)
+        f = lambda v=0.0: np.full(n, v)  # noqa: E731
+        # Known constants and plan, per slot
+        self.phi_n, self.c_known, self.k_t_known, self.J_f_known = f(), f(), f(), f()
+        self.i_max, self.u_max = f(1.0), f(1.0)
+        self.sign, self.hold_s, self.lead_s = f(1.0), f(), f()
+        self.settle_left = np.zeros(n, dtype=np.int64)
+        self.free_n = np.zeros(n, dtype=np.int64)
+        self.free_max = np.zeros(n, dtype=np.int64)
+        self.window = 0
+        self._stop_fit: np.ndarray | None = None
+        # Free-stroke detection
+        self.t_cross, self.peak = f(math.nan), f()
+        self.t_release, self.t_brake, self.inertia_prior, self.fit_rms = f(math.nan), f(math.nan), f(math.nan), f()
+        # Controlled part
+        self.energy = f()  # J, integral of |u i| over hold and reverse
+        self.last_t = f()
+        self.controlled = np.zeros(n, dtype=np.int64)
+        self.saturated = np.zeros(n, dtype=np.int64)
+        self.tracking_sq, self.tracking_n = f(), np.zeros(n, dtype=np.int64)
+        self.limit_samples = np.zeros(n, dtype=np.int64)
+        self.k_release = np.zeros(n, dtype=np.int64)  # log index of the first free sample
+        self.k_hold = np.zeros(n, dtype=np.int64)  # first hold sample
+        self.k_reverse = np.zeros(n, dtype=np.int64)  # first reverse sample
+        # Last reading and rate estimates, per slot
+        self.phi, self.psi, self.u, self.i = f(), f(), f(), f()
+        self.t = f()
+        self.hull_rate, self.fly_rate = f(), f()
+        # Encoder history (doubled ring: the last RING samples are one contiguous slice)
+        self._ring = np.zeros((2, 2 * RING, n))  # (phi, psi) x rows x slots
+        self._g = 0  # ring position of the newest sample
+        self.n_rate = max(3, int(round(RATE_WINDOW_S / self.dt)))
+        if self.n_rate > RING:
+            raise ValueError(f"rate window of {self.n_rate} samples exceeds the ring of {RING}")
+        self._w_rate = endpoint_slope_weights(self.n_rate, self.dt)
+        self._was_active = np.zeros(n, dtype=bool)
+        # Logs
+        self._stage_block = np.zeros((STAGE, len(COLUMNS), n))
+        self._stage_row = 0
+        self._stage_from = np.zeros(n, dtype=np.int64)
+        self._stage_cnt = np.zeros(n, dtype=np.int64)
+        self._logs = [np.zeros((len(COLUMNS), 0)) for _ in range(n)]
+        self._flushed = np.zeros(n, dtype=np.int64)
+        self._times = sample_times(1, self.dt, self.substeps)
+
+    # --- slots ----------------------------------------------------------------------------
+    def n_log(self, k: int) -> int:
+        return int(self._flushed[k] + self._stage_cnt[k])
+
+    def times(self, n: int) -> np.ndarray:
+        """The clock of a slot's first ``n`` log entries, s."""
+        if len(self._times) < n:
+            self._times = sample_times(max(n, 2 * len(self._times)), self.dt, self.substeps)
+        return self._times[:n]
+
+    def begin(self, slots: Sequence[int], scenarios: Sequence[Scenario]) -> None:
+        """Start experiments ``scenarios`` in ``slots``: new rigs, twist, first reading (settle begins)."""
+        slots = np.asarray(slots, dtype=np.int64)
+        if not len(slots):
+            return
+        rigs = [s.rig for s in scenarios]
+        for s in scenarios:
+            if s.rig.physics_substeps != self.substeps or s.rig.sensors.dt != self.dt:
+                raise ValueError(f"scenario {s.name}: its rig's clock differs from the pool's "
+                                 f"({s.rig.sensors.dt} s, {s.rig.physics_substeps} substeps)")
+        self.rig.set_envs(slots, rigs, [s.sensor_seed for s in scenarios])
+        self.rig.sensors.counters[slots] = 1  # a single rig takes one reading when it is built
+        for k, s in zip(slots, scenarios):
+            k = int(k)
+            self.scenarios[k] = s
+            self.views[k] = SlotRig(s.rig)
+            known, plan = s.rig.known(), s.plan
+            self.phi_n[k], self.c_known[k] = known["phi_neutral"], known["c_torsion"]
+            self.k_t_known[k], self.J_f_known[k] = known["k_t"], known["J_flywheel"]
+            self.i_max[k], self.u_max[k] = known["i_max"], known["u_max"]
+            self.sign[k] = 1.0 if plan.alpha > 0 else -1.0
+            self.hold_s[k], self.lead_s[k] = plan.hold_s, plan.lead_s
+            self.settle_left[k] = int(round(plan.settle_s / self.dt))
+            self.free_max[k] = int(round(plan.max_free_s / self.dt))
+            window = max(5, int(round(plan.stop_window_s / self.dt)))
+            if self.window and window != self.window:
+                raise ValueError("all slots of a pool share the stop-fit window (stop_window_s)")
+            if window > RING:
+                raise ValueError(f"stop_window_s of {plan.stop_window_s} s: at most {RING} samples")
+            self.window = window
+        phi0 = self.phi_n[slots] - np.array([s.plan.alpha for s in scenarios])
+        reading = self.rig.reset(phi0=phi0, envs=slots)
+        for name in ("t_cross", "t_release", "t_brake", "inertia_prior"):
+            getattr(self, name)[slots] = math.nan
+        for name in ("peak", "energy", "tracking_sq", "fit_rms"):
+            getattr(self, name)[slots] = 0.0
+        for name in ("free_n", "controlled", "saturated", "tracking_n", "limit_samples"):
+            getattr(self, name)[slots] = 0
+        self.refs.t_begin[slots] = 0.0
+        self.refs.t_end[slots] = 0.0
+        self.phi[slots], self.psi[slots], self.u[slots], self.i[slots] = reading.phi, reading.psi, reading.u, reading.i
+        self.t[slots] = self.last_t[slots] = reading.t
+        self.hull_rate[slots] = self.fly_rate[slots] = 0.0
+        self._stage_cnt[slots] = 0
+        self._flushed[slots] = 1
+        for j, k in enumerate(slots):
+            log = self._logs[k]
+            if log.shape[1] < 4096:
+                log = self._logs[k] = np.zeros((len(COLUMNS), 4096))
+            log[:, 0] = (reading.phi[j], reading.psi[j], reading.u[j], reading.i[j], 0.0, 0.0)
+        self.stage[slots] = SETTLE
+        self._was_active[slots] = False
+        done = slots[self.settle_left[slots] <= 0]
+        if len(done):
+            self._release(done)
+
+    def _release(self, slots: np.ndarray) -> None:
+        self.rig.set_brake(False, envs=slots)
+        self.t_release[slots] = self.t[slots]
+        self.k_release[slots] = self._flushed[slots] + self._stage_cnt[slots]
+        self.stage[slots] = FREE
+
+    # --- one rig sample ---------------------------------------------------------------------
+    def sample(self, value: np.ndarray, controlled: np.ndarray) -> dict[str, np.ndarray]:
+        """One rig sample of every slot. ``value``: the agent's command per slot (A or V; used
+        where ``controlled``: slots in hold or reverse that an environment drives now).
+
+        Returns the per-slot increments of this sample for the reward (``tracking_sq`` rad^2,
+        ``energy`` J, ``limit`` 0/1) and ``ended`` (slots whose reverse stroke ended here).
+        """
+        stage = self.stage
+        settling, freeing = stage == SETTLE, stage == FREE
+        running = settling | freeing
+        active = running | controlled
+        mode = np.where(controlled, self.mode_code, PASSIVE)
+        energy_before = self.energy.copy()
+        r = self.rig.step(mode, np.where(controlled, value, 0.0), active=active)
+        self._log(r, value, controlled, active)
+        # electric energy over hold and reverse (Experiment._log_reading)
+        e_inc = np.abs(r.u * r.i) * (r.t - self.last_t)
+        np.add(self.energy, e_inc, out=self.energy, where=controlled)
+        np.copyto(self.last_t, r.t, where=active)
+        for name, value_now in (("phi", r.phi), ("psi", r.psi), ("u", r.u), ("i", r.i), ("t", r.t)):
+            np.copyto(getattr(self, name), value_now, where=active)
+        self._rates(active)
+        out: dict[str, np.ndarray] = {}
+        if controlled.any():
+            out = self._controlled_sample(r, value, controlled, energy_before)
+        if freeing.any():
+            self._free_sample(np.nonzero(freeing)[0])
+        settle = np.nonzero(settling)[0]
+        if len(settle):
+            self.settle_left[settle] -= 1
+            done = settle[self.settle_left[settle] <= 0]
+            if len(done):
+                self._release(done)
+        self._was_active = active
+        return out
+
+    def _controlled_sample(self, r, value, controlled, energy_before) -> dict[str, np.ndarray]:
+        t = r.t
+        refs = self.refs
+        self.controlled += controlled
+        if self.mode_code == CURRENT:
+            self.saturated += controlled & (np.abs(value) >= self.i_max)
+            at_limit = np.abs(value) >= LIMIT_FRACTION * self.i_max
+        else:
+            at_limit = (np.abs(value) >= LIMIT_FRACTION * self.u_max) | (np.abs(r.i) >= self.i_max)
+        at_limit &= controlled
+        in_stroke = controlled & (refs.t_begin < t) & (t <= refs.t_end + 0.5 * self.dt)
+        e = refs.phi(t) - r.phi
+        e_sq = np.where(in_stroke, e * e, 0.0)
+        self.tracking_sq += e_sq
+        self.tracking_n += in_stroke
+        self.limit_samples += at_limit
+        # phase changes (Experiment.step)
+        hold = controlled & (self.stage == HOLD)
+        rev = controlled & (self.stage == REVERSE)
+        to_rev = np.nonzero(hold & (t >= refs.t_begin - 0.5 * self.dt))[0]
+        ended = np.nonzero(rev & (t >= refs.t_end - 0.5 * self.dt))[0]
+        if len(to_rev):
+            self.rig.set_brake(False, envs=to_rev)
+            self.stage[to_rev] = REVERSE
+            self.k_reverse[to_rev] = self._flushed[to_rev] + self._stage_cnt[to_rev]
+        if len(ended):
+            self.stage[ended] = ENDED
+        return {"tracking_sq": e_sq, "energy": self.energy - energy_before, "limit": at_limit, "ended": ended}
+
+    def _free_sample(self, free: np.ndarray) -> None:
+        """Crossing, peak and stop prediction of the free strokes (Experiment.start)."""
+        self.free_n[free] += 1
+        sign = self.sign[free]
+        w = sign * self.hull_rate[free]
+        self.peak[free] = np.maximum(self.peak[free], w)
+        crossed = np.isnan(self.t_cross[free]) & (sign * (self.phi[free] - self.phi_n[free]) >= 0)
+        if crossed.any():
+            self.t_cross[free[crossed]] = self.t[free[crossed]]
+        cand = free[~np.isnan(self.t_cross[free]) & (w < 0.3 * self.peak[free])]
+        stops = cand[self._stop_due(cand)] if len(cand) else cand
+        over = free[(self.free_n[free] >= self.free_max[free])]
+        over = np.setdiff1d(over, stops)
+        if len(over):
+            raise RuntimeError(f"the hull did not stop within max_free_s in slot(s) {over.tolist()} "
+                               f"(scenario {self.scenarios[int(over[0])].name})")
+        if len(stops):
+            self._brake_at_stop(stops)
+
+    def _stop_due(self, cand: np.ndarray) -> np.ndarray:
+        """The quadratic over the last ``window`` samples predicts the stop within half a sample."""
+        n = self.window
+        top = self._g + RING + 1
+        phi = self._ring[0, top - n:top][:, cand]
+        if self._stop_fit is None or self._stop_fit.shape[1] != n:
+            tt = (np.arange(n) - (n - 1)) * self.dt
+            self._stop_fit = np.linalg.pinv(np.vander(tt, 3))  # rows: c2, c1, c0 (np.polyfit's order)
+        c2 = self._stop_fit[0] @ phi
+        c1 = self._stop_fit[1] @ phi
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_stop = -c1 / (2.0 * c2)
+        return (c2 != 0.0) & (t_stop <= 0.5 * self.dt)
+
+    def _brake_at_stop(self, slots: np.ndarray) -> None:
+        self.rig.set_brake(True, envs=slots)
+        self.t_brake[slots] = self.t[slots]
+        self._flush(slots)
+        for k in slots:
+            k = int(k)
+            n = int(self._flushed[k])
+            t, phi = self.times(n), self._logs[k][0, :n]
+            law = fit_stroke(t, phi, float(self.t_cross[k] - self.lead_s[k]), float(self.t_brake[k]))
+            self.fit_rms[k] = law.fit_rms
+            self.inertia_prior[k] = law.inertia_prior(float(self.c_known[k]), float(self.phi_n[k]))
+            self.refs.set(k, law, float(self.t_brake[k] + self.hold_s[k]))
+            self.k_hold[k] = n
+            if self.hold_s[k] <= 0:
+                self.rig.set_brake(False, envs=[k])
+                self.k_reverse[k] = n
+        self.stage[slots] = READY
+
+    def take(self, slots: np.ndarray) -> None:
+        """Ready slots start their controlled part (hold, or reverse when ``hold_s`` is 0)."""
+        self.stage[slots] = np.where(self.hold_s[slots] > 0, HOLD, REVERSE)
+
+    # --- rates and logs --------------------------------------------------------------------
+    def _rates(self, active: np.ndarray) -> None:
+        top = self._g + RING + 1
+        n = self.n_rate
+        hull = self._w_rate @ self._ring[0, top - n:top]
+        fly = self._w_rate @ self._ring[1, top - n:top]
+        count = self._flushed + self._stage_cnt
+        short = np.nonzero(active & (count < n))[0]
+        if len(short):  # RateEstimator before its window has filled: end-point difference
+            c = count[short]
+            for j, arr in ((0, hull), (1, fly)):
+                newest = self._ring[j, top - 1, short]
+                oldest = self._ring[j, top - c, short]
+                arr[short] = np.where(c >= 2, (newest - oldest) / ((c - 1) * self.dt),
+                                      (self.hull_rate if j == 0 else self.fly_rate)[short])
+        np.copyto(self.hull_rate, hull, where=active)
+        np.copyto(self.fly_rate, fly, where=active)
+
+    def _log(self, r, value, controlled, active) -> None:
+        g = self._g = (self._g + 1) % RING
+        resumed = np.nonzero(active & ~self._was_active)[0]
+        if len(resumed):
+            self._restore_ring(resumed)
+        for j, x in ((0, r.phi), (1, r.psi)):
+            self._ring[j, g] = x
+            self._ring[j, g + RING] = x
+        row = self._stage_row
+        block = self._stage_block[row]
+        block[0], block[1], block[2], block[3] = r.phi, r.psi, r.u, r.i
+        cmd = np.where(controlled, value, 0.0)
+        if self.mode_code == CURRENT:
+            block[4], block[5] = cmd, 0.0
+        else:
+            block[4], block[5] = 0.0, cmd
+        cnt = self._stage_cnt
+        broken = np.nonzero(active & (cnt > 0) & (self._stage_from + cnt != row))[0]
+        if len(broken):
+            self._flush(broken)
+        self._stage_from[active & (cnt == 0)] = row
+        cnt += active
+        if row == STAGE - 1:
+            self._flush(np.nonzero(cnt)[0])
+            self._stage_row = 0
+        else:
+            self._stage_row = row + 1
+
+    def _restore_ring(self, slots: np.ndarray) -> None:
+        """Slots that run again after a pause: their encoder history back into the ring (newest
+        at the row before the current one)."""
+        self._flush(slots)
+        g = self._g
+        for k in slots:
+            n = int(self._flushed[k])
+            m = min(n, RING - 1)
+            rows = (g - m + np.arange(m)) % RING
+            for j in (0, 1):
+                values = self._logs[k][j, n - m:n]
+                self._ring[j, rows, k] = values
+                self._ring[j, rows + RING, k] = values
+
+    def _flush(self, slots) -> None:
+        for k in slots:
+            k = int(k)
+            cnt = int(self._stage_cnt[k])
+            if not cnt:
+                continue
+            start, n0 = int(self._stage_from[k]), int(self._flushed[k])
+            log = self._logs[k]
+            if n0 + cnt > log.shape[1]:
+                grown = np.zeros((len(COLUMNS), max(2 * log.shape[1], n0 + cnt)))
+                grown[:, :n0] = log[:, :n0]
+                log = self._logs[k] = grown
+            log[:, n0:n0 + cnt] = self._stage_block[start:start + cnt, :, k].T
+            self._flushed[k] = n0 + cnt
+            self._stage_cnt[k] = 0
+
+    # --- records --------------------------------------------------------------------------
+    def record(self, k: int, run_id: str = "run"):
+        """Slot ``k``'s run record so far (as the single experiment writes it, without the tail)."""
+        self._flush([k])
+        n = int(self._flushed[k])
+        log = self._logs[k]
+        phase = np.empty(n, dtype="<U7")
+        phase[:] = "idle"
+        kr, kh = int(self.k_release[k]), int(self.k_hold[k])
+        stage = self.stage[k]
+        past_free = stage in (READY, HOLD, REVERSE, ENDED)
+        phase[kr:kh if past_free else n] = "free"
+        brake = np.ones(n)
+        brake[kr:kh if past_free else n] = 0.0
+        if past_free:
+            in_reverse = stage in (REVERSE, ENDED)
+            kv = int(self.k_reverse[k]) if in_reverse else n
+            phase[kh:kv] = "hold"
+            phase[kv:n] = "reverse"
+            brake[kv:n] = 0.0
+        samples = {"t": self.times(n).copy(), "phase": phase, "phi": log[0, :n].copy(), "psi": log[1, :n].copy(),
+                   "u": log[2, :n].copy(), "i": log[3, :n].copy(), "i_cmd": log[4, :n].copy(),
+                   "u_cmd": log[5, :n].copy(), "brake": brake}
+        s = self.scenarios[k]
+        experiment = {"kind": "reverse-symmetric", **dataclasses.asdict(s.plan),
+                      "t_release": float(self.t_release[k]), "t_brake": float(self.t_brake[k])}
+        if past_free:
+            experiment["stroke_fit_rms_rad"] = float(self.fit_rms[k])
+        experiment["scenario"] = s.name
+        return make_record(samples, self.views[k], experiment, run_id)
+
+    def stage_of(self, k: int) -> str:
+        return STAGE_NAMES[int(self.stage[k])]
+
+    def info(self, k: int) -> dict[str, Any]:
+        s = self.scenarios[k]
+        return {"scenario": s.name, "scenario_seed": s.seed, "sensor_quality": s.sensor_quality}
