@@ -30,7 +30,7 @@ from ..rig.presets import ConfigError
 from ..task import OBSERVATION_FIELDS
 from .callbacks import CostCheckpointCallback, EpisodeMetricsCallback, SeededEvalCallback, TrainingClock, write_json_atomic
 from .config import TrainConfig
-from .envs import effective_action_repeat, make_vec, pinned_base_params
+from .envs import effective_action_repeat, make_vec, pinned_base_params, uses_batched
 
 OFF_POLICY = {"sac", "td3"}
 
@@ -104,7 +104,11 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
         raise ConfigError(f"resume {resume}: the checkpoint already has {done_before} steps >= "
                           f"n_timesteps {cfg.n_timesteps}; pass a larger --timesteps")
 
-    eval_env = _normalizer(make_vec(cfg.env_id, cfg.env_kwargs, cfg.residual, 1, cfg.eval["seed"]), cfg, False)
+    # Evaluation: the batched env when training uses it (one seeded episode per environment), else one env.
+    batched = uses_batched(cfg.env_id, cfg.residual, cfg.vec_env)
+    n_eval_envs = cfg.eval["n_episodes"] if batched else 1
+    eval_env = _normalizer(make_vec(cfg.env_id, cfg.env_kwargs, cfg.residual, n_eval_envs, cfg.eval["seed"],
+                                    cfg.vec_env), cfg, False)
     evaluator = SeededEvalCallback(eval_env, cfg.eval["seed"], clock=clock, n_eval_episodes=cfg.eval["n_episodes"],
                                    eval_freq=max(cfg.eval["freq"] // cfg.n_envs, 1),
                                    best_model_save_path=str(out / "best"), log_path=str(out / "eval"),

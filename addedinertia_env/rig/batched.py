@@ -223,7 +223,7 @@ class BatchedRig:
         self._G_env = None  # (5, 8, n) per-environment map for mixed kinds / parameters
         self._kind_env = None
         self.sensors.p = p
-        self.sensors._update_delay()
+        self.sensors._update_params()
 
     @staticmethod
     def _map_args(p: BatchedParams, idx=None):
@@ -392,7 +392,10 @@ class BatchedRig:
                 else:
                     np.copyto(X[U], self.k_t * X[OMEGA], where=~driven)
             w_mid = forces.centred_rate(X[W], self._w_prev)
-            self._w_prev[...] = X[W]
+            if paused is None:
+                self._w_prev[...] = X[W]
+            else:
+                np.copyto(self._w_prev, X[W], where=~paused)
             q_hull = forces.hull_extra_torque(X[PHI], w_mid, self.water_rate, p)
             np.add(q_hull, self._spring_offset, out=X[F1])
             X[F2] = forces.flywheel_friction_torque(X[OMEGA], p)

@@ -58,11 +58,17 @@ def quantise(x: float, counts: int) -> float:
     return float(quantise_array(np.array([x]), np.array([counts]))[0])
 
 
-def quantise_array(x: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Encoder reading of angles ``x`` (rad) for ``counts`` counts per turn (0: exact)."""
-    q = 2.0 * math.pi / np.where(counts > 0, counts, 1)
+def encoder_step(counts: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Encoder quantum ``2 pi / counts`` (rad; 1 where ``counts`` is 0) and whether every encoder counts."""
+    return 2.0 * math.pi / np.where(counts > 0, counts, 1), bool(np.all(counts > 0))
+
+
+def quantise_array(x: np.ndarray, counts: np.ndarray, step: tuple[np.ndarray, bool] | None = None) -> np.ndarray:
+    """Encoder reading of angles ``x`` (rad) for ``counts`` counts per turn (0: exact);
+    ``step``: :func:`encoder_step` of ``counts``, if already known."""
+    q, all_count = step if step is not None else encoder_step(counts)
     y = np.floor(x / q + 0.5) * q
-    if np.all(counts > 0):
+    if all_count:
         return y.astype(x.dtype, copy=False)
     return np.where(counts > 0, y, x).astype(x.dtype, copy=False)
 
@@ -88,11 +94,13 @@ class SensorModel:
         self._z = np.zeros((2, NOISE_BLOCK, n))
         self._z_base = np.full(n, np.iinfo(np.int64).max // 2, dtype=np.int64)
         self._hist = None
-        self._update_delay()
+        self._update_params()
 
     # --- per-environment state ----------------------------------------------------------
-    def _update_delay(self) -> None:
-        """Delay (in samples) per environment from the parameters; allocates the delay line."""
+    def _update_params(self) -> None:
+        """Encoder quanta and delay (in samples) per environment from the parameters; allocates the delay line."""
+        s = self.p.sensors
+        self._phi_step, self._psi_step = encoder_step(s.phi_counts), encoder_step(s.psi_counts)
         n = self.p.n
         if not forces.has_channel_delay(self.p):
             self.delay_samples = None
@@ -114,7 +122,7 @@ class SensorModel:
         self.keys[envs] = keys
         self.counters[envs] = 0
         self._z_base[envs] = np.iinfo(np.int64).max // 2
-        self._update_delay()
+        self._update_params()
         self.reset(envs)
 
     def reset(self, envs: np.ndarray | None = None) -> None:
@@ -213,8 +221,12 @@ class SensorModel:
         i_meas = (1.0 + s.current_gain_error[sel]) * i_lag + s.current_offset[sel] + s.current_noise[sel] * z_i
         u_meas = (1.0 + s.voltage_gain_error[sel]) * u_lag + s.voltage_offset[sel] + s.voltage_noise[sel] * z_u
         dtype = np.asarray(phi).dtype
-        return BatchedReading(t=np.array(t, dtype=float), phi=quantise_array(phi, s.phi_counts[sel]),
-                              psi=quantise_array(psi, s.psi_counts[sel]), u=u_meas.astype(dtype, copy=False),
+        if envs is None:
+            phi_q = quantise_array(phi, s.phi_counts, self._phi_step)
+            psi_q = quantise_array(psi, s.psi_counts, self._psi_step)
+        else:
+            phi_q, psi_q = quantise_array(phi, s.phi_counts[sel]), quantise_array(psi, s.psi_counts[sel])
+        return BatchedReading(t=np.array(t, dtype=float), phi=phi_q, psi=psi_q, u=u_meas.astype(dtype, copy=False),
                               i=i_meas.astype(dtype, copy=False), brake=np.array(brake, dtype=bool))
 
 

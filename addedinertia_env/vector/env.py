@@ -58,11 +58,15 @@ class ReverseStrokeVectorEnv(VectorEnv):
     Keyword arguments: those of :class:`~addedinertia_env.envs.ReverseStrokeEnv` (``preset``,
     ``randomize``, ``ranges``, ``fixed``, ``sensor_quality``, ``hold_s``, ``alpha``,
     ``scenario_seed``, ``action_repeat``, ``control_mode``, ``reward_weights``), plus
-    ``autoreset_mode`` and ``spare_fraction`` (spare slots per environment, >= 0.1).
+    ``autoreset_mode``, ``spare_fraction`` (spare slots per environment, >= 0.1) and
+    ``score_episodes`` (default True: every ended episode's record is identified, as the
+    single env does; False skips the identification, so ``info`` has no benchmark numbers,
+    and needs ``reward_weights`` with ``accuracy`` 0).
     """
 
     def __init__(self, num_envs: int = 1, *, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
-                 spare_fraction: float = SPARE_FRACTION, render_mode: str | None = None, **env_kwargs: Any):
+                 spare_fraction: float = SPARE_FRACTION, render_mode: str | None = None,
+                 score_episodes: bool = True, **env_kwargs: Any):
         if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"ReverseStrokeVectorEnv option num_envs={num_envs!r}: expected an integer >= 1")
         if render_mode is not None:
@@ -83,6 +87,12 @@ class ReverseStrokeVectorEnv(VectorEnv):
         env_kwargs.pop("max_episode_steps", None)  # from the registration; an episode ends well before it
         weights = env_kwargs.pop("reward_weights", None) or RewardWeights()
         self.config = EnvConfig(reward_weights=weights, **env_kwargs)
+        if not isinstance(score_episodes, bool):
+            raise ValueError(f"ReverseStrokeVectorEnv option score_episodes={score_episodes!r}: expected True or False")
+        if not score_episodes and self.config.reward_weights.accuracy != 0:
+            raise ValueError("ReverseStrokeVectorEnv option score_episodes=False: the accuracy reward needs each "
+                             "episode identified; set reward_weights={'accuracy': 0} too, or keep score_episodes=True")
+        self.score_episodes = score_episodes
         self.metadata = {"autoreset_mode": mode, "render_modes": []}
         self.num_envs = num_envs
         self.n_spare = max(2, int(math.ceil(spare_fraction * num_envs)))
@@ -236,6 +246,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
         ended_envs = env_of_slot[np.concatenate(ended)] if ended else np.zeros(0, dtype=np.int64)
         if len(ended_envs):
             terminated[ended_envs] = True
+        if len(ended_envs) and self.score_episodes:
             metrics = self._score(ended_envs)
             terms["accuracy"][ended_envs] = metrics.pop("_accuracy")
             infos.update(metrics)

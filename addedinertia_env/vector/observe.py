@@ -17,6 +17,7 @@ _SCALES = np.array([scale for _, scale in OBSERVATION_FIELDS.values()])[:, None]
 
 def observe(pool: ExperimentPool, slots: np.ndarray) -> np.ndarray:
     """Observations (len(slots), 22) float32 of the slots' newest samples."""
+    pool.refresh_rates(slots)
     t = pool.t[slots]
     refs = pool.refs
     phi_ref, rate_ref, acc_ref = refs.phi_rate_accel(t, slots)

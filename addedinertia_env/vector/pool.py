@@ -95,6 +95,10 @@ class ExperimentPool:
         self.scenarios: list[Scenario | None] = [None] * n
         self.views: list[SlotRig | None] = [None] * n
         self.refs = MirroredReferences(n)
+        self._ref_table = np.zeros((n, 1024))  # phi_ref at the reverse stroke's samples, per slot
+        self._ref_first = np.zeros(n, dtype=np.int64)  # log index of its first entry
+        self._ref_len = np.zeros(n, dtype=np.int64)
+        self._cols = np.arange(n)
         f = lambda v=0.0: np.full(n, v)  # noqa: E731
         # Known constants and plan, per slot
         self.phi_n, self.c_known, self.k_t_known, self.J_f_known = f(), f(), f(), f()
@@ -131,7 +135,7 @@ class ExperimentPool:
         self._w_rate = endpoint_slope_weights(self.n_rate, self.dt)
         self._was_active = np.zeros(n, dtype=bool)
         # Logs
-        self._stage_block = np.zeros((STAGE, len(COLUMNS), n))
+        self._stage_block = np.zeros((STAGE, len(COLUMNS), n))  # row x column x slot: one sample's writes contiguous
         self._stage_row = 0
         self._stage_from = np.zeros(n, dtype=np.int64)
         self._stage_cnt = np.zeros(n, dtype=np.int64)
@@ -166,9 +170,10 @@ class ExperimentPool:
             self.scenarios[k] = s
             self.views[k] = SlotRig(s.rig)
             known, plan = s.rig.known(), s.plan
-            self.phi_n[k], self.c_known[k] = known["phi_neutral"], known["c_torsion"]
-            self.k_t_known[k], self.J_f_known[k] = known["k_t"], known["J_flywheel"]
-            self.i_max[k], self.u_max[k] = known["i_max"], known["u_max"]
+            self.phi_n[k], self.c_known[k] = known.phi_neutral, known.c_torsion
+            self.k_t_known[k], self.J_f_known[k] = known.k_t, known.J_flywheel
+            self.i_max[k] = known.current_limit
+            self.u_max[k] = math.nan if known.u_max is None else known.u_max
             self.sign[k] = 1.0 if plan.alpha > 0 else -1.0
             self.hold_s[k], self.lead_s[k] = plan.hold_s, plan.lead_s
             self.settle_left[k] = int(round(plan.settle_s / self.dt))
@@ -189,6 +194,7 @@ class ExperimentPool:
             getattr(self, name)[slots] = 0
         self.refs.t_begin[slots] = 0.0
         self.refs.t_end[slots] = 0.0
+        self._ref_len[slots] = 0
         self.phi[slots], self.psi[slots], self.u[slots], self.i[slots] = reading.phi, reading.psi, reading.u, reading.i
         self.t[slots] = self.last_t[slots] = reading.t
         self.hull_rate[slots] = self.fly_rate[slots] = 0.0
@@ -233,7 +239,6 @@ class ExperimentPool:
         np.copyto(self.last_t, r.t, where=active)
         for name, value_now in (("phi", r.phi), ("psi", r.psi), ("u", r.u), ("i", r.i), ("t", r.t)):
             np.copyto(getattr(self, name), value_now, where=active)
-        self._rates(active)
         out: dict[str, np.ndarray] = {}
         if controlled.any():
             out = self._controlled_sample(r, value, controlled, energy_before)
@@ -258,8 +263,10 @@ class ExperimentPool:
         else:
             at_limit = (np.abs(value) >= LIMIT_FRACTION * self.u_max) | (np.abs(r.i) >= self.i_max)
         at_limit &= controlled
-        in_stroke = controlled & (refs.t_begin < t) & (t <= refs.t_end + 0.5 * self.dt)
-        e = refs.phi(t) - r.phi
+        # phi_ref at this sample from the slot's table (MirroredReferences.phi at the stroke's sample times)
+        idx = self._flushed + self._stage_cnt - 1 - self._ref_first
+        in_stroke = controlled & (idx >= 0) & (idx < self._ref_len)
+        e = self._ref_table[self._cols, np.clip(idx, 0, self._ref_table.shape[1] - 1)] - r.phi
         e_sq = np.where(in_stroke, e * e, 0.0)
         self.tracking_sq += e_sq
         self.tracking_n += in_stroke
@@ -274,12 +281,15 @@ class ExperimentPool:
             self.stage[to_rev] = REVERSE
             self.k_reverse[to_rev] = self._flushed[to_rev] + self._stage_cnt[to_rev]
         if len(ended):
+            self.hull_rate[ended] = self._rate(0, ended)  # the terminal observation's
+            self.fly_rate[ended] = self._rate(1, ended)
             self.stage[ended] = ENDED
         return {"tracking_sq": e_sq, "energy": self.energy - energy_before, "limit": at_limit, "ended": ended}
 
     def _free_sample(self, free: np.ndarray) -> None:
         """Crossing, peak and stop prediction of the free strokes (Experiment.start)."""
         self.free_n[free] += 1
+        self.hull_rate[free] = self._rate(0, free)
         sign = self.sign[free]
         w = sign * self.hull_rate[free]
         self.peak[free] = np.maximum(self.peak[free], w)
@@ -311,6 +321,7 @@ class ExperimentPool:
         return (c2 != 0.0) & (t_stop <= 0.5 * self.dt)
 
     def _brake_at_stop(self, slots: np.ndarray) -> None:
+        self.fly_rate[slots] = self._rate(1, slots)  # the first observation's (ring current now)
         self.rig.set_brake(True, envs=slots)
         self.t_brake[slots] = self.t[slots]
         self._flush(slots)
@@ -322,33 +333,61 @@ class ExperimentPool:
             self.fit_rms[k] = law.fit_rms
             self.inertia_prior[k] = law.inertia_prior(float(self.c_known[k]), float(self.phi_n[k]))
             self.refs.set(k, law, float(self.t_brake[k] + self.hold_s[k]))
+            self._tabulate_reference(k, n)
             self.k_hold[k] = n
             if self.hold_s[k] <= 0:
                 self.rig.set_brake(False, envs=[k])
                 self.k_reverse[k] = n
         self.stage[slots] = READY
 
+    def _tabulate_reference(self, k: int, first: int) -> None:
+        """phi_ref of slot ``k`` at every sample of its reverse stroke (the samples with
+        ``t_begin < t <= t_end + dt / 2``, as ReverseStrokeTask.tracking_error), log index from ``first`` on."""
+        refs = self.refs
+        span = int(math.ceil((self.hold_s[k] + refs.duration[k]) / self.dt)) + 4
+        t = self.times(first + span)[first:]
+        inside = np.nonzero((refs.t_begin[k] < t) & (t <= refs.t_end[k] + 0.5 * self.dt))[0]
+        if not len(inside):
+            self._ref_len[k] = 0
+            return
+        a, b = int(inside[0]), int(inside[-1]) + 1
+        if b - a > self._ref_table.shape[1]:
+            grown = np.zeros((self.n, max(b - a, 2 * self._ref_table.shape[1])))
+            grown[:, :self._ref_table.shape[1]] = self._ref_table
+            self._ref_table = grown
+        self._ref_table[k, :b - a] = refs.phi(t[a:b], k)
+        self._ref_first[k], self._ref_len[k] = first + a, b - a
+
     def take(self, slots: np.ndarray) -> None:
         """Ready slots start their controlled part (hold, or reverse when ``hold_s`` is 0)."""
         self.stage[slots] = np.where(self.hold_s[slots] > 0, HOLD, REVERSE)
 
     # --- rates and logs --------------------------------------------------------------------
-    def _rates(self, active: np.ndarray) -> None:
+    def _window(self, j: int, cols) -> np.ndarray:
+        """The last ``n_rate`` samples of encoder ``j`` (0: hull, 1: motor) of slots ``cols``."""
         top = self._g + RING + 1
-        n = self.n_rate
-        hull = self._w_rate @ self._ring[0, top - n:top]
-        fly = self._w_rate @ self._ring[1, top - n:top]
-        count = self._flushed + self._stage_cnt
-        short = np.nonzero(active & (count < n))[0]
-        if len(short):  # RateEstimator before its window has filled: end-point difference
+        return self._ring[j, top - self.n_rate:top][:, cols]
+
+    def _rate(self, j: int, cols: np.ndarray) -> np.ndarray:
+        """RateEstimator's value for the newest sample of slots ``cols`` (their ring must be current)."""
+        rate = self._w_rate @ self._window(j, cols)
+        count = (self._flushed + self._stage_cnt)[cols]
+        short = np.nonzero(count < self.n_rate)[0]
+        if len(short):  # before the window has filled: end-point difference (0 for one sample)
             c = count[short]
-            for j, arr in ((0, hull), (1, fly)):
-                newest = self._ring[j, top - 1, short]
-                oldest = self._ring[j, top - c, short]
-                arr[short] = np.where(c >= 2, (newest - oldest) / ((c - 1) * self.dt),
-                                      (self.hull_rate if j == 0 else self.fly_rate)[short])
-        np.copyto(self.hull_rate, hull, where=active)
-        np.copyto(self.fly_rate, fly, where=active)
+            top = self._g + RING + 1
+            newest = self._ring[j, top - 1, cols[short]]
+            oldest = self._ring[j, top - c, cols[short]]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                rate[short] = np.where(c >= 2, (newest - oldest) / ((c - 1) * self.dt), 0.0)
+        return rate
+
+    def refresh_rates(self, slots: np.ndarray) -> None:
+        """Hull and flywheel rate estimates of ``slots`` that took the last sample (others keep theirs)."""
+        cols = slots[self._was_active[slots]]
+        if len(cols):
+            self.hull_rate[cols] = self._rate(0, cols)
+            self.fly_rate[cols] = self._rate(1, cols)
 
     def _log(self, r, value, controlled, active) -> None:
         g = self._g = (self._g + 1) % RING

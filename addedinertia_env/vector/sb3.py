@@ -57,10 +57,11 @@ class BatchedVecEnv(VecEnv):
                 d = infos[k]
                 d["terminal_observation"] = info["final_obs"][k]
                 d["TimeLimit.truncated"] = bool(truncated[k] and not terminated[k])
-                for key in METRIC_KEYS:
-                    d[key] = float(final[key][k])
-                d["failed"] = bool(final["failed"][k])
-                d["scenario_seed"] = int(final["scenario_seed"][k])
+                if "rel_error" in final:  # scored episodes (score_episodes=True)
+                    for key in METRIC_KEYS:
+                        d[key] = float(final[key][k])
+                    d["failed"] = bool(final["failed"][k])
+                    d["scenario_seed"] = int(final["scenario_seed"][k])
                 d["episode_reward_terms"] = dict(zip(names, (float(x) for x in self._episode_terms[k])))
                 self._episode_terms[k] = 0.0
         return obs, rewards.astype(np.float32), dones, infos
