@@ -213,6 +213,8 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
             f"{result['vector_env_samples_per_s']:,.0f} samples/s ({result['vector_env_agent_steps_per_s']:,.0f} agent steps/s) |",
             f"| whole task, `gym.make_vec` sync | {result['sync_vector_env_samples_per_s']:,.0f} samples/s |",
             f"| ratio batched / `make_vec` sync (same run) | {result['vector_ratio_to_sync']:,.0f} x |",
+            f"| whole task, batched, identification off | "
+            f"{result['vector_env_samples_per_s_identification_off']:,.0f} samples/s |",
         ]
     lines += [
         "",
@@ -249,12 +251,20 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   "not counted as samples. Single env and `make_vec` sync are timed from `reset`; the batched",
                   "env after its first reset and a warm-up (the first episodes all start together), so",
                   "the window holds autoresets and identifications at their steady rate.", "",
-                  "| engine | n envs | samples/s | agent steps/s | episodes ended | wall s |",
-                  "|---|---:|---:|---:|---:|---:|"]
+                  "| engine | n envs | samples/s (wall) | agent steps/s (wall) | samples per CPU-s | episodes ended | wall s | CPU s |",
+                  "|---|---:|---:|---:|---:|---:|---:|---:|"]
         for row in rows:
             lines.append(f"| {row['kind']} | {row['n_envs']} | {row['samples_per_s']:,.0f} | "
-                         f"{row['agent_steps_per_s']:,.0f} | {row['episodes_ended']} | {row['wall_s']:.1f} |")
-        b = rows[-1]
+                         f"{row['agent_steps_per_s']:,.0f} | {row['samples_per_cpu_s']:,.0f} | {row['episodes_ended']} | "
+                         f"{row['wall_s']:.1f} | {row['cpu_s']:.1f} |")
+        b = rows[2]
+        e = rows[3]
+        ident_ms = ((b["cpu_s"] / b["samples"] - e["cpu_s"] / e["samples"]) * b["samples"] / max(b["episodes_ended"], 1)
+                    * 1e3)
+        lines += ["", f"The end-of-episode identification (the energy method on each finished record, for the accuracy",
+                  f"reward and the episode's score) costs about {ident_ms:,.0f} CPU-ms per episode here (the difference of the",
+                  "two batched rows per episode); with it off (`score_episodes=False`, accuracy weight 0) the rest of",
+                  f"the task runs at {e['samples_per_cpu_s']:,.0f} samples per CPU-second."]
         lines += ["", f"Batched / `make_vec` sync = **{result['vector_ratio_to_sync']:,.0f} x** (same run). The batched",
                   f"env's first reset ({b['n_envs']} free strokes at once) took {b['reset_s']:.1f} s; its timed window used "
                   f"{b['cpu_s']:.1f} CPU-s in {b['wall_s']:.1f} s of wall time; {b['episodes_per_s']:.0f} episodes ended per second,",

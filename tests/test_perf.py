@@ -14,7 +14,7 @@ from addedinertia_env.perf import measure_batched, render_markdown
 def test_perf_json_has_the_contract_fields(capsys, tmp_path):
     out = tmp_path / "PERF.md"
     assert main(["perf", "--max-envs", "16", "--seconds", "0.01", "--repeats", "1", "--vector-envs", "4",
-                 "--vector-steps", "3", "--vector-seconds", "0.2", "--json", "--out", str(out)]) == 0
+                 "--vector-steps", "3", "--vector-warmup", "2", "--vector-seconds", "0.2", "--json", "--out", str(out)]) == 0
     result = json.loads(capsys.readouterr().out)
     for key in ("single_env_steps_per_s", "batched_physics_steps_per_s", "n_envs", "vector_env_samples_per_s",
                 "vector_env_agent_steps_per_s", "sync_vector_env_samples_per_s", "vector_n_envs"):

@@ -16,8 +16,10 @@ def register(sub) -> None:
     p.add_argument("--repeats", type=positive_int, default=5, help="repeats per measurement; the best counts")
     p.add_argument("--vector-envs", type=positive_int, default=1024,
                    help="environments of the batched vector env for the whole-task figures (default 1024)")
-    p.add_argument("--vector-steps", type=positive_int, default=300,
-                   help="timed agent steps of the batched vector env, after a warm-up of as many again + 100")
+    p.add_argument("--vector-steps", type=positive_int, default=200,
+                   help="timed agent steps of the batched vector env (default 200)")
+    p.add_argument("--vector-warmup", type=int, default=600,
+                   help="agent steps before the timing starts, so that the first episodes spread out (default 600)")
     p.add_argument("--vector-seconds", type=float, default=20.0,
                    help="wall time of the single-env and gym.make_vec sync measurements, s (default 20)")
     p.add_argument("--out", default=None, help="write the report to this Markdown file (e.g. docs/PERFORMANCE.md)")
@@ -40,7 +42,9 @@ def run(args) -> int:
     result = run_perf(tuple(sizes), seconds=args.seconds, repeats=args.repeats, progress=info)
     from ..vector.measure import measure_vector_task  # noqa: PLC0415
 
-    result.update(measure_vector_task(args.vector_envs, steps=args.vector_steps, warmup_steps=args.vector_steps + 100,
+    if args.vector_warmup < 0:
+        raise BadInput(f"--vector-warmup {args.vector_warmup}: expected 0 or more agent steps")
+    result.update(measure_vector_task(args.vector_envs, steps=args.vector_steps, warmup_steps=args.vector_warmup,
                                       seconds=args.vector_seconds, progress=info))
     result["machine"]["load_avg_at_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
     info(f"single MuJoCo env: {result['single_env_steps_per_s']:,.0f} steps/s; batched n={result['n_envs']}: "
@@ -55,6 +59,7 @@ def run(args) -> int:
         plot_time_vs_n(result, str(fig))
         command = "addedinertia perf " + " ".join(
             [f"--max-envs {args.max_envs}", f"--vector-envs {args.vector_envs}", f"--vector-steps {args.vector_steps}",
+             f"--vector-warmup {args.vector_warmup}",
              f"--vector-seconds {args.vector_seconds:g}", f"--out {args.out}"])
         text = render_markdown(result, command, os.path.relpath(fig, out.parent))
         tmp = out.with_suffix(out.suffix + ".tmp")

@@ -3,13 +3,14 @@
 A *sample* is one rig sample (1 ms at 1 kHz) of one environment under the agent's
 command (hold or reverse stroke); an *agent step* is ``action_repeat`` samples. The
 settle, free strokes, resets and end-of-episode identification are not counted as
-samples but their time is in the wall time. Same task options and the same random
+samples but their time is in the wall time (and CPU time, :func:`time.process_time`, given
+beside it: on a shared machine the wall time also holds other jobs' turns). Same task options and the same random
 policy (uniform actions in [-0.3, 0.3]) for every engine.
 
 For the batched env, the clock starts after ``reset`` and a warm-up of ``warmup_steps``
 agent steps (long enough for the first episodes, which all start together, to spread
-out); the measured window then holds autoresets and identifications at their steady
-rate. ``gym.make_vec`` (sync) and the single env are timed from ``reset`` on, for
+out; its episodes are not identified, to save time); the measured window then holds
+autoresets and identifications at their steady rate. ``gym.make_vec`` (sync) and the single env are timed from ``reset`` on, for
 ``seconds`` of wall time each (their resets are part of every episode).
 """
 
@@ -29,15 +30,21 @@ def _policy(rng: np.random.Generator, n: int) -> np.ndarray:
 
 
 def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 400, action_repeat: int = 10,
-                    seed: int = 0, **env_kwargs: Any) -> dict[str, Any]:
-    """Samples and agent steps per second of ``gym.make_vec`` (the batched vector env)."""
+                    seed: int = 0, score_episodes: bool = True, **env_kwargs: Any) -> dict[str, Any]:
+    """Samples and agent steps per second of ``gym.make_vec`` (the batched vector env); with
+    ``score_episodes=False`` (and the accuracy reward off) without the end-of-episode identification."""
+    if not score_episodes:
+        env_kwargs = {**env_kwargs, "score_episodes": False, "reward_weights": {"accuracy": 0.0}}
     env = gym.make_vec(ENV_ID, num_envs=num_envs, action_repeat=action_repeat, **env_kwargs)
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     env.reset(seed=seed)
     reset_s = time.perf_counter() - t0
+    scored = env.unwrapped.score_episodes
+    env.unwrapped.score_episodes = False  # the warm-up only spreads the episodes out: no identification
     for _ in range(warmup_steps):
         env.step(_policy(rng, num_envs))
+    env.unwrapped.score_episodes = scored
     ended = 0
     rel = []
     t0 = time.perf_counter()
@@ -51,9 +58,11 @@ def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 
     cpu = time.process_time() - cpu0
     env.close()
     agent_steps = num_envs * steps
-    return {"kind": "batched (gym.make_vec, vector_entry_point)", "n_envs": num_envs, "action_repeat": action_repeat,
+    kind = "batched (gym.make_vec)" + ("" if score_episodes else ", identification off")
+    return {"kind": kind, "n_envs": num_envs, "action_repeat": action_repeat,
             "agent_steps": agent_steps, "samples": agent_steps * action_repeat, "wall_s": wall, "cpu_s": cpu,
             "samples_per_s": agent_steps * action_repeat / wall, "agent_steps_per_s": agent_steps / wall,
+            "samples_per_cpu_s": agent_steps * action_repeat / cpu,
             "episodes_ended": ended, "episodes_per_s": ended / wall, "reset_s": reset_s,
             "warmup_steps": warmup_steps, "median_abs_rel_error": float(np.median(rel)) if rel else float("nan")}
 
@@ -64,6 +73,7 @@ def measure_loop(make: Callable[[], Any], n: int, kind: str, seconds: float, act
     env = make()
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
+    cpu0 = time.process_time()
     env.reset(seed=seed)
     steps = ended = 0
     while steps < 3 or time.perf_counter() - t0 < seconds:  # at least a few steps after the reset
@@ -75,9 +85,11 @@ def measure_loop(make: Callable[[], Any], n: int, kind: str, seconds: float, act
         if n == 1 and done[0]:
             env.reset()
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - cpu0
     env.close()
     return {"kind": kind, "n_envs": n, "action_repeat": action_repeat, "agent_steps": steps * n,
-            "samples": steps * n * action_repeat, "wall_s": wall, "samples_per_s": steps * n * action_repeat / wall,
+            "samples": steps * n * action_repeat, "wall_s": wall, "cpu_s": cpu,
+            "samples_per_s": steps * n * action_repeat / wall, "samples_per_cpu_s": steps * n * action_repeat / cpu,
             "agent_steps_per_s": steps * n / wall, "episodes_ended": ended}
 
 
@@ -96,9 +108,13 @@ def measure_vector_task(num_envs: int = 1024, steps: int = 300, warmup_steps: in
     batched = measure_batched(num_envs, steps, warmup_steps, action_repeat)
     say(f"batched n={num_envs}: {batched['samples_per_s']:,.0f} samples/s, "
         f"{batched['episodes_per_s']:.0f} episodes/s")
+    engine = measure_batched(num_envs, steps, warmup_steps, action_repeat, score_episodes=False)
+    say(f"batched n={num_envs}, identification off: {engine['samples_per_s']:,.0f} samples/s")
     return {"vector_env_samples_per_s": batched["samples_per_s"],
+            "vector_env_samples_per_s_identification_off": engine["samples_per_s"],
+            "vector_env_samples_per_cpu_s": batched["samples_per_cpu_s"],
             "vector_env_agent_steps_per_s": batched["agent_steps_per_s"],
             "sync_vector_env_samples_per_s": sync["samples_per_s"],
             "vector_n_envs": num_envs,
             "vector_ratio_to_sync": batched["samples_per_s"] / sync["samples_per_s"],
-            "vector_task": {"rows": [single, sync, batched], "action_repeat": action_repeat}}
+            "vector_task": {"rows": [single, sync, batched, engine], "action_repeat": action_repeat}}
