@@ -172,6 +172,8 @@ def test_bad_options_and_actions_are_refused():
         ReverseStrokeVectorEnv(0)
     with pytest.raises(ValueError, match="render_mode"):
         ReverseStrokeVectorEnv(2, render_mode="rgb_array")
+    with pytest.raises(ValueError, match="suite"):
+        ReverseStrokeVectorEnv(2, suite="hard-v0")
     with pytest.raises(ValueError, match="hold_s"):
         ReverseStrokeVectorEnv(2, hold_s=-1.0)
     venv = ReverseStrokeVectorEnv(2, **SHORT)

@@ -104,10 +104,13 @@ def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None, residual: di
 BATCHED_ENV_ID = "AddedInertia/ReverseStroke-v0"
 
 
-def uses_batched(env_id: str, residual: dict[str, Any] | None, vec_env: str) -> bool:
+def uses_batched(env_id: str, residual: dict[str, Any] | None, vec_env: str,
+                 env_kwargs: dict[str, Any] | None = None) -> bool:
     """Whether ``vec_env="batched"`` applies: the reverse stroke without a residual base (the base
-    controllers run per environment in Python, so residual training uses single envs)."""
-    return vec_env == "batched" and env_id == BATCHED_ENV_ID and not (residual and residual.get("enabled"))
+    controllers run per environment in Python, so residual training uses single envs) and without
+    a suite's control loop (``env_kwargs["suite"]``, not on the batched engine yet)."""
+    return (vec_env == "batched" and env_id == BATCHED_ENV_ID and not (residual and residual.get("enabled"))
+            and (env_kwargs or {}).get("suite") is None)
 
 
 def make_vec(env_id: str, env_kwargs: dict[str, Any], residual: dict[str, Any] | None, n_envs: int, seed: int,
@@ -118,7 +121,7 @@ def make_vec(env_id: str, env_kwargs: dict[str, Any], residual: dict[str, Any] |
     from stable_baselines3.common.env_util import make_vec_env  # noqa: PLC0415
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor  # noqa: PLC0415
 
-    if uses_batched(env_id, residual, vec_env):
+    if uses_batched(env_id, residual, vec_env, env_kwargs):
         from ..vector.sb3 import BatchedVecEnv  # noqa: PLC0415
 
         return VecMonitor(BatchedVecEnv(n_envs, seed=seed, **dict(env_kwargs or {})))

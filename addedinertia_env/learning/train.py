@@ -105,7 +105,7 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
                           f"n_timesteps {cfg.n_timesteps}; pass a larger --timesteps")
 
     # Evaluation: the batched env when training uses it (one seeded episode per environment), else one env.
-    batched = uses_batched(cfg.env_id, cfg.residual, cfg.vec_env)
+    batched = uses_batched(cfg.env_id, cfg.residual, cfg.vec_env, cfg.env_kwargs)
     n_eval_envs = cfg.eval["n_episodes"] if batched else 1
     eval_env = _normalizer(make_vec(cfg.env_id, cfg.env_kwargs, cfg.residual, n_eval_envs, cfg.eval["seed"],
                                     cfg.vec_env), cfg, False)

@@ -72,6 +72,12 @@ class ReverseStrokeVectorEnv(VectorEnv):
         if render_mode is not None:
             raise ValueError(f"ReverseStrokeVectorEnv option render_mode={render_mode!r}: the vector environment "
                              "does not render; render one gym.make('AddedInertia/ReverseStroke-v0') instead")
+        if env_kwargs.get("suite") is not None:
+            raise ValueError(f"ReverseStrokeVectorEnv option suite={env_kwargs['suite']!r}: a suite's control loop "
+                             "(delayed, held, quantised commands) is not on the batched engine yet; use "
+                             "gym.make_vec(..., vectorization_mode='sync') for suite scenarios")
+        env_kwargs.pop("suite", None)
+        env_kwargs.pop("suite_split", None)
         for key in ("rig_factory", "width", "height"):
             if key in env_kwargs:
                 raise ValueError(f"ReverseStrokeVectorEnv option {key}: not available on the batched engine "
