@@ -40,6 +40,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..rig import forces
+from ..rig.integrator import rk4_step
 from ..rig.effects import registry
 from .prepare import Prepared, flywheel_prediction, interval_current
 
@@ -309,9 +310,10 @@ def _integrate(phi0, water0, mean, slope, h_steps, J, ns, data: Prepared, ends: 
     neutral = forces.true_neutral(ns)
     memory = forces.has_water_memory(ns)
 
-    def deriv(phi, w, r, torque):
+    def deriv(z, torque):
+        phi, w, r = z
         acc = (-c * (phi - neutral) + forces.hull_extra_torque(phi, w, r, ns) + torque) / J
-        dr = forces.water_rate_derivative(w, r, ns) if memory else 0.0
+        dr = forces.water_rate_derivative(w, r, ns) if memory else 0.0 * r
         return w, acc, dr
 
     P, S, N = mean.shape
@@ -323,14 +325,9 @@ def _integrate(phi0, water0, mean, slope, h_steps, J, ns, data: Prepared, ends: 
         h = h_steps[None, :, j]
         u_mid = mean[:, :, j]
         du = 0.5 * slope[:, :, j] * h
-        k1p, k1w, k1r = deriv(phi, w, r, u_mid - du)
-        k2p, k2w, k2r = deriv(phi + 0.5 * h * k1p, w + 0.5 * h * k1w, r + 0.5 * h * k1r, u_mid)
-        k3p, k3w, k3r = deriv(phi + 0.5 * h * k2p, w + 0.5 * h * k2w, r + 0.5 * h * k2r, u_mid)
-        k4p, k4w, k4r = deriv(phi + h * k3p, w + h * k3w, r + h * k3r, u_mid + du)
-        phi = phi + h / 6.0 * (k1p + 2 * k2p + 2 * k3p + k4p)
-        w = w + h / 6.0 * (k1w + 2 * k2w + 2 * k3w + k4w)
+        phi, w, r_new = rk4_step(deriv, (phi, w, r), h, inputs=(u_mid - du, u_mid, u_mid + du))
         if memory:
-            r = r + h / 6.0 * (k1r + 2 * k2r + 2 * k3r + k4r)
+            r = r_new
             done = ends == j + 1
             if done.any():
                 water_end[:, done] = r[:, done]

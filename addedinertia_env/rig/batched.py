@@ -49,6 +49,7 @@ from typing import Sequence
 import numpy as np
 
 from . import forces
+from .integrator import rk4_step
 from .batched_params import BatchedParams
 from .motor import MODES, current_step, terminal_voltage
 from .noise import batch_keys
@@ -90,15 +91,6 @@ def braked_dynamics(z, c, J, J_f):
     phi, w, psi, omega, f1, f2 = z
     zero = 0.0 * phi
     return (zero, zero, omega, f2 / J_f, zero, zero)
-
-
-def rk4_step(f, z, h, *args):
-    """Classic four-stage Runge-Kutta step of ``z' = f(z, *args)`` (tuples of arrays)."""
-    k1 = f(z, *args)
-    k2 = f(tuple(a + 0.5 * h * b for a, b in zip(z, k1)), *args)
-    k3 = f(tuple(a + 0.5 * h * b for a, b in zip(z, k2)), *args)
-    k4 = f(tuple(a + h * b for a, b in zip(z, k3)), *args)
-    return tuple(a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for a, b1, b2, b3, b4 in zip(z, k1, k2, k3, k4))
 
 
 def reference_substep(x, h: float, kind: int, c, J, J_f, k_t, R, L):
