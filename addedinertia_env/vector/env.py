@@ -42,6 +42,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..envs.config import EnvConfig
 from ..identify import IdentificationError, identify
+from ..metrics import episode_metrics
 from ..scenarios import load_ranges
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
 from .observe import observe
@@ -297,8 +298,9 @@ class ReverseStrokeVectorEnv(VectorEnv):
         for j, e in enumerate(envs):
             k = int(self.env_slot[e])
             failed = False
+            record = pool.record(k)
             try:
-                result = identify([pool.record(k)], "energy")
+                result = identify([record], "energy")
                 est, ci = float(result.lambda66), [float(result.ci95[0]), float(result.ci95[1])]
             except IdentificationError as err:
                 est, ci = math.nan, [math.nan, math.nan]
@@ -306,10 +308,9 @@ class ReverseStrokeVectorEnv(VectorEnv):
                 out["failure"][e] = str(err)
             true = float(pool.scenarios[k].rig.hull.lambda66)
             rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
-            tn = int(pool.tracking_n[k])
-            values = {"lambda66_est": est, "lambda66_true": true, "rel_error": rel, "energy_J": float(pool.energy[k]),
-                      "tracking_rms_rad": math.sqrt(pool.tracking_sq[k] / tn) if tn else math.nan,
-                      "saturated_frac": pool.limit_samples[k] / max(int(pool.controlled[k]), 1)}
+            m = episode_metrics(record)  # the one computation of the episode's numbers (metrics.py)
+            values = {"lambda66_est": est, "lambda66_true": true, "rel_error": rel, "energy_J": m.energy_J,
+                      "tracking_rms_rad": m.tracking_rms_rad, "saturated_frac": m.saturated_frac}
             for key, v in values.items():
                 out[key][e] = v
             out["ci95"][e] = ci

@@ -40,6 +40,7 @@ import numpy as np
 from ..experiment.filters import endpoint_slope_weights
 from ..experiment.reference import fit_stroke
 from ..experiment.sample_log import make_record
+from ..metrics import current_at_limit, voltage_at_limit
 from ..rig import forces
 from ..rig.batched import CURRENT, PASSIVE, VOLTAGE, BatchedRig
 from ..rig.interface import SimulatedRigBase
@@ -52,7 +53,6 @@ RING = 64  # samples of encoder history kept for the rate filters and the stop f
 STAGE = 256  # samples staged before they are copied to the slots' logs
 COLUMNS = ("phi", "psi", "u", "i", "i_cmd", "u_cmd")
 RATE_WINDOW_S = 0.04  # s, as RateEstimator's default
-LIMIT_FRACTION = 0.999
 
 
 class SlotRig(SimulatedRigBase):
@@ -115,10 +115,6 @@ class ExperimentPool:
         # Controlled part
         self.energy = f()  # J, integral of |u i| over hold and reverse
         self.last_t = f()
-        self.controlled = np.zeros(n, dtype=np.int64)
-        self.saturated = np.zeros(n, dtype=np.int64)
-        self.tracking_sq, self.tracking_n = f(), np.zeros(n, dtype=np.int64)
-        self.limit_samples = np.zeros(n, dtype=np.int64)
         self.k_release = np.zeros(n, dtype=np.int64)  # log index of the first free sample
         self.k_hold = np.zeros(n, dtype=np.int64)  # first hold sample
         self.k_reverse = np.zeros(n, dtype=np.int64)  # first reverse sample
@@ -188,10 +184,9 @@ class ExperimentPool:
         reading = self.rig.reset(phi0=phi0, envs=slots)
         for name in ("t_cross", "t_release", "t_brake", "inertia_prior"):
             getattr(self, name)[slots] = math.nan
-        for name in ("peak", "energy", "tracking_sq", "fit_rms"):
+        for name in ("peak", "energy", "fit_rms"):
             getattr(self, name)[slots] = 0.0
-        for name in ("free_n", "controlled", "saturated", "tracking_n", "limit_samples"):
-            getattr(self, name)[slots] = 0
+        self.free_n[slots] = 0
         self.refs.t_begin[slots] = 0.0
         self.refs.t_end[slots] = 0.0
         self._ref_len[slots] = 0
@@ -256,21 +251,16 @@ class ExperimentPool:
     def _controlled_sample(self, r, value, controlled, energy_before) -> dict[str, np.ndarray]:
         t = r.t
         refs = self.refs
-        self.controlled += controlled
-        if self.mode_code == CURRENT:
-            self.saturated += controlled & (np.abs(value) >= self.i_max)
-            at_limit = np.abs(value) >= LIMIT_FRACTION * self.i_max
+        if self.mode_code == CURRENT:  # the one saturation rule (metrics.py), as the task's reward
+            at_limit = current_at_limit(value, self.i_max)
         else:
-            at_limit = (np.abs(value) >= LIMIT_FRACTION * self.u_max) | (np.abs(r.i) >= self.i_max)
+            at_limit = voltage_at_limit(value, r.i, self.u_max, self.i_max)
         at_limit &= controlled
         # phi_ref at this sample from the slot's table (MirroredReferences.phi at the stroke's sample times)
         idx = self._flushed + self._stage_cnt - 1 - self._ref_first
         in_stroke = controlled & (idx >= 0) & (idx < self._ref_len)
         e = self._ref_table[self._cols, np.clip(idx, 0, self._ref_table.shape[1] - 1)] - r.phi
         e_sq = np.where(in_stroke, e * e, 0.0)
-        self.tracking_sq += e_sq
-        self.tracking_n += in_stroke
-        self.limit_samples += at_limit
         # phase changes (Experiment.step)
         hold = controlled & (self.stage == HOLD)
         rev = controlled & (self.stage == REVERSE)
