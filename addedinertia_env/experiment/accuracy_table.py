@@ -177,14 +177,15 @@ NOTES = """## How each method works here, and why its interval is what it is
 
 - **energy** (patent RU 2627023, physics.md section 4): `addedinertia_env/identify/energy.py`.
   Work of the motor's reaction on the hull over the reverse stroke against the forward
-  stroke's spring and kinetic energies, at five boundary angles; the hydrodynamic
-  dissipation cancels only as far as the controller mirrors the stroke, and the
-  mismatch is estimated from a damping law fitted to the forward stroke. Its interval
-  holds the work noise, the current-sensor gain (0.5 %), the rate fits at the boundary
-  angles and half of the dissipation-mismatch correction; the parts that are
-  independent between boundary angles (noise, rate fits) average down over the angles,
-  widened by the Birge ratio when the angles scatter more than that, the shared parts
-  (sensor gain, mismatch model) do not.
+  stroke's spring and kinetic energies, at 41 boundary angles between 25 % and 75 % of
+  the stroke averaged with smooth (Hann) weights; the hydrodynamic dissipation cancels
+  only as far as the controller mirrors the stroke, and the mismatch is estimated from a
+  damping law fitted to the forward stroke. Its interval holds the work noise, the
+  current-sensor gain (0.5 %, shared by every angle), the rate fits (their noise
+  propagated through the weighted average), half of the dissipation-mismatch correction,
+  and any trend of the estimate with the boundary angle. Its error budget, term by term,
+  is in docs/ENERGY_METHOD.md: on these realistic sensors the current-sensor gain error
+  (+0.1 %) is most of what is left.
 - **free-decay** (textbook, source 004): `addedinertia_env/identify/free_decay.py`. Periods
   and half-swing decrements from the extrema of a passive decay. Two things a plain
   textbook reading gets wrong on this rig are handled from the record itself: the

@@ -72,8 +72,8 @@ WORK_SMOOTHING_S = 0.2  # s, window of the quintic smoothing of the angles in th
 DIAGNOSTIC_FORM_WARNING = (
     "energy method, work={work!r}: a diagnostic form; it books the flywheel's energy (tens of J) "
     "against the hull's (under 1 J), so current-gain, R and flywheel-rate errors are multiplied "
-    "about 100-fold: expect errors of a few 0.1 % with ideal sensors and tens of % with realistic "
-    "ones (docs/ENERGY_METHOD.md). Use work='reaction' for the estimate.")
+    "about 100-fold: expect about 1 % of error with a calibrated current sensor and several % with "
+    "a 0.5 % gain error (docs/ENERGY_METHOD.md). Use work='reaction' for the estimate.")
 
 
 @dataclass
@@ -284,6 +284,7 @@ class RunBalance:
         if free is None or rev is None:
             raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
         self.free, self.rev = free, rev
+        self.hold_start = hold.start if hold is not None else free.start
         self.i_offset = float(np.mean(rec["i"][free]))  # open circuit on the free stroke: true i = 0
         self.i = rec["i"] - self.i_offset
         self.noise_i = float(np.std(rec["i"][free]))
@@ -298,6 +299,7 @@ class RunBalance:
         self.work_cum = self._cumulative_work()
         self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros_like(t)
         self.asymmetry_correction = asymmetry_correction
+        self._fits: dict = {}
         self.law: dict | None = None
         self.dW_of = None  # set by use_total_inertia once a first estimate exists
         sat = None
@@ -306,6 +308,7 @@ class RunBalance:
         self.saturated = sat
         w2 = self._fit_before.deriv()(0.0) if self._fit_before is not None else self._rest_rate(self.k2, free.start)
         w3 = w2 if hold is None else self._rest_rate(self.k3, hold.start)
+        self.rest_w2, self.rest_w3 = float(w2), float(w3)  # hull rates at t2 and t3, rad/s
         self.rest_rates_sq = float(w2**2 + w3**2)
         self.hull_rest = 0.5 * 2.0 * self.J_h * self.rest_rates_sq  # refined by use_total_inertia
         self.quantum = _quantum(phi, rig.phi_counts)
@@ -332,8 +335,10 @@ class RunBalance:
         if gap is not None:  # the work sums and rate fits assume the stroke was sampled throughout
             return (f"a gap of {gap[1]:.4g} s in 't' after t = {gap[0]:.4f} s inside the integrated stroke "
                     f"({MAX_GAP_PERIODS:g} sample periods allowed)")
-        f1 = _crossing_fit(t, phi, k1, phi1)
-        f4 = _crossing_fit(t, phi, k4, phi1)
+        key = (k1, k4, float(phi1))
+        if key not in self._fits:  # the second pass reuses the first pass's fits
+            self._fits[key] = (_crossing_fit(t, phi, k1, phi1), _crossing_fit(t, phi, k4, phi1))
+        f1, f4 = self._fits[key]
         t1, w1f, t4, w1r = f1["t"], f1["rate"], f4["t"], f4["rate"]
         t2, t3 = t[self.k2], t[self.k3]
         W, B = self.work_cum, self.bearing_cum
@@ -348,8 +353,13 @@ class RunBalance:
         if self.work != "reaction":
             terms.K1 = self._flywheel_energy_at(t1, w1f)
             terms.K4 = self._flywheel_energy_at(t4, w1r)
-            terms.K2 = self._flywheel_energy_at(t2, self._rest_rate(self.k2, self.free.start))
-            terms.K3 = self._flywheel_energy_at(t3, 0.0 if self.k3 != self.k2 else self._rest_rate(self.k2, self.free.start))
+            # At t2 and t3 the brake is set and released and the motor's torque jumps: the
+            # flywheel's rate there comes from the samples before each instant only.
+            omega2 = self._rest_rate(self.k2, self.free.start, RATE_HALF_WIDTH, self.psi)
+            omega3 = self._rest_rate(self.k3, self.hold_start if self.k3 != self.k2 else self.free.start,
+                                     RATE_HALF_WIDTH, self.psi)
+            terms.K2 = 0.5 * self.J_f * (omega2 + self.rest_w2) ** 2
+            terms.K3 = 0.5 * self.J_f * (omega3 + self.rest_w3) ** 2
         s_dW = 0.0
         if self.dW_of is not None:
             terms.dW, s_dW = self.dW_of(phi1)
@@ -457,7 +467,7 @@ class RunBalance:
         curve = fit(tau) - fit(0.0) + rest
         self.phi_s[k3:end] = blend * curve + (1.0 - blend) * self.phi_s[k3:end]
 
-    def _rest_rate(self, k: int, start: int, window_s: float = 0.05) -> float:
+    def _rest_rate(self, k: int, start: int, window_s: float = 0.05, angle: np.ndarray | None = None) -> float:
         """Hull rate at sample ``k`` from a quadratic over the samples before it in its own phase, rad/s.
 
         At t2 the brake is set and at t3 released: a window reaching past either instant
@@ -468,7 +478,7 @@ class RunBalance:
         if k - a < 5:
             return 0.0
         s = t[a:k + 1] - t[k]
-        coef = np.polynomial.polynomial.polyfit(s, self.phi[a:k + 1], 2)
+        coef = np.polynomial.polynomial.polyfit(s, (self.phi if angle is None else angle)[a:k + 1], 2)
         return float(coef[1])
 
     def _flywheel_energy_at(self, tc: float, hull_rate: float) -> float:
