@@ -87,37 +87,42 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
 
 
 def plot_pareto(entries: list[dict], path: Path, score_label: str) -> Path:
-    """Median score (with its 95 % interval) against median energy, one point per entry;
-    the Pareto front of the ranked entries drawn as a line; references hollow."""
+    """Left: every row, references included (log-log). Right: the ranked entries alone, median
+    score with its 95 % interval against median energy, the Pareto front of the entries
+    dashed (lower left is better)."""
     plt = _axes()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    ranked = [e for e in entries if e.get("rank") is not None]
+    fig, (ax_all, ax) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1, 1.6]})
+    finite = [e for e in entries if math.isfinite(e["median_energy_J"]) and math.isfinite(e["score"])]
+    for e in finite:
+        ref = e.get("rank") is None
+        x, y = max(e["median_energy_J"], 1e-3), max(e["score"], FLOOR) * 100
+        ax_all.plot([x], [y], "s" if ref else "o", mfc="none" if ref else None, ms=7)
+        if ref:
+            ax_all.annotate(e["controller"], (x, y), textcoords="offset points", xytext=(5, 4), fontsize=8)
+    ax_all.set_xscale("log")
+    ax_all.set_yscale("log")
+    ax_all.set_xlabel("median energy, J (log; 0 J drawn at 1e-3)")
+    ax_all.set_ylabel(score_label + ", % (log; 0 drawn at 0.001 %)")
+    ax_all.set_title("all rows (squares: references)", fontsize=10)
+    ranked = [e for e in finite if e.get("rank") is not None]
     pts = [(e["median_energy_J"], e["score"]) for e in ranked]
     front = pareto_front(pts)
     if len(front) > 1:
-        ax.plot([pts[k][0] for k in front], [max(pts[k][1], FLOOR) * 100 for k in front], "k--", lw=0.8,
-                label="Pareto front (entries)")
-    for e in entries:
-        x, y = e["median_energy_J"], e["score"]
-        if not (math.isfinite(x) and math.isfinite(y)):
-            continue
-        ci = e.get("ci95_control_error") or e.get("ci95_median")
-        y_plot = max(y, FLOOR)
-        ref = e.get("rank") is None
-        err = None
-        if ci and all(math.isfinite(v) for v in ci) and not ref:
-            err = [[max(y_plot - max(ci[0], FLOOR), 0) * 100], [max(ci[1] - y_plot, 0) * 100]]
-        ax.errorbar([max(x, 1e-3)], [y_plot * 100], yerr=err, fmt="s" if ref else "o", ms=7,
-                    mfc="none" if ref else None, capsize=3)
-        ax.annotate(e["controller"] + (" (reference)" if ref else ""), (max(x, 1e-3), y_plot * 100),
-                    textcoords="offset points", xytext=(5, 4), fontsize=8)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("median electric energy integral |u i| dt over hold + reverse stroke, J")
-    ax.set_ylabel(score_label + ", %")
-    ax.set_title("accuracy against energy (lower left is better)")
-    if len(front) > 1:
+        ax.plot([pts[k][0] for k in front], [100 * pts[k][1] for k in front], "k--", lw=0.8, label="Pareto front")
         ax.legend(fontsize=8)
+    for e in ranked:
+        x, y = e["median_energy_J"], e["score"]
+        ci = e.get("ci95_control_error") or e.get("ci95_median")
+        err = None
+        if ci and all(math.isfinite(v) for v in ci):
+            err = [[100 * max(y - ci[0], 0)], [100 * max(ci[1] - y, 0)]]
+        ax.errorbar([x], [100 * y], yerr=err, fmt="o", ms=6, capsize=3)
+        ax.annotate(e["controller"].replace("onnx:", "").split("/")[-1], (x, 100 * y), textcoords="offset points",
+                    xytext=(5, 3), fontsize=8)
+    ax.set_xlabel("median electric energy integral |u i| dt, hold + reverse stroke, J")
+    ax.set_ylabel(score_label + ", %")
+    ax.set_title("entries: median and paired 95 % interval", fontsize=10)
+    fig.suptitle("accuracy against energy (lower left is better)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -36,6 +36,11 @@ def cells(e: dict) -> list[str]:
             e["version"], e["commit"]]
 
 
+def md_cell(text: str) -> str:
+    """``text`` safe inside a Markdown table cell (a literal ``|`` would split the cell)."""
+    return text.replace("|", "\\|")
+
+
 def _num(x: float, unit: str, digits: int) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{x:.{digits}f} {unit}"
 
@@ -80,8 +85,8 @@ def pairwise_table(entries: list[dict]) -> str:
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,
                     preamble: str = "") -> str:
     lines = [preamble.rstrip(), ""] if preamble else []
-    lines += ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
-    lines += ["| " + " | ".join(cells(e)) + " |" for e in entries]
+    lines += ["| " + " | ".join(md_cell(c) for c in COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    lines += ["| " + " | ".join(md_cell(c) for c in cells(e)) + " |" for e in entries]
     lines += ["", "Rows marked `ref` are references, not entries: `oracle` tracks on the simulator's truth (the "
               "floor), `zero` commands 0 A (no control). " + tie_note(entries)]
     said = verdict(entries)
