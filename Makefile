@@ -65,14 +65,14 @@ policy: $(STAMP)
 	$(BIN)/addedinertia export out/train/ppo-residual --onnx agents/policies/reverse_stroke.onnx
 
 accuracy-table: $(STAMP)
-	$(BIN)/python -m addedinertia_env.experiment.accuracy_table --hulls 24 --out docs/ACCURACY.md
+	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md
 
 clean:
 	rm -rf out build *.egg-info .pytest_cache
 
 # docs/DISCOVERY.md: detection and false-alarm rates of `discover` (about 1 min per dataset of 4 runs on 2 cores)
 detection-table: $(STAMP)
-	$(BIN)/python -m addedinertia_env.discover.detection_table --seeds 10 --out docs/DISCOVERY.md
+	$(BIN)/python -m addedinertia_env.reports.detection_table --seeds 10 --out docs/DISCOVERY.md
 
 # docs/PERFORMANCE.md: single MuJoCo env vs batched physics, 1..16384 envs, one run.
 perf: $(STAMP)

@@ -12,12 +12,15 @@ from typing import Any
 
 import yaml
 
+
+class ConfigError(ValueError):
+    """A configuration file or override that cannot be used; the message says how to fix it."""
+
 MAX_CONFIG_BYTES = 1_000_000  # a configuration file is a few kB; beyond this it is not one
 
 
 def read_yaml(path: str | Path, what: str = "configuration") -> Any:
     """The parsed YAML document of ``path`` (a ``what`` file); raises ConfigError naming the file."""
-    from .rig.presets import ConfigError  # noqa: PLC0415 - presets imports this module
 
     path = Path(path)
     try:

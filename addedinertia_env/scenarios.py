@@ -20,7 +20,8 @@ from .experiment.protocol import ExperimentPlan
 from .rig.control_loop import ControlLoop, LoopRig
 from .rig.effects import Effects
 from .rig.params import RigParams
-from .rig.presets import CONFIG_DIR, ConfigError, load_preset, plan_from_preset, rig_from_mapping, sensors_for_quality
+from .rig.presets import CONFIG_DIR, ConfigError, load_preset, rig_from_mapping, sensors_for_quality
+from .experiment.protocol import plan_from_preset
 
 RANGE_KEYS = {"lambda_ratio", "drag_coefficient", "b1", "period_s", "J_flywheel", "k_t", "alpha", "hold_s",
               "sensor_quality"}

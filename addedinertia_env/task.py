@@ -27,6 +27,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .experiment.protocol import Experiment
+from .experiment.reference import MirroredReference
 from .metrics import current_at_limit, voltage_at_limit
 from .rig.known import KnownRig
 from .rig.motor import MotorCommand
@@ -121,6 +122,38 @@ class RewardWeights:
 
 
 TERM_NAMES = tuple(f.name for f in fields(RewardWeights))
+
+
+@dataclass(frozen=True)
+class ControllerContext:
+    """Known before the controlled part of an episode begins (sensor data and rig constants only)."""
+
+    rig: KnownRig  # the known rig constants (the run record's ``rig`` block, SI)
+    layout: ObservationLayout  # named access to observation entries
+    reference: MirroredReference  # the mirrored free-stroke law, from the encoder
+    inertia_prior: float  # kg m^2, J_hull + lambda66 seen at the free stroke's stop
+    dt: float  # s, control period: the policy's (host's) period, 1 / policy_rate_hz
+    hold_s: float  # s, duration of the brake hold before the reverse stroke
+    policy_rate_hz: float | None = None  # Hz, how often the controller acts (None: every board sample)
+    board_mode: str = "zoh"  # what the board does between actions: "zoh" (hold) or "pd" (board-side PD)
+    sample_dt: float | None = None  # s, the board's sample period (None: = dt)
+
+    @property
+    def board_dt(self) -> float:
+        """s, the period at which the board's inner loop runs."""
+        return self.sample_dt if self.sample_dt is not None else self.dt
+
+    @property
+    def i_max(self) -> float:
+        """Drive current limit, A (the rig must state it: a controller's action is a fraction of it)."""
+        if self.rig.i_max is None:
+            raise ValueError("rig.i_max (drive current limit, A) is not given; a controller needs it")
+        return self.rig.i_max
+
+    @property
+    def k_t(self) -> float:
+        """Motor torque constant, N m/A."""
+        return self.rig.k_t
 
 
 class ReverseStrokeTask:

@@ -20,7 +20,7 @@ import numpy as np
 
 from .base import Controller, ControllerContext, stroke_feedforward_current, stroke_impulse
 from .observer import HullObserver
-from .tuning import resolve_params
+from .tuned import resolve_params
 
 
 class StrokeController(Controller):

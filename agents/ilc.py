@@ -14,7 +14,7 @@ object between episodes of the same scenario; a new controller starts from zero.
 benchmark ILC runs ``cycles`` episodes per scenario and the last one is scored
 (docs/CONTROLLERS.md). The pre-spin does not change with learning.
 
-Knobs (tuning: agents/tuning.py): the PD's ``omega_c`` and ``zeta``, ``learning_gain``,
+Knobs (tuning: addedinertia_env/bench/tuning.py): the PD's ``omega_c`` and ``zeta``, ``learning_gain``,
 ``smooth_bins``, ``observer_bandwidth``.
 """
 

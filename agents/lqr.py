@@ -8,7 +8,7 @@ discrete infinite-horizon LQR (``scipy.linalg.solve_discrete_are``) weighs
 against ``(u / u_scale)^2``. The observer's residual torque ``d`` can be cancelled
 directly (``disturbance_gain`` in [0, 1]): ``di += disturbance_gain * d / k_t``.
 
-Knobs (tuning: agents/tuning.py): ``e_scale`` (rad, the error the loop is sized for),
+Knobs (tuning: addedinertia_env/bench/tuning.py): ``e_scale`` (rad, the error the loop is sized for),
 ``rate_ratio`` (``rate_scale = e_scale * rate_ratio``), ``integral_weight``,
 ``disturbance_gain``, ``observer_bandwidth``; ``u_scale`` is 1 rad/s^2.
 """

@@ -15,7 +15,7 @@ horizon). Without constraints the minimiser is linear, so it is solved in closed
 (one matrix set up per stroke, one matrix-vector product per step); the current limit is
 then applied by clipping. Only the first correction is used (receding horizon).
 
-Knobs (tuning: agents/tuning.py): ``e_scale``, ``rate_ratio``, ``energy_weight``,
+Knobs (tuning: addedinertia_env/bench/tuning.py): ``e_scale``, ``rate_ratio``, ``energy_weight``,
 ``horizon_s``, ``observer_bandwidth``; ``step_s`` is fixed at 10 ms.
 """
 

@@ -33,6 +33,7 @@ import numpy as np
 
 from addedinertia_env.task import OBSERVATION_FIELDS
 
+from .classical import UnknownController, make_plain_controller
 from .residual import residual_action
 
 META_PREFIX = "addedinertia."
@@ -149,14 +150,10 @@ class OnnxPolicy:
 
     def _make_base(self):
         """The base controller with the parameters it was trained with (never re-read from tuned.yaml)."""
-        from .registry import make_controller  # noqa: PLC0415
-
-        from .registry import UnknownController  # noqa: PLC0415
-
         try:
             if not self.residual_base_params:
-                return make_controller(self.residual_base)
-            return make_controller(self.residual_base, tuned=False, **self.residual_base_params)
+                return make_plain_controller(self.residual_base)
+            return make_plain_controller(self.residual_base, tuned=False, **self.residual_base_params)
         except UnknownController as e:
             raise OnnxPolicyError(f"{self.path}: residual base controller: {e}") from None
         except TypeError as e:

@@ -5,7 +5,7 @@ The classic loop: ``i = -(J / k_t) (Kp e + Ki integral(e) + Kd e')`` with
 (``J`` the inertia prior, ``e = phi_ref - phi``). Without the recorded-law feedforward
 the loop must supply the whole ``2 x damping`` torque from the error, so it lags: the
 integral term removes the slowly varying part of that lag. Knobs and ranges:
-:attr:`PID.KNOBS` (tuning: agents/tuning.py, docs/CONTROLLERS.md).
+:attr:`PID.KNOBS` (tuning: addedinertia_env/bench/tuning.py, docs/CONTROLLERS.md).
 """
 
 from __future__ import annotations

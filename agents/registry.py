@@ -3,42 +3,16 @@
 
 from __future__ import annotations
 
-import importlib
-from typing import Any, Callable
+from typing import Any
+
+from .classical import CLASSICAL, UnknownController, controller_class, load_factory, make_plain_controller
+
+__all__ = ["CLASSICAL", "DEFAULT_CONTROLLER", "REFERENCE_ROWS", "UnknownController", "controller_class",
+           "load_factory", "make_controller"]
 
 # The controller used where none is named (demo, simulate, the accuracy table): the best
 # classical controller on realistic sensors in docs/LEADERBOARD.md.
 DEFAULT_CONTROLLER = "lqr"
-
-# name -> "module:attribute" of a zero-argument factory (usually the class).
-CLASSICAL: dict[str, str] = {
-    "pd": "agents.feedforward_pd:PD",
-    "feedforward-pd": "agents.feedforward_pd:FeedforwardPD",
-    "pid": "agents.pid:PID",
-    "lqr": "agents.lqr:LQR",
-    "ilc": "agents.ilc:ILC",
-    "mpc": "agents.mpc:MPC",
-}
-
-
-class UnknownController(ValueError):
-    pass
-
-
-def _load(spec: str) -> Callable[..., Any]:
-    module, _, attr = spec.partition(":")
-    try:
-        obj = importlib.import_module(module)
-    except ImportError as e:
-        raise UnknownController(f"controller {spec!r}: cannot import module {module!r} ({e})") from None
-    for part in attr.split("."):
-        if not hasattr(obj, part):
-            raise UnknownController(f"controller {spec!r}: module {module!r} has no attribute {attr!r}")
-        obj = getattr(obj, part)
-    if not callable(obj):
-        raise UnknownController(f"controller {spec!r}: {attr!r} is not callable")
-    return obj
-
 
 REFERENCE_ROWS = ("oracle", "zero")  # benchmark references (addedinertia_env/bench/runner.py), not controllers
 
@@ -49,13 +23,11 @@ def make_controller(name: str, **kwargs: Any) -> Any:
         raise UnknownController(f"{name!r} is a reference row of the simulated benchmark suites "
                                 f"(`addedinertia bench run --suite NAME --controller {name}`); it cannot drive "
                                 "a bench or an experiment")
-    if name in CLASSICAL:
-        return _load(CLASSICAL[name])(**kwargs)
     if name.startswith("onnx:"):
-        from .onnx_policy import OnnxPolicy  # noqa: PLC0415 - optional heavy import
+        from .onnx_policy import OnnxPolicy  # noqa: PLC0415 - optional heavy import (onnxruntime)
 
+        if kwargs:
+            raise TypeError(f"controller {name!r}: an exported policy takes no parameters, got {sorted(kwargs)} "
+                            "(its settings are in the policy's metadata)")
         return OnnxPolicy(name[len("onnx:"):])
-    if ":" in name:
-        return _load(name)(**kwargs)
-    known = ", ".join(sorted(CLASSICAL))
-    raise UnknownController(f"unknown controller {name!r}; expected one of {known}, onnx:PATH or module:factory")
+    return make_plain_controller(name, **kwargs)

@@ -35,7 +35,8 @@ from typing import Any
 from addedinertia_env.config_io import read_yaml
 
 from addedinertia_env.rig.known import KnownRig
-from addedinertia_env.rig.presets import ConfigError, load_preset, plan_from_preset, rig_from_mapping
+from addedinertia_env.rig.presets import ConfigError, load_preset, rig_from_mapping
+from addedinertia_env.experiment.protocol import plan_from_preset
 
 from .messages import CAP_EMULATOR, Caps
 from .safety import SafetyLimits

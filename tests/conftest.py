@@ -25,7 +25,8 @@ from addedinertia_env.experiment.runner import run_experiment
 from addedinertia_env.record import RunRecord, write_record
 from addedinertia_env.rig.mujoco_rig import MujocoRig
 from addedinertia_env.rig.params import RigParams, SensorParams
-from addedinertia_env.rig.presets import load_preset, plan_from_preset, rig_from_mapping
+from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.experiment.protocol import plan_from_preset
 from addedinertia_env.simulate import simulate_run
 
 REALISTIC_SEED = 1

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.experiment import accuracy_table as at
+from addedinertia_env.reports import accuracy_table as at
 
 
 def _row(k: int, errors: dict[str, float | None], covered: bool = True) -> at.HullRow:
@@ -39,7 +39,7 @@ def test_score_and_summary():
 
 def test_render_names_command_machine_and_every_hull(tmp_path):
     rows = [_row(k, {"energy": 0.01, "free-decay": -0.002, "forced": None}) for k in range(3)]
-    text = at.render(rows, {"command": "python -m addedinertia_env.experiment.accuracy_table --hulls 3 --out X.md",
+    text = at.render(rows, {"command": "python -m addedinertia_env.reports.accuracy_table --hulls 3 --out X.md",
                             "date": "today", "machine": at.machine(), "wall_s": 1.0, "cpu_s": 1.0, "seed": 100,
                             "controller": "feedforward-pd"})
     assert "--hulls 3 --out X.md" in text and "nproc" in text

@@ -10,7 +10,8 @@ from addedinertia_env.experiment.runner import run_experiment
 from addedinertia_env.rig.mujoco_rig import MujocoRig
 from agents import make_controller
 from agents.observer import HullObserver
-from agents.tuning import resolve_params, sample_candidates, score
+from addedinertia_env.bench.tuning import sample_candidates, score
+from agents.tuned import resolve_params
 
 CONTROLLERS = ["pd", "feedforward-pd", "pid", "lqr", "ilc", "mpc"]
 

@@ -12,7 +12,8 @@ import pytest
 from addedinertia_env.cli import main
 from addedinertia_env.identify import identify
 from addedinertia_env.record import read_record
-from addedinertia_env.rig.presets import load_preset, plan_from_preset, rig_from_mapping
+from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.experiment.protocol import plan_from_preset
 from addedinertia_env.simulate import simulate_run
 from agents import make_controller
 from hw_adapter.deploy import EXIT_ABORTED, DeployOptions, deploy

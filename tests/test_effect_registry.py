@@ -19,7 +19,8 @@ from addedinertia_env.rig.effects import registry
 from addedinertia_env.rig.motor import MODES, MotorCommand
 from addedinertia_env.rig.mujoco_rig import MujocoRig
 from addedinertia_env.rig.params import RigParams
-from addedinertia_env.rig.presets import load_preset, plan_from_preset, rig_from_mapping
+from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.experiment.protocol import plan_from_preset
 from addedinertia_env.simulate import simulate_run
 
 BUILT_IN = E.EFFECT_NAMES

@@ -287,7 +287,8 @@ def test_bem_prior_replaces_the_stroke_estimate_in_the_controller_context():
     from addedinertia_env.hull.presets import bem_lambda66
     from addedinertia_env.rig.mujoco_rig import MujocoRig
     from addedinertia_env.rig.params import SensorParams
-    from addedinertia_env.rig.presets import load_preset, plan_from_preset, rig_from_mapping
+    from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+    from addedinertia_env.experiment.protocol import plan_from_preset
 
     data = load_preset("wigley-2m")
     params = rig_from_mapping(data, sensors=SensorParams.ideal())

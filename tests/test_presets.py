@@ -9,11 +9,11 @@ import pytest
 import yaml
 from scipy.integrate import quad
 
-from addedinertia_env.experiment.protocol import ExperimentPlan
+from addedinertia_env.experiment.protocol import ExperimentPlan, plan_from_preset
 from addedinertia_env.rig import hydro
 from addedinertia_env.rig.params import RigParams, SensorParams
 from addedinertia_env.rig.presets import (SENSOR_QUALITY, ConfigError, available_rigs, load_preset, load_rig,
-                                          plan_from_preset, rig_from_mapping, sensors_for_quality)
+                                          rig_from_mapping, sensors_for_quality)
 
 PRESETS = ("wigley-2m", "spheroid-7")
 

@@ -32,6 +32,8 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from agents import make_controller
+
 from .. import __version__
 from ..experiment.runner import run_experiment
 from ..identify import identify
@@ -84,8 +86,6 @@ def episode_controller(name: str, kwargs: dict[str, Any], rig: Any) -> Any:
         from agents.zero import ZeroCurrent  # noqa: PLC0415
 
         return ZeroCurrent()
-    from agents import make_controller  # noqa: PLC0415 - agents depends on this package
-
     return make_controller(name, **kwargs)
 
 

@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from agents.tuned import load_tuned
+
 from ..config_io import read_yaml
 
 from ..rig.presets import CONFIG_DIR, ConfigError, config_path
@@ -117,8 +119,6 @@ class Suite:
              tuned: bool = True, entry: dict[str, Any] | None = None) -> EpisodeTask:
         kwargs = dict(controller_kwargs or {})
         if tuned and self.tuned_path is not None:
-            from agents.tuning import load_tuned  # noqa: PLC0415 - agents depends on this package
-
             params = load_tuned(controller, self.tuned_path)
             if params:  # gains tuned on this suite's tuning split, passed explicitly
                 kwargs = {**params, **kwargs}

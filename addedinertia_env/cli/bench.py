@@ -4,7 +4,7 @@
   one JSON line per episode (fields: addedinertia_env/bench/runner.py);
 * ``bench leaderboard FILES... [--format md|html|json] [--out FILE]`` ranks controllers;
 * ``bench tune --suite NAME --controller NAME`` tunes on the suite's tuning split only
-  and stores the gains in configs/controllers/tuned.yaml (agents/tuning.py).
+  and stores the gains in configs/controllers/tuned.yaml (addedinertia_env/bench/tuning.py).
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def register(sub) -> None:
 
 def _check_controller(name: str) -> None:
     """Refuse an unknown controller before any episode runs (exit status 2)."""
-    from agents.registry import CLASSICAL, UnknownController, _load  # noqa: PLC0415
+    from agents.registry import CLASSICAL, UnknownController, load_factory  # noqa: PLC0415
 
     from ..bench.runner import REFERENCES  # noqa: PLC0415
 
@@ -79,7 +79,7 @@ def _check_controller(name: str) -> None:
         raise BadInput(f"--controller {name!r}: expected one of {', '.join(sorted(CLASSICAL))}, "
                        "onnx:PATH or module:factory")
     try:
-        _load(name)
+        load_factory(name)
     except UnknownController as e:
         raise BadInput(str(e)) from None
 
@@ -187,7 +187,7 @@ def run_leaderboard(args) -> int:
 
 
 def run_tune(args) -> int:
-    from agents.tuning import tune, write_tuned  # noqa: PLC0415
+    from ..bench.tuning import tune, write_tuned  # noqa: PLC0415
 
     from ..bench.suites import load_suite  # noqa: PLC0415
 

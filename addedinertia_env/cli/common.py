@@ -8,10 +8,10 @@ import math
 import sys
 from typing import Any
 
-import numpy as np
 
 from ..experiment.protocol import ExperimentError
 from ..identify.common import IdentificationError
+from ..jsonable import plain
 from ..record import RecordError
 from ..rig.presets import ConfigError
 
@@ -88,22 +88,7 @@ def report_bug(error: BaseException, argv: list[str] | None) -> int:
 
 def emit_json(obj: dict[str, Any]) -> None:
     """Exactly one JSON object on stdout."""
-    print(json.dumps(_plain(obj), allow_nan=False))
-
-
-def _plain(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.ndarray):
-        return _plain(x.tolist())
-    return x
+    print(json.dumps(plain(obj), allow_nan=False))
 
 
 def info(*parts: Any) -> None:

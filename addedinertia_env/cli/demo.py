@@ -10,7 +10,8 @@ from pathlib import Path
 from ..identify import identify
 from ..plots import plot_run
 from ..record import write_record
-from ..rig.presets import load_preset, plan_from_preset, rig_from_mapping
+from ..rig.presets import load_preset, rig_from_mapping
+from ..experiment.protocol import plan_from_preset
 from ..simulate import simulate_run
 from .common import emit_json, info, non_negative_int
 

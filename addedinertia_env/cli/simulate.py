@@ -7,7 +7,8 @@ from agents.registry import DEFAULT_CONTROLLER
 from pathlib import Path
 
 from ..rig.effects import effect_names
-from ..rig.presets import SENSOR_QUALITY, load_preset, plan_from_preset, rig_from_mapping, sensors_for_quality
+from ..rig.presets import SENSOR_QUALITY, load_preset, rig_from_mapping, sensors_for_quality
+from ..experiment.protocol import plan_from_preset
 from ..simulate import OTHER_KINDS, OutputInUse, effects_from_name, simulate_to_dir
 from .common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
 

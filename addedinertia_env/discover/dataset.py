@@ -22,7 +22,8 @@ import numpy as np
 
 from ..record import RunRecord, write_record
 from ..rig.effects import Effects, draw_effect
-from ..rig.presets import load_preset, plan_from_preset, rig_from_mapping
+from ..rig.presets import load_preset, rig_from_mapping
+from ..experiment.protocol import plan_from_preset
 
 STANDARD_ALPHAS = (0.05, 0.10)  # rad
 STANDARD_HOLDS = (0.5, 5.0)  # s

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..jsonable import plain
 from . import residuals as resid
 from .diagnose import Diagnosis
 from .fit import Fit
@@ -148,7 +149,5 @@ def write_report(diag: Diagnosis, folder: str | os.PathLike) -> Path:
     figures = plot_residuals(diag, folder)
     path = folder / "report.md"
     _atomic_write(path, markdown(diag, figures))
-    from ..cli.common import _plain  # noqa: PLC0415
-
-    _atomic_write(folder / "discovery.json", json.dumps(_plain(diag.to_json()), indent=1, allow_nan=False) + "\n")
+    _atomic_write(folder / "discovery.json", json.dumps(plain(diag.to_json()), indent=1, allow_nan=False) + "\n")
     return path

@@ -18,6 +18,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from agents import make_controller
+
 from .reverse_stroke import ReverseStrokeEnv
 
 Policy = Callable[[ReverseStrokeEnv, np.ndarray], np.ndarray]
@@ -32,8 +34,6 @@ def _random(env: ReverseStrokeEnv, obs: np.ndarray) -> np.ndarray:
 
 
 def _controller(name: str) -> Policy:
-    from agents import make_controller  # noqa: PLC0415 - agents imports this package
-
     state: dict[str, Any] = {}
 
     def policy(env: ReverseStrokeEnv, obs: np.ndarray) -> np.ndarray:

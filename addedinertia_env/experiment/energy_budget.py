@@ -287,7 +287,8 @@ def seeded_plan(preset: str, seed: int, spread: float = 0.1) -> ExperimentPlan:
     by all seeds. An experimenter never twists the rod exactly alike twice; varying the
     twist per seed makes those errors differ between seeds as they do between real runs.
     """
-    from ..rig.presets import load_preset, plan_from_preset  # noqa: PLC0415
+    from ..rig.presets import load_preset  # noqa: PLC0415
+    from .protocol import plan_from_preset
 
     data = load_preset(preset)
     base = plan_from_preset(data)

@@ -18,12 +18,14 @@ view, or the real bench through ``hw_adapter``: it only uses the rig protocol
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
+from ..config_io import ConfigError
 from ..record import RunRecord
 from ..rig.interface import Rig
 from ..rig.motor import MotorCommand
@@ -70,6 +72,26 @@ class ExperimentPlan:
 # Documented limits of one experiment's durations, s (docs/RELIABILITY.md): longer is refused up front.
 MAX_DURATION_S = {"hold_s": 600.0, "settle_s": 60.0, "tail_s": 60.0, "lead_s": 10.0, "stop_window_s": 10.0,
                   "max_free_s": 600.0}
+
+
+def plan_from_preset(data: dict[str, Any], **overrides: Any) -> ExperimentPlan:
+    """A rig preset's (or lab file's) ``experiment`` block as an :class:`ExperimentPlan`, with
+    ``overrides`` (``None`` values ignored); ``ConfigError`` naming the file and the key."""
+    where = data.get("_path", "rig")
+    exp = dict(data.get("experiment") or {})
+    allowed = {f.name for f in dataclasses.fields(ExperimentPlan)}
+    unknown = sorted(set(exp) - allowed)
+    if unknown:
+        raise ConfigError(f"{where}: experiment: unknown key(s) {unknown}; allowed keys are {sorted(allowed)}")
+    exp.update({k: v for k, v in overrides.items() if v is not None})
+    numeric = {f.name for f in dataclasses.fields(ExperimentPlan) if f.type in ("float", float)}
+    for key, value in exp.items():
+        if key in numeric and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise ConfigError(f"{where}: experiment.{key} = {value!r}: expected a number (SI units)")
+    try:
+        return ExperimentPlan(**exp)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{where}: experiment: {e}") from None
 
 
 class ExperimentError(RuntimeError):

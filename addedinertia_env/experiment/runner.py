@@ -6,14 +6,12 @@ from typing import Any
 
 from ..record import RunRecord
 from ..rig.interface import Rig
-from ..task import ReverseStrokeTask
+from ..task import ControllerContext, ReverseStrokeTask
 from .protocol import Experiment, ExperimentPlan
 
 
 def controller_context(exp: Experiment):
     """What a controller may know once the free stroke is recorded."""
-    from agents.base import ControllerContext  # noqa: PLC0415 - agents depends on this package
-
     every = command_every(exp.rig)
     slow = {"policy_rate_hz": 1.0 / (exp.rig.dt * every), "sample_dt": exp.rig.dt} if every > 1 else {}
     return ControllerContext(rig=exp.known, layout=ReverseStrokeTask.layout, reference=exp.reference,

@@ -27,7 +27,8 @@ import math
 from typing import Any
 
 from ..rig.board_loop import BOARD_MODES, HORIZON_PERIODS, Segment, zoh_segment
-from ..task import ReverseStrokeTask
+from ..task import ControllerContext, ReverseStrokeTask
+from .feedforward import stroke_feedforward_current
 from .protocol import Experiment
 
 KNOTS = 7  # knots per pd segment (6 pieces over HORIZON_PERIODS = 3 host periods)
@@ -48,8 +49,6 @@ def default_board_mode(controller: Any) -> str:
 
 def two_rate_context(exp: Experiment, host_rate_hz: float, board_mode: str):
     """The controller context at the host's rate."""
-    from agents.base import ControllerContext  # noqa: PLC0415 - agents depends on this package
-
     return ControllerContext(rig=exp.known, layout=ReverseStrokeTask.layout, reference=exp.reference,
                              inertia_prior=exp.inertia_prior, dt=1.0 / host_rate_hz, hold_s=exp.plan.hold_s,
                              policy_rate_hz=host_rate_hz, board_mode=board_mode, sample_dt=exp.rig.dt)
@@ -106,8 +105,6 @@ class SegmentPlanner:
             else:
                 i = correction
                 if getattr(ctl, "feedforward", True):
-                    from agents.base import stroke_feedforward_current  # noqa: PLC0415
-
                     i += stroke_feedforward_current(ctl.ctx, float(ref.phi(t)) - phi_n, float(ref.accel(t)), ctl.J)
             currents.append(min(i_max, max(-i_max, float(i))))
             refs.append(float(ref.phi(t)))

@@ -26,6 +26,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from agents import make_controller
 from agents.residual import residual_action
 
 from .toy import TOY_ENV_ID, register_toy
@@ -69,15 +70,11 @@ class ResidualWrapper(gym.Wrapper):
 
 def pinned_base_params(base: str) -> dict[str, Any]:
     """The parameters ``base`` would run with now (tuned values included), to pin them."""
-    from agents import make_controller  # noqa: PLC0415 - agents imports this package
-
     return {k: (v.item() if hasattr(v, "item") else v) for k, v in getattr(make_controller(base), "params", {}).items()}
 
 
 def make_base(base: str, params: dict[str, Any] | None):
     """Controller ``base`` with exactly ``params`` (no tuned file read); ``None``: as registered."""
-    from agents import make_controller  # noqa: PLC0415
-
     if not params:
         return make_controller(base)
     try:

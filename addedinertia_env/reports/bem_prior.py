@@ -27,12 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
+from agents import make_controller
+
 from ..atomic import atomic_write_text
 from ..hull.presets import bem_lambda66
 from ..identify import identify
 from ..machine import machine_line
 from ..metrics import episode_metrics
-from ..rig.presets import load_preset, plan_from_preset, rig_from_mapping
+from ..rig.presets import load_preset, rig_from_mapping
+from ..experiment.protocol import plan_from_preset
 from ..experiment.runner import run_experiment
 from ..rig.mujoco_rig import MujocoRig
 
@@ -65,8 +68,6 @@ def measure(seeds: int, progress=print) -> dict:
         lam_bem = bem_lambda66(name, "swing")
         for seed in range(seeds):
             for label, p in (("stroke", plan), ("bem", dataclasses.replace(plan, lambda66_prior=lam_bem))):
-                from agents import make_controller  # noqa: PLC0415 - agents depends on this package
-
                 probe = Probe(make_controller(CONTROLLER))
                 rec = run_experiment(MujocoRig(params, seed=seed), probe, p, run_id=f"{name}-{label}-{seed}")
                 res = identify([rec], "energy")

@@ -257,7 +257,8 @@ def build(root: Path, solve: bool = False, progress=print, solve_lamb: bool = Fa
                  f"{r['hurwitz']['stable']} | {_roots(r)} | {_list(r['time_constants'])} |")
     # a measured lambda66 and its interval, from a simulated record of the same rig
     from ..identify import identify  # noqa: PLC0415
-    from ..rig.presets import load_preset, plan_from_preset, rig_from_mapping  # noqa: PLC0415
+    from ..rig.presets import load_preset, rig_from_mapping  # noqa: PLC0415
+    from ..experiment.protocol import plan_from_preset
     from ..simulate import simulate_run  # noqa: PLC0415
 
     pdata = load_preset("wigley-2m")

@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..config_io import read_yaml
+from ..config_io import ConfigError, read_yaml
 
 from . import hydro
 from .effects import Effects
@@ -22,10 +22,6 @@ from .params import HullParams, MotorParams, RigParams, SensorParams, SpringPara
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
 RIG_DIR = CONFIG_DIR / "rigs"
-
-
-class ConfigError(ValueError):
-    """A configuration file or override that cannot be used; the message says how to fix it."""
 
 
 def available_rigs() -> list[str]:
@@ -197,24 +193,6 @@ def _num(d: dict[str, Any], key: str, where: str) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
         raise ConfigError(f"{where}.{key} = {v!r}: expected a finite number > 0")
     return float(v)
-
-
-def plan_from_preset(data: dict[str, Any], **overrides: Any):
-    """The preset's ``experiment`` block as an :class:`ExperimentPlan`, with overrides."""
-    from ..experiment.protocol import ExperimentPlan  # noqa: PLC0415 - avoid an import cycle
-
-    exp = dict(data.get("experiment") or {})
-    allowed = {f.name for f in dataclasses.fields(ExperimentPlan)}
-    _only_keys(exp, allowed, f"{data.get('_path', 'rig')}: experiment")
-    exp.update({k: v for k, v in overrides.items() if v is not None})
-    numeric = {f.name for f in dataclasses.fields(ExperimentPlan) if f.type in ("float", float)}
-    for key, value in exp.items():
-        if key in numeric and (isinstance(value, bool) or not isinstance(value, (int, float))):
-            raise ConfigError(f"{data.get('_path', 'rig')}: experiment.{key} = {value!r}: expected a number (SI units)")
-    try:
-        return ExperimentPlan(**exp)
-    except (TypeError, ValueError) as e:
-        raise ConfigError(f"{data.get('_path', 'rig')}: experiment: {e}") from None
 
 
 SENSOR_QUALITY = ("ideal", "good", "realistic", "poor")

@@ -1,6 +1,6 @@
 """The accuracy table: three identification methods on the same simulated hulls.
 
-    python -m addedinertia_env.experiment.accuracy_table --hulls 24 --out docs/ACCURACY.md
+    python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md
 
 (``make accuracy-table`` runs exactly that.) For each hull ``k`` of ``N``, a scenario from
 :func:`addedinertia_env.scenarios.make_scenario` (seed ``base + k``) with
@@ -29,7 +29,11 @@ import time
 from agents.registry import DEFAULT_CONTROLLER
 
 from ..atomic import atomic_write_text
+from ..cli.common import BAD_INPUT
+from ..identify import identify
 from ..machine import machine_line
+from ..scenarios import make_scenario
+from ..simulate import effects_from_name, simulate_run
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,7 +44,7 @@ METHODS = ("energy", "free-decay", "forced")
 KIND = {"energy": "reverse-symmetric", "free-decay": "free-decay", "forced": "forced-oscillation"}
 LAMBDA_RATIO_RANGE = (0.5, 2.5)
 DEFAULT_SEED = 20240
-COMMAND = "python -m addedinertia_env.experiment.accuracy_table"
+COMMAND = "python -m addedinertia_env.reports.accuracy_table"
 
 
 @dataclass
@@ -85,13 +89,6 @@ def score(estimate: float, ci95: tuple[float, float], truth: float) -> Score:
 def run_hull(index: int, ratio: float, seed: int, controller: str = DEFAULT_CONTROLLER,
              methods=METHODS, preset: str = "wigley-2m", effect: str | None = None) -> HullRow:
     """All methods on one hull; an estimator's or experiment's refusal is recorded, not raised."""
-    from ..cli.common import BAD_INPUT  # noqa: PLC0415
-    from ..identify import identify  # noqa: PLC0415
-    from ..scenarios import make_scenario  # noqa: PLC0415
-    from ..simulate import simulate_run  # noqa: PLC0415
-
-    from ..simulate import effects_from_name  # noqa: PLC0415
-
     sc = make_scenario(seed, preset=preset, fixed={"lambda_ratio": ratio, "sensor_quality": "realistic"},
                        effects=effects_from_name(effect, seed))
     hull = sc.rig.hull
@@ -204,7 +201,7 @@ NOTES = """## How each method works here, and why its interval is what it is
   part of the torque.
 
 All three use only the record's samples and its `rig` and `experiment` blocks; the
-`truth` block is read by the scoring in `addedinertia_env/experiment/accuracy_table.py` only.
+`truth` block is read by the scoring in `addedinertia_env/reports/accuracy_table.py` only.
 """
 
 

@@ -1,6 +1,6 @@
 """Detection and false-alarm rates of ``discover`` per hidden effect, written into docs/DISCOVERY.md.
 
-    python -m addedinertia_env.discover.detection_table --seeds 10 --out docs/DISCOVERY.md
+    python -m addedinertia_env.reports.detection_table --seeds 10 --out docs/DISCOVERY.md
 
 (``make detection-table``.) For every effect of the vocabulary and for ``none``, seeds
 0..N-1 each simulate the standard dataset (:mod:`.dataset`) with that effect hidden at a
@@ -24,8 +24,8 @@ import numpy as np
 
 from ..record import read_record
 from ..rig.effects import EFFECT_NAMES
-from .dataset import DatasetSpec, hidden_effect, simulate_dataset
-from .diagnose import discover
+from ..discover.dataset import DatasetSpec, hidden_effect, simulate_dataset
+from ..discover.diagnose import discover
 
 BEGIN, END = "<!-- detection-table:begin -->", "<!-- detection-table:end -->"
 ROWS = ("none",) + EFFECT_NAMES
@@ -71,7 +71,7 @@ def machine() -> str:
 
 def table(rows: list[dict], seeds: int, wall_s: float) -> str:
     lines = [BEGIN, "",
-             f"Measured by `python -m addedinertia_env.discover.detection_table --seeds {seeds} --out docs/DISCOVERY.md`"
+             f"Measured by `python -m addedinertia_env.reports.detection_table --seeds {seeds} --out docs/DISCOVERY.md`"
              f" on {machine()}; {wall_s / 60:.1f} min in all, median `discover` "
              f"{np.median([r['discover_s'] for r in rows]):.1f} s per dataset of 4 runs.", "",
              "| hidden effect | seeds | detected | wrong effect named | missed (`none`) | `unexplained` "

@@ -1,4 +1,4 @@
-"""One tuning procedure for every classical controller, and the tuned gains they load.
+"""One tuning procedure for every classical controller (the gains they load: agents/tuned.py).
 
 Procedure (docs/CONTROLLERS.md): a seeded random search over the controller's
 ``KNOBS`` (log-uniform or uniform in each documented range). Candidate 0 is the
@@ -28,31 +28,11 @@ from typing import Any
 import numpy as np
 import yaml
 
-TUNED_PATH = Path(__file__).resolve().parents[1] / "configs" / "controllers" / "tuned.yaml"
+from agents.registry import CLASSICAL, controller_class
+from agents.tuned import TUNED_PATH, load_tuned, resolve_params  # noqa: F401 - the gains this module writes
 
-
-def load_tuned(name: str, path: Path | None = None) -> dict[str, Any]:
-    """Tuned parameters of controller ``name`` (empty when none were stored)."""
-    path = path or TUNED_PATH
-    if not path.exists():
-        return {}
-    data = yaml.safe_load(path.read_text()) or {}
-    entry = data.get(name) or {}
-    return dict(entry.get("params") or {})
-
-
-def resolve_params(name: str | None, defaults: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
-    """``defaults`` < tuned values of ``name`` (if given) < ``overrides``; unknown keys refused."""
-    unknown = sorted(set(overrides) - set(defaults))
-    if unknown:
-        raise TypeError(f"unknown controller parameter(s) {unknown}; allowed: {sorted(defaults)}")
-    tuned = load_tuned(name) if name else {}
-    stale = sorted(set(tuned) - set(defaults))
-    if stale:
-        raise TypeError(f"{TUNED_PATH}: {name}: unknown parameter(s) {stale}; allowed: {sorted(defaults)}; "
-                        f"re-run `addedinertia bench tune --controller {name}`")
-    return {**defaults, **tuned, **overrides}
-
+from .runner import run_tasks
+from .suites import load_suite
 
 def sample_candidates(knobs: dict[str, tuple[float, float, str]], n: int, seed: int) -> list[dict[str, float]]:
     """``n`` candidates: ``{}`` (the defaults) then ``n - 1`` random draws over ``knobs``."""
@@ -90,14 +70,9 @@ def control_errors(rows: list[dict], oracle_rows: list[dict]) -> list[float | No
 def tune(controller: str, suite: str = "standard-v0", candidates: int = 8, scenarios: int = 8,
          seed: int = 0, jobs: int = 2, progress: bool = True) -> dict[str, Any]:
     """Random search (see module doc); returns ``{"params", "score", "trials"}``."""
-    from addedinertia_env.bench.runner import run_tasks  # noqa: PLC0415 - bench depends on agents
-    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
-
-    from .registry import CLASSICAL, _load  # noqa: PLC0415
-
     if controller not in CLASSICAL:
         raise ValueError(f"tuning is for the classical controllers {sorted(CLASSICAL)}, not {controller!r}")
-    cls = _load(CLASSICAL[controller])
+    cls = controller_class(controller)
     knobs = getattr(cls, "KNOBS", {})
     if not knobs:
         raise ValueError(f"controller {controller!r} has no KNOBS to tune")
@@ -129,7 +104,7 @@ def write_tuned(name: str, result: dict[str, Any], command: str, path: Path | No
                   "tuning_score_median_abs_error": round(float(result["score"]), 6),
                   "budget": result.get("budget", {}), "command": command}
     path.parent.mkdir(parents=True, exist_ok=True)
-    header = ("# Tuned controller gains, written by `addedinertia bench tune` (agents/tuning.py).\n"
+    header = ("# Tuned controller gains, written by `addedinertia bench tune` (addedinertia_env/bench/tuning.py).\n"
               "# Each entry: the parameters, the tuning-split score, the budget and the command.\n")
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
     with os.fdopen(fd, "w") as f:

@@ -1,0 +1,180 @@
+"""Layers point one way: a module imports only modules of its own or a lower layer
+(docs/ARCHITECTURE.md, "Layers"). Every import counts, also one inside a function.
+
+The table maps a module (the longest matching dotted prefix) to its layer. A new
+upward import fails here; so does an import cycle between layers."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("addedinertia_env", "agents", "hw_adapter")
+
+# Lowest first. Keep docs/ARCHITECTURE.md's table in step with this one.
+LAYERS: dict[str, int] = {
+    # 0 foundation: files, machine, configuration, JSON
+    "addedinertia_env": 0, "addedinertia_env.atomic": 0, "addedinertia_env.machine": 0,
+    "addedinertia_env.config_io": 0, "addedinertia_env.jsonable": 0,
+    # 1 physics: the simulated truth, the rig protocol, presets, hull geometry
+    "addedinertia_env.rig": 1, "addedinertia_env.hull": 1,
+    # 2 data: run records and what reads them without a model
+    "addedinertia_env.record": 2, "addedinertia_env.plausibility": 2, "addedinertia_env.daq": 2,
+    "addedinertia_env.plots": 2,
+    # 3 the experiment and the task (observation, reward, controller context, metrics, scenarios)
+    "addedinertia_env.experiment": 3, "addedinertia_env.task": 3, "addedinertia_env.metrics": 3,
+    "addedinertia_env.scenarios": 3,
+    # 4 estimators, diagnosis and controllers
+    "addedinertia_env.identify": 4, "addedinertia_env.discover": 4, "addedinertia_env.decay": 4, "agents": 4,
+    # 5 applications: simulation runs, environments, training, benchmark, bench hardware
+    "addedinertia_env.simulate": 5, "addedinertia_env.discover.dataset": 5, "addedinertia_env.envs": 5,
+    "addedinertia_env.learning": 5, "addedinertia_env.bench": 5, "addedinertia_env.sweeps": 5,
+    "addedinertia_env.perf": 5, "addedinertia_env.experiment.energy_budget": 5, "hw_adapter": 5,
+    # 6 the command line
+    "addedinertia_env.cli": 6,
+    # 7 report generators (docs/*.md): may use the CLI's public helpers
+    "addedinertia_env.reports": 7,
+}
+NAMES = {0: "foundation", 1: "physics", 2: "data", 3: "experiment/task", 4: "estimators/controllers",
+         5: "applications", 6: "cli", 7: "reports"}
+
+# Known upward imports, each with its reason; the list may only shrink.
+ALLOWED: dict[tuple[str, str], str] = {}
+# Known import cycles (inside one layer, through a function-local import); may only shrink.
+KNOWN_CYCLES = (
+    # a preset may describe its hull by shape (hull.presets), and the hull study reads presets
+    {"addedinertia_env.rig.presets", "addedinertia_env.hull.presets", "addedinertia_env.hull.study"},
+    # the reader checks a record's plausibility, which reads records
+    {"addedinertia_env.record", "addedinertia_env.plausibility"},
+)
+
+
+def layer_of(module: str) -> int | None:
+    parts = module.split(".")
+    for k in range(len(parts), 0, -1):
+        prefix = ".".join(parts[:k])
+        if prefix in LAYERS:
+            return LAYERS[prefix]
+    return None
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports() -> list[tuple[str, str, int]]:
+    """(importing module, imported module, line) for every import of a project module."""
+    out = []
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            mod = module_name(path)
+            base = mod.split(".") if path.name == "__init__.py" else mod.split(".")[:-1]
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, ast.Import):
+                    targets = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom):
+                    if node.level:
+                        up = base[: len(base) - (node.level - 1)]
+                        stem = ".".join(up + ([node.module] if node.module else []))
+                        # ``from . import x``: x may be a module
+                        targets = [f"{stem}.{a.name}" if not node.module else stem for a in node.names]
+                    else:
+                        targets = [node.module or ""]
+                else:
+                    continue
+                out += [(mod, t, node.lineno) for t in targets if t.split(".")[0] in PACKAGES]
+    return out
+
+
+def test_every_module_has_a_layer():
+    missing = sorted({m for m, _, _ in imports() if layer_of(m) is None})
+    assert not missing, f"modules without a layer in tests/test_layers.py LAYERS: {missing}"
+
+
+def test_no_module_imports_a_higher_layer():
+    bad = []
+    for src, dst, line in imports():
+        ls, ld = layer_of(src), layer_of(dst)
+        if ld is not None and ls is not None and ld > ls and (src, dst) not in ALLOWED:
+            bad.append(f"{src}:{line} ({NAMES[ls]}) imports {dst} ({NAMES[ld]})")
+    assert not bad, "imports against the layers:\n" + "\n".join(bad)
+
+
+def test_nothing_below_the_cli_imports_it():
+    bad = [f"{s}:{n} imports {d}" for s, d, n in imports()
+           if d.startswith("addedinertia_env.cli") and layer_of(s) < LAYERS["addedinertia_env.cli"]]
+    assert not bad, bad
+
+
+def test_no_private_name_is_imported_across_packages():
+    bad = []
+    for pkg in PACKAGES:
+        for path in (ROOT / pkg).rglob("*.py"):
+            mod = module_name(path)
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.ImportFrom) and node.module and not node.level:
+                    top = node.module.split(".")[:2]
+                    if top != mod.split(".")[:2]:
+                        bad += [f"{mod}: {node.module}.{a.name}" for a in node.names if a.name.startswith("_")]
+    assert not bad, bad
+
+
+def _existing_module(name: str) -> str:
+    """``name`` or its longest prefix that is a module file (``from m import f`` names ``m.f``)."""
+    while name:
+        path = ROOT / name.replace(".", "/")
+        if path.with_suffix(".py").exists() or (path / "__init__.py").exists():
+            return name
+        name = name.rpartition(".")[0]
+    return name
+
+
+def import_cycles() -> list[set[str]]:
+    """Strongly connected sets of modules (more than one) in the import graph (Tarjan)."""
+    graph: dict[str, set[str]] = {}
+    for src, dst, _ in imports():
+        dst = _existing_module(dst)
+        if dst and dst != src:
+            graph.setdefault(src, set()).add(dst)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    out: list[set[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = set()
+            while True:
+                w = stack.pop()
+                comp.add(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(comp)
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_new_import_cycle():
+    new = [sorted(c) for c in import_cycles() if c not in KNOWN_CYCLES]
+    assert not new, f"import cycles: {new}"
+
+
+def test_a_new_upward_import_is_caught(tmp_path):
+    """The check can fail: a rig module that imported the task would be reported."""
+    assert layer_of("addedinertia_env.rig.forces") < layer_of("addedinertia_env.task")
+    assert layer_of("addedinertia_env.discover.dataset") == LAYERS["addedinertia_env.simulate"]
+    assert layer_of("agents.base") < layer_of("addedinertia_env.bench.tuning")
