@@ -81,10 +81,12 @@ class RunRecord:
 
     @property
     def t(self) -> np.ndarray:
+        """Sample times, s."""
         return self.samples["t"]
 
     @property
     def phase(self) -> np.ndarray:
+        """Phase of each sample (str array)."""
         return self.samples["phase"]
 
     @property
@@ -99,17 +101,21 @@ class RunRecord:
 
     @property
     def experiment(self) -> dict[str, Any]:
+        """The ``experiment`` block (kind, plan, what the tool recorded)."""
         return self.meta["experiment"]
 
     @property
     def run_id(self) -> str:
+        """The record's ``run_id`` ('' if absent)."""
         return str(self.meta.get("run_id", ""))
 
     @property
     def name(self) -> str:
+        """The file path, else the run id: how messages name this record."""
         return str(self.path) if self.path is not None else self.run_id or "<record>"
 
     def phase_mask(self, name: str) -> np.ndarray:
+        """Boolean mask of the samples in phase ``name``."""
         return self.phase == name
 
     def truth_lambda66(self) -> float | None:
@@ -371,6 +377,7 @@ class Sampling:
     in_spec_range: bool  # nominal rate within 250 Hz .. 10 kHz (run-record.md)
 
     def to_json(self) -> dict[str, Any]:
+        """The sampling summary as a JSON-ready dict."""
         return {"nominal_rate_hz": self.nominal_rate, "median_interval_s": self.median_interval,
                 "jitter_rms_s": self.jitter_rms, "dropped_samples": self.dropped,
                 "gaps": [{"after_t": a, "length_s": g} for a, g in self.gaps], "uniform": self.uniform,

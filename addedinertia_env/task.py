@@ -77,12 +77,14 @@ class ObservationLayout:
     names: tuple[str, ...] = tuple(OBSERVATION_FIELDS)
 
     def index(self, name: str) -> int:
+        """Position of observation field ``name``."""
         try:
             return self.names.index(name)
         except ValueError:
             raise KeyError(f"no observation field {name!r}; fields are {self.names}") from None
 
     def scale(self, name: str) -> float:
+        """Normalising scale of field ``name`` (physical value / scale = observation)."""
         return OBSERVATION_FIELDS[name][1]
 
     def get(self, obs: np.ndarray, name: str) -> float:
@@ -90,10 +92,12 @@ class ObservationLayout:
         return float(obs[..., self.index(name)] * self.scale(name))
 
     def decode(self, obs: np.ndarray) -> dict[str, float]:
+        """Physical values (SI) of a flat observation, by field name."""
         return {n: float(obs[k]) * self.scale(n) for k, n in enumerate(self.names)}
 
     @property
     def size(self) -> int:
+        """Number of observation entries."""
         return len(self.names)
 
 
@@ -114,6 +118,7 @@ class RewardWeights:
 
     @classmethod
     def from_mapping(cls, mapping: dict) -> "RewardWeights":
+        """Weights from a mapping of term name to weight; unknown names refused."""
         allowed = [f.name for f in fields(cls)]
         unknown = sorted(set(mapping) - set(allowed))
         if unknown:
@@ -194,6 +199,7 @@ class ReverseStrokeTask:
 
     # Observations -------------------------------------------------------------------
     def observe(self, exp: Experiment) -> np.ndarray:
+        """The normalised observation (float32, clipped to +-OBS_LIMIT) of the experiment now."""
         r, ref, known = exp.last, exp.reference, exp.known
         t = r.t
         phi_n = known.phi_neutral

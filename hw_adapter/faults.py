@@ -33,6 +33,8 @@ class FaultSpecError(ValueError):
 
 @dataclass(frozen=True)
 class Fault:
+    """One injected fault: its name (:data:`NAMES`), value (unit per fault) and start time."""
+
     name: str
     value: float
     start_s: float = 0.0  # s of board time after RESET
@@ -40,11 +42,17 @@ class Fault:
 
 @dataclass(frozen=True)
 class FaultPlan:
+    """The faults of one emulator run (parsed ``--faults``) and the seed of their random draws."""
+
     faults: tuple[Fault, ...] = ()
     seed: int = 0
     spec: str = ""
 
     def get(self, name: str) -> Fault | None:
+        """The fault called ``name`` in this plan, or ``None``; a name no fault has is an error
+        (a misspelt name in the emulator must not read as "not active")."""
+        if name not in NAMES:
+            raise KeyError(f"no fault is called {name!r}; the faults are {', '.join(NAMES)}")
         for f in self.faults:
             if f.name == name:
                 return f

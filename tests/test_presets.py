@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import copy
 import math
 
@@ -15,7 +17,8 @@ from addedinertia_env.rig.params import RigParams, SensorParams
 from addedinertia_env.rig.presets import (SENSOR_QUALITY, ConfigError, available_rigs, load_preset, load_rig,
                                           rig_from_mapping, sensors_for_quality)
 
-PRESETS = ("wigley-2m", "spheroid-7")
+# Every preset shipped in configs/rigs/ (found, not listed: a new preset is tested too).
+PRESETS = tuple(sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "configs" / "rigs").glob("*.yaml")))
 
 
 def mapping(name: str = "wigley-2m") -> dict:
@@ -69,6 +72,10 @@ def test_spheroid_preset_lambda66_is_lambs_closed_form():
 
 
 # --- loading ---------------------------------------------------------------------------
+
+def test_the_shipped_presets_are_found():
+    assert {"wigley-2m", "spheroid-7"} <= set(PRESETS) and set(PRESETS) == set(available_rigs())
+
 
 @pytest.mark.parametrize("name", PRESETS)
 def test_presets_load(name):

@@ -49,6 +49,8 @@ NOMINAL_PARAMS = registry.NOMINAL_PARAM_NAMES
 
 @dataclass(frozen=True)
 class ParamSpec:
+    """One fitted parameter: name, unit, start value, bounds and typical size (same unit)."""
+
     name: str
     unit: str
     start: float
@@ -118,15 +120,19 @@ class GrayBoxModel:
 
     # --- parameters -----------------------------------------------------------------
     def start(self) -> np.ndarray:
+        """Start values of the parameters, in ``names`` order."""
         return np.array([s.start for s in self.specs], dtype=float)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) bounds of the parameters."""
         return np.array([s.low for s in self.specs]), np.array([s.high for s in self.specs])
 
     def scales(self) -> np.ndarray:
+        """Typical sizes of the parameters (optimiser scaling)."""
         return np.array([s.scale for s in self.specs])
 
     def as_dict(self, theta: np.ndarray) -> dict[str, float]:
+        """``{name: value}`` of a parameter vector."""
         return {n: float(v) for n, v in zip(self.names, theta)}
 
     def _column(self, thetas: np.ndarray, name: str) -> np.ndarray:
@@ -184,10 +190,12 @@ class GrayBoxModel:
 
     @property
     def n_hull(self) -> int:
+        """Number of hull residuals."""
         return int(self._hull_obs.size)
 
     @property
     def n_flywheel(self) -> int:
+        """Number of flywheel residuals."""
         return int(sum(sl.stop - sl.start for fw in self._flywheels for sl in fw.chunks))
 
     def hull_prediction(self, thetas: np.ndarray) -> np.ndarray:
@@ -221,6 +229,7 @@ class GrayBoxModel:
         return np.concatenate(parts, axis=1)
 
     def flywheel_residuals(self, thetas: np.ndarray) -> np.ndarray:
+        """Flywheel residuals (rad) after removing each chunk's fresh angle and rate, one row per parameter set."""
         delays, ratios = self._motor_input_params(self._namespace(thetas), len(thetas))
         rows = []
         for p in range(len(thetas)):

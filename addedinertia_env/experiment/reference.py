@@ -39,24 +39,30 @@ class StrokeLaw:
         return 2.0 / (self.t_stop - self.t_start)
 
     def phi(self, t):
+        """Fitted hull angle at ``t`` (s; float or array), rad."""
         return C.chebval(self._x(t), self.coef)
 
     def rate(self, t):
+        """Fitted hull rate at ``t`` (s), rad/s."""
         return C.chebval(self._x(t), self._d1) * self._scale
 
     def accel(self, t):
+        """Fitted hull acceleration at ``t`` (s), rad/s^2."""
         return C.chebval(self._x(t), self._d2) * self._scale**2
 
     @property
     def duration(self) -> float:
+        """Length of the fitted stroke, s."""
         return self.t_stop - self.t_start
 
     @property
     def phi_stop(self) -> float:
+        """Fitted angle at the stop ``t_stop``, rad."""
         return float(self.phi(self.t_stop))
 
     @property
     def peak_rate(self) -> float:
+        """Largest fitted rate over the stroke, rad/s."""
         tt = np.linspace(self.t_start, self.t_stop, 201)
         return float(np.max(np.abs(self.rate(tt))))
 
@@ -75,6 +81,7 @@ class MirroredReference:
 
     @property
     def t_end(self) -> float:
+        """End of the reverse stroke, s."""
         return self.t_begin + self.law.duration
 
     def _mirror(self, t):
@@ -83,12 +90,15 @@ class MirroredReference:
         return self.law.t_stop - (np.clip(t, self.t_begin, self.t_end) - self.t_begin)
 
     def phi(self, t):
+        """Reference angle at ``t`` (s; clamped to the stroke), rad."""
         return self.law.phi(self._mirror(t))
 
     def rate(self, t):
+        """Reference rate at ``t`` (s), rad/s (the mirror's sign)."""
         return -self.law.rate(self._mirror(t))
 
     def accel(self, t):
+        """Reference acceleration at ``t`` (s), rad/s^2."""
         return self.law.accel(self._mirror(t))
 
 

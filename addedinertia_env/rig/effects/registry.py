@@ -93,6 +93,7 @@ class EffectSpec:
 
     @property
     def param_names(self) -> tuple[str, ...]:
+        """Names of the parameters, in order."""
         return tuple(p.name for p in self.params)
 
     def draw_values(self, rng: np.random.Generator) -> dict[str, float]:
