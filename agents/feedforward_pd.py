@@ -46,6 +46,8 @@ class StrokeController(Controller):
 
     # --- per stroke -------------------------------------------------------------------
     def reset(self, context: ControllerContext) -> None:
+        """Start of the controlled part: take the inertia prior and rod stiffness, size the
+        pre-spin and the observer."""
         super().reset(context)
         rig = context.rig
         self.J = context.inertia_prior
@@ -60,6 +62,7 @@ class StrokeController(Controller):
         self.d_expected_prev = 0.0
 
     def hold_current(self, obs: dict[str, float]) -> float:
+        """Current (A) during the hold: spins the flywheel up to the pre-spin rate (0 without pre-spin)."""
         if not self.prespin:
             return 0.0
         J_f = self.ctx.rig.J_flywheel
@@ -83,6 +86,7 @@ class StrokeController(Controller):
         return obs["phi_ref"] - self.obs_filter.phi, obs["rate_ref"] - self.obs_filter.rate
 
     def feedforward_current(self, obs: dict[str, float]) -> float:
+        """Feed-forward current (A) that retraces the mirrored stroke at this observation."""
         if not self.feedforward:
             return 0.0
         return stroke_feedforward_current(self.ctx, obs["phi_ref"], obs["accel_ref"], self.J)
@@ -101,6 +105,7 @@ class StrokeController(Controller):
         return scale * w * w, scale * 2.0 * z * w, 0.0
 
     def current(self, obs: dict[str, float]) -> float:
+        """The command (A) for this observation: hold current, or feed-forward plus feedback on the reverse stroke."""
         ctx = self.ctx
         if obs["is_hold"] > 0.5:
             i = self.hold_current(obs)

@@ -66,16 +66,20 @@ class HullObserver:
         self.x = self.A @ self.x + self.B * torque
 
     def correct(self, phi_measured: float) -> None:
+        """Update the estimate with a measured hull angle (rad)."""
         self.x = self.x + self.K * (phi_measured - self.x[0])
 
     @property
     def phi(self) -> float:
+        """Estimated hull angle, rad."""
         return float(self.x[0])
 
     @property
     def rate(self) -> float:
+        """Estimated hull rate, rad/s."""
         return float(self.x[1])
 
     @property
     def disturbance(self) -> float:
+        """Estimated disturbance torque on the hull, N m."""
         return float(self.x[2])

@@ -45,6 +45,7 @@ SPLITS = ("tuning", "test")
 
 
 def available_suites() -> list[str]:
+    """Names of the suites in configs/suites/."""
     return sorted(p.stem for p in SUITE_DIR.glob("*.yaml"))
 
 
@@ -64,6 +65,8 @@ class EpisodeTask:
 
 @dataclass(frozen=True)
 class Suite:
+    """A benchmark suite: presets, randomisation ranges, fixed values and seeded splits."""
+
     name: str
     description: str
     presets: tuple[str, ...]
@@ -76,6 +79,7 @@ class Suite:
     source: str = ""  # the suite file, for messages
 
     def seeds(self, split: str) -> list[int]:
+        """The scenario seeds of ``split`` (``tuning``, ``test`` or ``all``)."""
         if split == "all":
             return [s for name in SPLITS for s in self.seeds(name)]
         if split not in self.splits:
@@ -100,9 +104,11 @@ class Suite:
         return "train"
 
     def preset_for(self, seed: int) -> str:
+        """The rig preset of scenario ``seed`` (presets taken in turn)."""
         return self.presets[seed % len(self.presets)]
 
     def scenario(self, seed: int) -> Scenario:
+        """The seeded scenario ``seed`` of this suite."""
         preset = self.preset_for(seed)
         try:
             sc = make_scenario(seed, preset=preset, ranges=self.ranges, fixed=self.fixed,
@@ -113,10 +119,12 @@ class Suite:
                               f"suite's fixed values {self.fixed} and ranges: {e}") from None
 
     def scenarios(self, split: str = "test") -> list[Scenario]:
+        """The scenarios of ``split``."""
         return [self.scenario(s) for s in self.seeds(split)]
 
     def task(self, scenario: Scenario, controller: str, controller_kwargs: dict[str, Any] | None = None,
              tuned: bool = True, entry: dict[str, Any] | None = None) -> EpisodeTask:
+        """One benchmark episode of ``controller`` on ``scenario`` (the suite's tuned gains unless ``tuned`` is false)."""
         kwargs = dict(controller_kwargs or {})
         if tuned and self.tuned_path is not None:
             params = load_tuned(controller, self.tuned_path)
@@ -131,6 +139,7 @@ class Suite:
 
 
 def suite_path(name: str) -> Path:
+    """The YAML file of suite ``name`` (a name in configs/suites/ or a path); ConfigError if none."""
     return config_path("suite", name, SUITE_DIR)
 
 

@@ -63,6 +63,8 @@ class Thresholds:
 
 @dataclass
 class Candidate:
+    """One candidate effect (or pair) fitted: its fit, evidence (delta BIC, z, held-out gain) and verdict."""
+
     cause: str  # an effect of the vocabulary, or "a+b" for a pair
     fit: Fit
     delta_bic: float  # against the nominal model (pairs: against their reference, see ``against``)
@@ -91,6 +93,8 @@ class Candidate:
 
 @dataclass
 class Diagnosis:
+    """The result of :func:`discover`: the named cause, the nominal and candidate fits, the gain."""
+
     cause: str
     data: Prepared
     nominal: Fit
@@ -110,18 +114,22 @@ class Diagnosis:
 
     @property
     def best(self) -> Candidate | None:
+        """The named cause's candidate (``None`` for ``none`` or ``unexplained``)."""
         return self.chosen
 
     @property
     def best_pair(self) -> Candidate | None:
+        """The pair of effects with the lowest cost, if pairs were tried."""
         return min(self.pairs, key=lambda c: c.fit.cost) if self.pairs else None
 
     @property
     def extended(self) -> Fit:
+        """The fit of the named cause, else the nominal fit."""
         b = self.chosen
         return b.fit if b is not None else self.nominal
 
     def gain(self) -> dict:
+        """What the extended model gains over the nominal one: residual RMS (rad) and lambda66 (kg m^2) of each, held-out gain."""
         ext = self.extended
         b = self.chosen
         return {"residual_rms_nominal": self.nominal.hull_rms, "residual_rms_extended": ext.hull_rms,

@@ -20,6 +20,8 @@ from .model import GrayBoxModel
 
 @dataclass
 class Fit:
+    """A least-squares fit of a :class:`GrayBoxModel`: parameters, scaled residuals, Jacobian, cost."""
+
     model: GrayBoxModel
     theta: np.ndarray
     residuals: np.ndarray  # scaled (hull / phi_noise, flywheel / theta_noise)
@@ -32,6 +34,7 @@ class Fit:
 
     @property
     def params(self) -> dict[str, float]:
+        """``{name: value}`` of the fitted parameters (units of the model's ``ParamSpec``)."""
         return self.model.as_dict(self.theta)
 
     @property
@@ -41,13 +44,16 @@ class Fit:
 
     @property
     def flywheel_residuals(self) -> np.ndarray:
+        """Flywheel residuals, rad."""
         return self.model.split(self.residuals)[1]
 
     @property
     def hull_rms(self) -> float:
+        """RMS of the hull residuals, rad."""
         return float(np.sqrt(np.mean(self.hull_residuals**2)))
 
     def lag1(self) -> float:
+        """Lag-one autocorrelation of the residuals (-)."""
         return lag1_autocorrelation(self.residuals, self.model)
 
     def covariance(self, inflate: bool = True) -> np.ndarray:
@@ -140,5 +146,6 @@ def bic(fit: Fit, n_eff: float) -> float:
 
 
 def aic(fit: Fit, n_eff: float) -> float:
+    """Akaike information criterion of ``fit`` with ``n_eff`` effective samples (lower is better)."""
     n = len(fit.residuals)
     return n_eff * math.log(fit.cost / n) + 2 * len(fit.theta)

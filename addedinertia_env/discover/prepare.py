@@ -79,11 +79,14 @@ class HullSegment:
 
     @property
     def t_steps(self) -> np.ndarray:
+        """Times of the integrator step boundaries, s."""
         return self.t[:: self.step_samples][: self.steps + 1]
 
 
 @dataclass
 class FlywheelSegment:
+    """The flywheel channel of one run: absolute angle, current and rotor friction per interval."""
+
     run: int
     t: np.ndarray
     theta: np.ndarray  # rad, absolute flywheel angle phi + psi
@@ -95,6 +98,8 @@ class FlywheelSegment:
 
 @dataclass
 class RunData:
+    """One run cut into hull segments (free, reverse) and its flywheel channel, with its offsets and noise."""
+
     name: str
     kind: str  # experiment kind: "reverse-symmetric" or "free-decay"
     alpha: float  # rad, twist at release measured from the calibrated neutral
@@ -108,10 +113,12 @@ class RunData:
 
     @property
     def free(self) -> HullSegment:
+        """The free stroke's hull segment."""
         return self.segments[0]
 
     @property
     def reverse(self) -> HullSegment | None:
+        """The reverse (or driven) stroke's hull segment, if the run has one."""
         return next((s for s in self.segments if s.kind in ("reverse", "stroke")), None)
 
 
@@ -136,9 +143,11 @@ class Prepared:
 
     @property
     def names(self) -> list[str]:
+        """Names of the runs."""
         return [r.name for r in self.runs]
 
     def subset(self, idx) -> "Prepared":
+        """The same prepared data with only the runs at positions ``idx``."""
         keep = [self.runs[k] for k in idx]
         return Prepared(**{**self.__dict__, "runs": keep})
 

@@ -209,6 +209,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
 
     # --- Gymnasium API ----------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Draw a scenario, run the free stroke, and return the first observation and info (Gymnasium API)."""
         super().reset(seed=seed)
         cfg = self.config.with_options(options)
         drawn = int(self.np_random.integers(0, 2**63 - 1))  # always drawn: the stream stays aligned
@@ -234,6 +235,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         return self.task.observe(self.experiment), info
 
     def step(self, action: np.ndarray):
+        """Apply a normalised action for ``action_repeat`` samples; (observation, reward, terminated, truncated, info)."""
         exp, task = self.experiment, self.task
         if exp is None:
             raise gym.error.ResetNeeded("call reset() before step()")
@@ -266,6 +268,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         return task.observe(exp), reward, terminated, False, info
 
     def render(self):
+        """An RGB frame (``rgb_array``) or a figure of the run so far (``plot``)."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; make the env with render_mode='rgb_array' or 'plot'")
             return None
@@ -282,6 +285,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._renderer.render(self.rig.data, reference_angle=reference)
 
     def close(self):
+        """Release the renderer."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None

@@ -32,19 +32,24 @@ class BatchedSingleRig(SimulatedRigBase):
 
     @property
     def time(self) -> float:
+        """Simulated time, s."""
         return float(self.batch.t[0])
 
     @property
     def brake(self) -> bool:
+        """Whether the hull brake is engaged."""
         return bool(self.batch.brake[0])
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
+        """Bring the hull to ``phi0`` (rad), motor passive, brake as given; the first reading."""
         return self.batch.reset(phi0=phi0, psi0=psi0, omega0=omega0, brake=brake).single(0)
 
     def set_brake(self, on: bool) -> None:
+        """Engage or release the hull brake."""
         self.batch.set_brake(bool(on))
 
     def step(self, cmd: MotorCommand) -> Reading:
+        """Apply ``cmd`` for one sample period; the new reading."""
         return self.batch.step(MODES.index(cmd.mode), cmd.value).single(0)
 
     def truth(self) -> dict:
