@@ -54,3 +54,16 @@ def _fake(row):
             "ratio_batched_to_single": row["steps_per_s"], "float32": row, "with_sensors": row,
             "memory": {"bytes_per_env_arrays": 1.0, "bytes_per_env_tracemalloc_peak": 1.0},
             "single_env": {"before_sweep": single, "after_sweep": single}, "sweep": [row]}
+
+
+def test_whole_task_measurement_counts_ended_episodes_with_and_without_identification():
+    from addedinertia_env.vector.measure import measure_batched as measure_task
+
+    short = dict(hold_s=0.5, fixed={"period_s": 3.0})
+    scored = measure_task(2, steps=250, warmup_steps=0, **short)
+    plain = measure_task(2, steps=250, warmup_steps=0, score_episodes=False, **short)
+    for row in (scored, plain):
+        assert row["episodes_ended"] >= 2 and row["samples"] == 2 * 250 * 10
+        assert row["samples_per_s"] > 0 and row["samples_per_cpu_s"] > 0
+    assert scored["median_abs_rel_error"] < 1.0  # identified
+    assert plain["median_abs_rel_error"] != plain["median_abs_rel_error"]  # nan: nothing identified

@@ -54,6 +54,29 @@ def run_seed(algo: str, seed: int, timesteps: int, eval_every: int, eval_episode
     return train(cfg, seed=seed, out=out, command=command)
 
 
+def classical_reference(controller: str, eval_seed: int, n_episodes: int, action_repeat: int = 10) -> dict[str, Any]:
+    """A classical controller on the evaluation episodes (single env ``reset(seed=eval_seed + k)``,
+    the scenarios the batched evaluation runs): median ``|rel_error|`` and mean energy."""
+    import gymnasium as gym  # noqa: PLC0415
+
+    import addedinertia_env  # noqa: F401, PLC0415
+    from agents import make_controller  # noqa: PLC0415 - agents depends on this package
+
+    from ..experiment.runner import drive  # noqa: PLC0415
+
+    rel, energy = [], []
+    for k in range(n_episodes):
+        env = gym.make("AddedInertia/ReverseStroke-v0", action_repeat=action_repeat).unwrapped
+        env.reset(seed=eval_seed + k)
+        drive(env.experiment, make_controller(controller))
+        summary = env._score()
+        rel.append(abs(summary["rel_error"]))
+        energy.append(summary["energy_J"])
+    rel_arr = np.array(rel)
+    return {"controller": controller, "n": n_episodes, "median_abs_rel_error": float(np.nanmedian(rel_arr)),
+            "failed": int(np.sum(~np.isfinite(rel_arr))), "mean_energy_J": float(np.mean(energy))}
+
+
 def read_curve(out: Path) -> list[dict[str, Any]]:
     path = out / "eval" / "curve.jsonl"
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
@@ -94,7 +117,8 @@ def plot(algo: str, metric: dict[str, np.ndarray], reward: dict[str, np.ndarray]
     os.replace(tmp, path)
 
 
-def section(algo: str, args, cards: list[dict[str, Any]], metric, reward, figure: str, command: str) -> str:
+def section(algo: str, args, cards: list[dict[str, Any]], metric, reward, figure: str, command: str,
+            reference: dict[str, Any] | None = None) -> str:
     from ..machine import machine_info  # noqa: PLC0415
 
     m = {**machine_info(), "load_avg_1_5_15": [round(x, 1) for x in os.getloadavg()]}
@@ -114,8 +138,12 @@ def section(algo: str, args, cards: list[dict[str, Any]], metric, reward, figure
                      f"{100 * metric['max'][k]:.3f} % | {reward['mean'][k]:.2f} | {metric['cpu'][k] / 60:.1f} |")
     lines += ["", f"Final evaluation (median |rel_error| per seed): "
               f"{', '.join(f'{100 * v:.3f} %' for v in final)}. Cost per seed: "
-              f"{', '.join(f'{c:.1f}' for c in cpu_min)} CPU-minutes, {', '.join(f'{w:.0f}' for w in wall_min)} wall minutes.",
-              "", MARK.format(algo=algo, end="end")]
+              f"{', '.join(f'{c:.1f}' for c in cpu_min)} CPU-minutes, {', '.join(f'{w:.0f}' for w in wall_min)} wall minutes."]
+    if reference:
+        lines += ["", f"For scale: `{reference['controller']}` on the same {reference['n']} evaluation episodes (the single "
+                  f"env, `reset(seed=10000 + k)`): median |rel_error| {100 * reference['median_abs_rel_error']:.3f} %, "
+                  f"mean energy {reference['mean_energy_J']:.2f} J, {reference['failed']} failed estimates."]
+    lines += ["", MARK.format(algo=algo, end="end")]
     return "\n".join(lines)
 
 
@@ -141,6 +169,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--eval-episodes", type=int, default=16)
     p.add_argument("--runs", default="out/curves", help="folder of the training runs (reused when finished)")
     p.add_argument("--doc", default=str(DOC))
+    p.add_argument("--reference", default="lqr", help="classical controller run on the same evaluation episodes "
+                                                       "for scale ('none': skip)")
     args = p.parse_args(argv)
     if args.timesteps < 1000 or args.eval_episodes < 1 or not args.seeds:
         print(f"learning_curves: --timesteps {args.timesteps} (>= 1000), --eval-episodes {args.eval_episodes} (>= 1), "
@@ -161,8 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     fig = fig_dir / f"learning_{args.algo.replace('-', '_')}.png"
     command = "python -m addedinertia_env.reports.learning_curves " + shlex.join(sys.argv[1:] if argv is None else argv)
     plot(args.algo, metric, reward, fig, f"{args.algo}, batched engine, {len(args.seeds)} seeds")
+    reference = None if args.reference == "none" else classical_reference(args.reference, 10000, args.eval_episodes)
     write_section(doc, args.algo, section(args.algo, args, cards, metric, reward, os.path.relpath(fig, doc.parent),
-                                          command))
+                                          command, reference))
     print(f"wrote {doc} ({args.algo}) and {fig}", file=sys.stderr)
     return 0
 

@@ -53,7 +53,8 @@ def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 
         _, _, term, trunc, info = env.step(_policy(rng, num_envs))
         if term.any():
             ended += int(term.sum())
-            rel.extend(np.abs(info["rel_error"][term]).tolist())
+            if "rel_error" in info:  # scored episodes only
+                rel.extend(np.abs(info["rel_error"][term]).tolist())
     wall = time.perf_counter() - t0
     cpu = time.process_time() - cpu0
     env.close()
