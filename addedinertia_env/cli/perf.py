@@ -46,7 +46,7 @@ def run(args) -> int:
         raise BadInput(f"--vector-warmup {args.vector_warmup}: expected 0 or more agent steps")
     result.update(measure_vector_task(args.vector_envs, steps=args.vector_steps, warmup_steps=args.vector_warmup,
                                       seconds=args.vector_seconds, progress=info))
-    result["machine"]["load_avg_at_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
+    result["machine"]["load_avg_at_end"] = [round(x, 2) for x in os.getloadavg()] if hasattr(os, "getloadavg") else None
     info(f"single MuJoCo env: {result['single_env_steps_per_s']:,.0f} steps/s; batched n={result['n_envs']}: "
          f"{result['batched_physics_steps_per_s']:,.0f} steps/s; ratio {result['ratio_batched_to_single']:,.0f}x")
     if args.out:

@@ -65,7 +65,9 @@ def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 
             "samples_per_s": agent_steps * action_repeat / wall, "agent_steps_per_s": agent_steps / wall,
             "samples_per_cpu_s": agent_steps * action_repeat / cpu,
             "episodes_ended": ended, "episodes_per_s": ended / wall, "reset_s": reset_s,
-            "warmup_steps": warmup_steps, "median_abs_rel_error": float(np.median(rel)) if rel else float("nan")}
+            "warmup_steps": warmup_steps,
+            "median_abs_rel_error": float(np.nanmedian(rel)) if rel and np.isfinite(rel).any() else float("nan"),
+            "failed_estimates": int(np.sum(~np.isfinite(rel))) if rel else 0}
 
 
 def measure_loop(make: Callable[[], Any], n: int, kind: str, seconds: float, action_repeat: int,
