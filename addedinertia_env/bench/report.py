@@ -44,12 +44,35 @@ def preamble(rows: list[dict], command: str) -> str:
                      "no oracle rows, so no paired control error.")
     lines.append("IQM = mean of the middle 50 %; energy = integral of |u i| dt over hold + reverse stroke. "
                  "ILC learns for 2 unscored cycles, then is scored.")
+    coverage = _coverage(rows)
+    if coverage:
+        lines.append(coverage)
     small = sorted({n for n in (sum(r["controller"] == c for r in rows) for c in {r["controller"] for r in rows})
                     if n < MIN_EPISODES})
     if small:
         lines.append(f"WARNING: some intervals rest on fewer than {MIN_EPISODES} episodes ({small}); they are "
                      "wide and unreliable.")
     return "\n".join(lines)
+
+
+def _coverage(rows: list[dict]) -> str:
+    """A sentence when the rows cover only part of their suite's split (``--seeds N``)."""
+    from ..rig.presets import ConfigError  # noqa: PLC0415
+    from .suites import load_suite  # noqa: PLC0415
+
+    parts = []
+    for suite, split in sorted({(str(r["suite"]), str(r.get("split", "?"))) for r in rows}):
+        try:
+            total = len(load_suite(suite).seeds(split))
+        except (ConfigError, OSError, ValueError):
+            continue
+        used = len({r["seed"] for r in rows if r["suite"] == suite and r.get("split") == split})
+        if used < total:
+            parts.append(f"{suite}/{split}: {used} of its {total} scenarios (the first {used}; `--seeds {used}`)")
+    if not parts:
+        return ""
+    return ("REDUCED: " + "; ".join(parts) + ", to spare the shared CPU; the intervals are wider than with the "
+            "whole split.")
 
 
 def _suite_notes(rows: list[dict]) -> str:

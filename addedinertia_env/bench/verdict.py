@@ -33,7 +33,9 @@ TARGET = 0.01  # relative lambda66: the accuracy the experiment is for
 def pct(x: float | None) -> str:
     if x is None or (isinstance(x, float) and math.isnan(x)):
         return "-"
-    return "fail" if not math.isfinite(x) else f"{100 * x:.3f} %"
+    if not math.isfinite(x):
+        return "fail"
+    return f"{100 * x:.1e} %" if 0 < abs(x) < 5e-6 else f"{100 * x:.3f} %"  # never print a non-zero as 0.000
 
 
 def _ci(ci) -> str:
