@@ -15,11 +15,12 @@ Groups (percent of the true lambda66, signed: estimate minus truth):
 * ``hull rates``: true rates at the true crossings;
 * ``spring``: true angles at the rests and the true neutral;
 * ``current offset/gain``: the work recomputed from the current corrected with the sensor's
-  true offset and gain;
+  true offset and gain (when the estimator calibrated the torque on the flywheel's balance,
+  this is what that calibration's scale left);
 * ``current noise``: the true (noise-free) sampled current, trapezoid rule;
 * ``smoothed angles``: the true angles instead of the smoothed encoder angles in the work sum;
 * ``integration rule``: the true current's exact course between samples (the electrical
-  transient) instead of the estimator's rule on the sample grid;
+  transient) instead of the estimator's rule on the sample grid (and its fitted lag);
 * ``motor friction``: the true rotor friction instead of the rig block's model;
 * ``hull at rest``: true kinetic energy left at t2 and t3;
 * ``dissipation mismatch``: the true ``W_reverse - W_forward`` instead of the model's.
@@ -35,7 +36,7 @@ import mujoco
 import numpy as np
 
 from ..identify.energy import DEFAULT_FRACTIONS, DENSE_ANGLES, BalanceTerms, RunBalance, hann_weights, \
-    inertia_from_terms, interval_mean_current, prepared_balance
+    inertia_from_terms, prepared_balance
 from ..record import RunRecord
 from ..rig import forces
 from ..rig.mujoco_rig import MujocoRig, TrueState
@@ -147,8 +148,7 @@ def _crossing_index(phi, a, b, level, direction):
 def _reaction_work_series(bal: RunBalance, current: np.ndarray, phi: np.ndarray | None = None) -> np.ndarray:
     """Cumulative reaction work (J) from a sampled current series (A) under the estimator's
     integration rule and friction model, on the estimator's smoothed angles or on ``phi``."""
-    t = bal.t
-    i_mid = interval_mean_current(t, current, bal.R, bal.L, bal.current_sampling)
+    i_mid = bal.interval_current(current)
     dphi = np.diff(bal.phi_s if phi is None else phi)
     return np.concatenate([[0.0], np.cumsum(-(bal.k_t * i_mid - _estimated_friction(bal)) * dphi)])
 

@@ -40,7 +40,13 @@ current gain, ``R`` or the flywheel rate is multiplied by that ratio. They are
 diagnostics, and say so when used (:data:`DIAGNOSTIC_FORM_WARNING`).
 
 The current-sensor offset is calibrated on the free stroke, where the motor is open
-circuit and the true current is zero. Only the record's samples and its ``rig`` block are
+circuit and the true current is zero. The torque per logged ampere and the current
+channel's lag are calibrated on the flywheel's own balance ``J_f (w + Omega)' = k_t i - M_f``
+over the end of the hold and the reverse stroke (:func:`_flywheel_calibration`; physics.md
+section 8): the flywheel's inertia, not the data-sheet ``k_t`` or the current sensor's gain,
+then sets the scale of the motor's work, and a lagging current channel is shifted back. When
+the current has too few fast changes to pin the lag (an ideal tracking controller's), the
+rig block's ``k_t`` and the record's ``current_sampling`` are used as they stand. Only the record's samples and its ``rig`` block are
 used; never ``truth``. ``rig.L`` may be 0 or absent: the reaction form does not need it.
 """
 
@@ -62,8 +68,13 @@ from .common import IdentificationError, Result, largest_gap, local_fit, pooled_
 # balance is evaluated at ``DENSE_ANGLES`` angles across it and averaged with Hann weights.
 DEFAULT_FRACTIONS = (0.25, 0.75)
 DENSE_ANGLES = 41
+FLYWHEEL_CALIBRATION = True  # calibrate the motor torque and the current's lag on the flywheel's balance
 WORK_FORMS = ("reaction", "current", "electric")
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
+# relative, torque per ampere once calibrated on the flywheel: the fit's scatter between runs
+# (~5e-4) and the flywheel inertia's own calibration, assumed 0.2 %
+CALIBRATED_TORQUE_UNCERTAINTY = 0.002
+LAG_PRECISION = 0.02  # the current lag must be fitted to this fraction of a sample period to be used
 RATE_HALF_WIDTH = 0.1  # s, window of the local quintic that gives crossing instants and rates
 RATE_DEGREE = 5
 REST_FIT_S = 0.08  # s, span of encoder steps before t2 and after t3 that give the rest angles
@@ -296,6 +307,13 @@ class RunBalance:
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
         self.phi_s, self.psi_s = _smooth_by_phase(rec, phi), _smooth_by_phase(rec, psi)
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
+        self.torque_scale, self.current_lag = 1.0, 0.0
+        if work == "reaction" and FLYWHEEL_CALIBRATION:
+            start = max(self.k3 - _n_samples(t, 1.0), hold.start if hold is not None else self.k3) + 1
+            calib = _flywheel_calibration(t, phi + psi, self.psi, self.i, start, rev.stop - 1, self.J_f, self.k_t,
+                                          self.f_visc, self.f_coul)
+            if calib is not None:
+                self.torque_scale, self.current_lag = calib
         self.work_cum = self._cumulative_work()
         self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros_like(t)
         self.asymmetry_correction = asymmetry_correction
@@ -382,7 +400,8 @@ class RunBalance:
         s_den = float(np.hypot(T.w1f * fit["fit_f"]["sigma_rate"], T.w1r * fit["fit_r"]["sigma_rate"]))
         s_current = float(np.hypot(sA_f, sA_r)) / denom
         s_independent = float(np.hypot(s_current, J_total * s_den / denom))
-        s_gain = CURRENT_GAIN_UNCERTAINTY * float(np.hypot(T.A_f, T.A_r))
+        gain_u = CALIBRATED_TORQUE_UNCERTAINTY if self.calibrated else CURRENT_GAIN_UNCERTAINTY
+        s_gain = gain_u * float(np.hypot(T.A_f, T.A_r))
         s_common = float(np.hypot(s_gain, fit["s_dW"])) / denom
         iv.lambda66, iv.w1f, iv.w1r = float(lam), float(T.w1f), float(T.w1r)
         iv.sigma_independent, iv.sigma_common = s_independent, s_common
@@ -494,7 +513,7 @@ class RunBalance:
     def _cumulative_work(self) -> np.ndarray:
         """Motor work from the first sample to each sample, J (the form chosen by ``work``)."""
         t, i = self.t, self.i
-        i_mid = interval_mean_current(t, i, self.R, self.L, self.current_sampling)
+        i_mid = self.torque_scale * self.interval_current(i)
         dpsi = np.diff(self.psi_s)
         if self.work == "reaction":
             # Work of the motor's reaction on the hull: -(k_t i - M_f) dphi.
@@ -507,6 +526,25 @@ class RunBalance:
             u_offset = _voltage_offset(t[self.free], self.psi[self.free], self.rec["u"][self.free])
             steps = _electric_work_steps(t, self.rec["u"] - u_offset, i, self.R, self.L)
         return np.concatenate([[0.0], np.cumsum(steps)])
+
+    def interval_current(self, i: np.ndarray) -> np.ndarray:
+        """Mean current over each sample interval (A) from a current series on the record's grid.
+
+        When the flywheel's balance measured the current channel's lag (see
+        :func:`_flywheel_calibration`), the series is shifted by it and the trapezoid is the
+        rule (the lag also takes up how the DAQ sampled the current); otherwise the record's
+        ``current_sampling`` and ``L`` decide (:func:`interval_mean_current`).
+        """
+        t = self.t
+        if self.calibrated:
+            shifted = np.interp(t + self.current_lag, t, i)
+            return 0.5 * (shifted[1:] + shifted[:-1])
+        return interval_mean_current(t, i, self.R, self.L, self.current_sampling)
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether the torque and the current's lag come from the flywheel's balance."""
+        return self.torque_scale != 1.0 or self.current_lag != 0.0
 
     def _cumulative_bearing_work(self) -> np.ndarray:
         """Work of the rotor-bearing friction on the flywheel from the first sample, J."""
@@ -558,6 +596,63 @@ def _smooth_by_phase(rec: RunRecord, angle: np.ndarray) -> np.ndarray:
     for a, b in zip(cuts[:-1], cuts[1:]):
         out[a:b] = smooth_angle(rec.t[a:b], angle[a:b], window_s=WORK_SMOOTHING_S, degree=5)
     return out
+
+
+def _n_samples(t: np.ndarray, span_s: float) -> int:
+    return int(round(span_s / float(np.median(np.diff(t)))))
+
+
+def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: float, f_visc: float,
+                          f_coul: float) -> tuple[float, float] | None:
+    """Torque per logged ampere relative to ``k_t`` (scale) and the current channel's lag (s),
+    from the flywheel's own balance ``J_f theta'' = s k_t i(t - lag) - M_f`` (physics.md s8).
+
+    ``theta = phi + psi`` is the flywheel's absolute angle; over samples ``a..b`` (the end of
+    the hold and the reverse stroke, where the motor drives) it is fitted, twice integrated,
+    by least squares for each lag on a 0.25 ms grid (refined by a parabola). ``J_f`` and the
+    rotor friction come from the rig block: the flywheel's inertia is what calibrates the
+    torque, so a current-sensor gain error or a torque constant off its data sheet, and a
+    current channel that lags the encoders, no longer enter the motor's work. None when the
+    span is too short, the fit is poor (residual over 1e-3 rad rms: friction or offset not
+    as stated over a long hold), or the lag is not pinned to :data:`LAG_PRECISION` of a
+    sample: a current without fast changes (an ideal tracking controller's) lets a lag
+    and a scale trade off, and the fit then lands a few ms and half a percent off.
+    """
+    if b - a < 200:
+        return None
+    tt, th = t[a:b + 1], theta[a:b + 1]
+    om = np.gradient(smooth_angle(t, psi), t)[a:b + 1]
+    friction = f_visc * om + f_coul * np.sign(om)
+
+    def twice(x):
+        c1 = np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(tt))])
+        return np.concatenate([[0.0], np.cumsum(0.5 * (c1[1:] + c1[:-1]) * np.diff(tt))])
+
+    y = th + twice(friction) / J_f
+    lags = np.arange(-2e-3, 12.001e-3, 2.5e-4)
+    fits = []
+    for lag in lags:
+        X = np.column_stack([np.ones_like(tt), tt - tt[0], k_t * twice(np.interp(tt + lag, t, i)) / J_f])
+        coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+        r = y - X @ coef
+        fits.append((float(r @ r), float(coef[2])))
+    rss = np.array([f[0] for f in fits])
+    j = int(np.argmin(rss))
+    if not 0 < j < len(lags) - 1 or np.sqrt(rss[j] / len(tt)) > 1e-3:
+        return None
+    den = rss[j - 1] - 2 * rss[j] + rss[j + 1]
+    step = lags[1] - lags[0]
+    sigma_lag = float(np.sqrt(2.0 * rss[j] / (len(tt) - 3) * step**2 / den)) if den > 0 else np.inf
+    if sigma_lag > LAG_PRECISION * float(np.median(np.diff(tt))):
+        return None  # a smooth current: lag and scale trade off against each other
+    frac = 0.5 * (rss[j - 1] - rss[j + 1]) / den if den > 0 else 0.0
+    lag = float(lags[j] + frac * (lags[1] - lags[0]))
+    X = np.column_stack([np.ones_like(tt), tt - tt[0], k_t * twice(np.interp(tt + lag, t, i)) / J_f])
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    scale = float(coef[2])
+    if not 0.5 < scale < 2.0:
+        return None
+    return scale, lag
 
 
 def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float):
