@@ -74,6 +74,7 @@ CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md se
 # relative, torque per ampere once calibrated on the flywheel: the fit's scatter between runs
 # (~5e-4) and the flywheel inertia's own calibration, assumed 0.2 %
 CALIBRATED_TORQUE_UNCERTAINTY = 0.002
+MAX_LAG_S = 0.012  # s, the longest current-channel lag the flywheel calibration looks for
 LAG_PRECISION = 0.02  # the current lag must be fitted to this fraction of a sample period to be used
 RATE_HALF_WIDTH = 0.1  # s, window of the local quintic that gives crossing instants and rates
 RATE_DEGREE = 5
@@ -310,7 +311,9 @@ class RunBalance:
         self.torque_scale, self.current_lag = 1.0, 0.0
         if work == "reaction" and FLYWHEEL_CALIBRATION:
             start = max(self.k3 - _n_samples(t, 1.0), hold.start if hold is not None else self.k3) + 1
-            calib = _flywheel_calibration(t, phi + psi, self.psi, self.i, start, rev.stop - 1, self.J_f, self.k_t,
+            # The fit stays inside the reverse stroke with its lag grid (the record may end there).
+            end = rev.stop - 1 - _n_samples(t, MAX_LAG_S) - 2
+            calib = _flywheel_calibration(t, phi + psi, self.psi_s, self.i, start, end, self.J_f, self.k_t,
                                           self.f_visc, self.f_coul)
             if calib is not None:
                 self.torque_scale, self.current_lag = calib
@@ -621,7 +624,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     if b - a < 200:
         return None
     tt, th = t[a:b + 1], theta[a:b + 1]
-    om = np.gradient(smooth_angle(t, psi), t)[a:b + 1]
+    om = np.gradient(psi[a:b + 1], tt)  # psi already smoothed phase by phase
     friction = f_visc * om + f_coul * np.sign(om)
 
     def twice(x):
@@ -629,7 +632,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
         return np.concatenate([[0.0], np.cumsum(0.5 * (c1[1:] + c1[:-1]) * np.diff(tt))])
 
     y = th + twice(friction) / J_f
-    lags = np.arange(-2e-3, 12.001e-3, 2.5e-4)
+    lags = np.arange(-2e-3, MAX_LAG_S + 1e-9, 2.5e-4)
     fits = []
     for lag in lags:
         X = np.column_stack([np.ones_like(tt), tt - tt[0], k_t * twice(np.interp(tt + lag, t, i)) / J_f])
