@@ -16,6 +16,8 @@ quirk               what it does (SI units)
 ``held_current``    logs the current as its mean over the previous interval
 ``braked_tail``     sets the brake for the last ``s`` seconds: the hull is held there
 ``L_unknown``       removes ``rig.L`` (or, with ``L_unknown=0``, logs it as 0)
+``release_moving``  logs the release sample itself as moving (brake 0, the stroke's
+                    phase), the other DAQ convention for when the brake let go
 ``shuffle_columns`` writes the columns in another order, with an extra DAQ channel
 ==================  ==================================================================
 
@@ -48,12 +50,14 @@ class Quirks:
     braked_tail: float = 0.0  # s, brake set for the last seconds of the record
     L_unknown: str = ""  # "" keep rig.L, "absent" remove it, "zero" log it as 0
     shuffle_columns: bool = False
+    release_moving: bool = False  # the release sample logged as moving, not as braked
 
     def to_dict(self) -> dict:
         return {k: v for k, v in asdict(self).items() if v != getattr(Quirks(), k)}
 
 
-QUIRK_NAMES = ("drop", "jitter", "decimate", "held_current", "braked_tail", "L_unknown", "shuffle_columns")
+QUIRK_NAMES = ("drop", "jitter", "decimate", "held_current", "braked_tail", "L_unknown", "shuffle_columns",
+               "release_moving")
 
 
 def draw_quirks(rng: np.random.Generator, n: int = 2) -> Quirks:
@@ -76,6 +80,8 @@ def draw_quirks(rng: np.random.Generator, n: int = 2) -> Quirks:
             kw.update(L_unknown=str(rng.choice(["absent", "zero"])))
         elif q == "shuffle_columns":
             kw.update(shuffle_columns=True)
+        elif q == "release_moving":
+            kw.update(release_moving=True)
     return Quirks(**kw)
 
 
@@ -88,6 +94,8 @@ def apply_quirks(record: RunRecord, quirks: Quirks, rng: np.random.Generator) ->
     counts = rig.get("encoder_counts") or {}
     if quirks.braked_tail > 0:
         _brake_tail(s, quirks.braked_tail, counts)
+    if quirks.release_moving:
+        _release_logged_moving(s)
     if quirks.held_current:
         s["i"] = _held(s["i"])
     if quirks.jitter > 0:
@@ -187,3 +195,17 @@ def _brake_tail(s: dict, seconds: float, counts: dict) -> None:
     if "brake" not in s:
         s["brake"] = np.zeros(len(t))
     s["brake"][start:] = 1.0
+
+
+def _release_logged_moving(s: dict) -> None:
+    """Log the last held sample before each stroke (the release instant) as moving."""
+    ph = s["phase"].astype(object)
+    moving = np.isin(ph, ("free", "reverse"))
+    if "brake" in s:
+        moving &= s["brake"] == 0
+    starts = np.nonzero(moving[1:] & ~moving[:-1])[0]  # the held sample before each stroke
+    for k in starts:
+        ph[k] = ph[k + 1]
+        if "brake" in s:
+            s["brake"][k] = 0.0
+    s["phase"] = ph.astype(str)

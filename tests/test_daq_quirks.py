@@ -30,6 +30,7 @@ QUIRKS = {
     "current held over the previous interval, declared": Quirks(held_current=True, declare_current=True),
     "braked tail": Quirks(braked_tail=0.6),
     "L absent": Quirks(L_unknown="absent"),
+    "release logged as a moving sample": Quirks(release_moving=True),
     "L zero, columns shuffled, extra channel": Quirks(L_unknown="zero", shuffle_columns=True),
 }
 
@@ -67,6 +68,10 @@ def test_whole_record_holds_under_each_quirk(clean, tmp_path, name):
         assert s.nominal_rate == pytest.approx(1000.0 / quirks.decimate)
     if quirks.held_current and quirks.declare_current:
         assert res.details["current_sampling"] == {"used": "held-previous", "source": "rig.current_sampling"}
+    if quirks.release_moving:
+        assert res.details["release_lag_s"] == pytest.approx(1e-3)
+    elif not quirks.drop_release:
+        assert res.details["release_lag_s"] == 0.0
     if quirks.braked_tail:
         mp = motion_phase(records[0])
         assert mp[-1] == "idle" and records[0]["brake"][-1] == 1.0

@@ -157,7 +157,7 @@ class Diagnosis:
                           "current_offset": r.current_offset, "current_noise": r.current_noise,
                           "segments": [{"kind": s.kind, "release_t": s.t_start, "steps": s.steps} for s in r.segments],
                           "sampling": r.sampling} for r in self.data.runs],
-                "skipped": list(self.data.skipped),
+                "skipped": list(self.data.skipped), "release_lag_s": self.data.release_lag,
                 "current_sampling": dict(self.data.current_mode_report),
                 "thresholds": {k: v for k, v in self.thresholds.__dict__.items()}, "wall_s": self.wall_s}
 
@@ -248,7 +248,7 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
     t0 = time.perf_counter()
     th = thresholds or Thresholds()
     data = prepare([r.without_truth() for r in records], current_mode=current_mode)
-    nominal = fit_model(GrayBoxModel(data))
+    data, nominal = choose_release_lag(data)
     candidates = []
     for cause in candidate_names():
         if progress:
@@ -284,6 +284,23 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
             best.effects = tuple(order)
     return Diagnosis(cause=cause, data=data, nominal=nominal, candidates=candidates, heldout_nominal=ho_nominal,
                      thresholds=th, wall_s=time.perf_counter() - t0, pairs=pair_cands, causes=causes)
+
+
+def choose_release_lag(data: Prepared, effect=None) -> tuple[Prepared, Fit]:
+    """The release convention that fits: at the last braked sample (lag 0) or one period later
+    (at the first moving sample); returns the data so released and its fit (``effect`` model).
+
+    A one-period error in every release leaves residuals of several times the noise floor
+    and biases lambda66 by 0.1-0.3 %; DAQs differ in which sample they log the release at.
+    """
+    from .prepare import with_release_lag  # noqa: PLC0415
+
+    best = (data, fit_model(GrayBoxModel(data, effect)))
+    later = with_release_lag(data, data.dt)
+    fit = fit_model(GrayBoxModel(later, effect), x0=best[1].theta)
+    if fit.cost < best[1].cost:
+        best = (later, fit)
+    return best
 
 
 def _judge(c: Candidate, th: Thresholds, with_heldout: bool) -> None:

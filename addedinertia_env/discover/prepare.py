@@ -140,6 +140,7 @@ class Prepared:
     current_mode: str = "instant"
     current_mode_report: dict = field(default_factory=dict)
     skipped: list[dict] = field(default_factory=list)  # {"run", "reason"} of records not used
+    release_lag: float = 0.0  # s, added to every release instant (see with_release_lag)
 
     @property
     def names(self) -> list[str]:
@@ -332,6 +333,27 @@ def prepare(records: list[RunRecord], current_mode: str | None = None) -> Prepar
         data.current_mode_report = {"used": used, "source": "estimated from the flywheel channel" if finite
                                     else "default (no current flowed)", "flywheel_rms_rad": scores}
     return data
+
+
+def with_release_lag(data: Prepared, lag: float) -> Prepared:
+    """A copy of ``data`` with every stroke released ``lag`` s after :func:`release_instant`'s
+    instant (kept before the stroke's first moving sample).
+
+    ``lag`` = one period: the DAQ's convention is the other one (release at the first
+    moving sample). :func:`choose_release_lag` picks between them by the fit.
+    """
+    import dataclasses  # noqa: PLC0415
+
+    runs = []
+    for run in data.runs:
+        segs = []
+        for seg in run.segments:
+            t = seg.t.copy()
+            t0 = seg.t_start - data.release_lag + lag
+            t[0] = min(t0, t[1] - 1e-9 * (t[1] - t[0] + 1.0))
+            segs.append(dataclasses.replace(seg, t=t, t_start=float(t[0])))
+        runs.append(dataclasses.replace(run, segments=segs))
+    return dataclasses.replace(data, runs=runs, release_lag=lag)
 
 
 def _scatter(x: np.ndarray) -> float:

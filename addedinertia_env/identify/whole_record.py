@@ -74,14 +74,17 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
         data = prepare(records)
     except DiscoveryInputError as e:
         raise IdentificationError(str(e)) from None
-    model = GrayBoxModel(data, effects or None)
+    from ..discover.diagnose import choose_release_lag  # noqa: PLC0415
+
+    if lambda66_start is not None and not (math.isfinite(lambda66_start) and lambda66_start > 0):
+        raise IdentificationError(f"lambda66_start = {lambda66_start!r}: expected a finite number > 0 (kg m^2)")
+    data, fit = choose_release_lag(data, effects or None)  # which sample the DAQ logged the release at
+    model = fit.model
     x0 = None
     if lambda66_start is not None:
-        if not (math.isfinite(lambda66_start) and lambda66_start > 0):
-            raise IdentificationError(f"lambda66_start = {lambda66_start!r}: expected a finite number > 0 (kg m^2)")
         x0 = model.start()
         x0[model.names.index("lambda66")] = float(lambda66_start)
-    fit = fit_model(model, x0)
+        fit = fit_model(model, x0)
     lam = fit.params["lambda66"]
     sigma_fisher = math.sqrt(max(fit.covariance(inflate=True)[0, 0], 0.0))
     sigma_white = math.sqrt(max(fit.covariance(inflate=False)[0, 0], 0.0))
@@ -118,6 +121,7 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
                            f"({max(s['hull_excess'], s['flywheel_excess']):.1f} x noise floor, lag-1 {s['lag1']:.2f}); "
                            "run discover",
                            "skipped": list(data.skipped), "current_sampling": dict(data.current_mode_report),
+                           "release_lag_s": data.release_lag,
                            "ci_over_crb": sigma / crb if crb > 0 else None, "model": "+".join(effects) or "nominal",
                            "params": fit.params, "stderr": fit.stderr(), "n_runs": len(data.runs),
                            "residual_rms": fit.hull_rms, "residual_excess": s["hull_excess"],
