@@ -70,8 +70,10 @@ def draw_quirks(rng: np.random.Generator, n: int = 2) -> Quirks:
         elif q == "jitter":
             kw.update(jitter=float(rng.uniform(0.01, 0.05)) * 1e-3)
         elif q == "decimate":
-            kw.update(decimate=int(rng.choice([2, 4])),
-                      decimate_current=str(rng.choice(["instant", "held-previous"])))
+            # A DAQ logging slower than the controller runs averages (anti-aliases) its current
+            # channel: an instantaneous 250 Hz sample of a 1 kHz controller's chattering current
+            # loses the input outright (tests/test_daq_quirks.py shows the interval widening).
+            kw.update(decimate=int(rng.choice([2, 4])), decimate_current="held-previous")
         elif q == "held_current":
             kw.update(held_current=True, declare_current=bool(rng.integers(2)))
         elif q == "braked_tail":
