@@ -69,9 +69,9 @@ def test_whole_record_holds_under_each_quirk(clean, tmp_path, name):
     if quirks.held_current and quirks.declare_current:
         assert res.details["current_sampling"] == {"used": "held-previous", "source": "rig.current_sampling"}
     if quirks.release_moving:
-        assert res.details["release_lag_s"] == pytest.approx(1e-3)
-    elif not quirks.drop_release:
-        assert res.details["release_lag_s"] == 0.0
+        assert res.details["release_lag_s"] >= 0.5e-3  # released at (about) the first moving sample
+    elif not (quirks.drop_release or quirks.decimate > 1 or quirks.jitter):
+        assert res.details["release_lag_s"] <= 0.25e-3
     if quirks.braked_tail:
         mp = motion_phase(records[0])
         assert mp[-1] == "idle" and records[0]["brake"][-1] == 1.0
@@ -96,3 +96,17 @@ def test_drawn_quirks_are_plausible_and_seeded():
     a = draw_quirks(np.random.default_rng(5))
     b = draw_quirks(np.random.default_rng(5))
     assert a == b and len(a.to_dict()) >= 2
+
+
+def test_a_long_gap_ends_the_stroke_instead_of_being_bridged(clean, tmp_path):
+    """0.5 s missing in a reverse stroke: reported by the reader, the stroke ends at the gap."""
+    rec = clean[0]
+    t = rec.t.copy()
+    k = int(np.nonzero(rec.phase == "reverse")[0][600])
+    t[k:] += 0.5
+    gapped = type(rec)(samples={**{c: v.copy() for c, v in rec.samples.items()}, "t": t}, meta=rec.meta)
+    records = [read_record(write_record(gapped, tmp_path / "gapped.csv")), *clean[1:]]
+    assert len(records[0].gaps) == 1
+    res = identify(records, "whole-record")
+    assert abs(res.lambda66 / clean[0].truth_lambda66() - 1) < 1e-3
+    assert res.details["skipped"] == []

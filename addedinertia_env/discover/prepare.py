@@ -247,8 +247,10 @@ def _prepare_run(k: int, rec: RunRecord, rig0, n: int, dt: float) -> RunData | s
     kind = rec.experiment["kind"]
 
     def motion_stop(start: int) -> int:
+        """End of the motion from ``start``: the next held sample, or a gap no step can bridge."""
         after = np.nonzero(held[start:])[0]
-        return start + int(after[0]) if after.size else len(rec)
+        stop = start + int(after[0]) if after.size else len(rec)
+        return min(stop, _before_gap(t, start, dt))
 
     segments: list[HullSegment] = []
     flywheel = None
@@ -362,10 +364,19 @@ def _scatter(x: np.ndarray) -> float:
     return float(np.std(d3) / math.sqrt(20.0))
 
 
+def _before_gap(t: np.ndarray, start: int, dt: float) -> int:
+    """Index after the last sample before the first gap from ``start`` that is longer than an
+    integrator step and five periods (the input over it is unknown; the stroke ends there)."""
+    limit = max(STEP_S, 5.0 * dt)
+    big = np.nonzero(np.diff(t[start:]) > limit)[0]
+    return start + int(big[0]) + 1 if big.size else len(t)
+
+
 def _flywheel_segment(run: int, rec: RunRecord, a: int, current: np.ndarray, q_fly: np.ndarray,
                       n: int) -> FlywheelSegment:
-    t = rec.t[a:]
-    theta = rec["phi"][a:] + rec["psi"][a:]
+    b = _before_gap(rec.t, a, rec.known.dt)
+    t = rec.t[a:b]
+    theta = rec["phi"][a:b] + rec["psi"][a:b]
     n_points = (len(t) - 1) // n + 1
     step_s = float(np.median(np.diff(t))) * n
     per_chunk = max(4, int(round(FLYWHEEL_CHUNK_S / step_s)))
@@ -373,7 +384,7 @@ def _flywheel_segment(run: int, rec: RunRecord, a: int, current: np.ndarray, q_f
     if len(chunks) > 1 and chunks[-1].stop - chunks[-1].start < 4:  # too short to fit a state: merge
         last = chunks.pop()
         chunks[-1] = slice(chunks[-1].start, last.stop)
-    return FlywheelSegment(run=run, t=t, theta=theta, current=current[a:], flywheel_friction=q_fly[a:],
+    return FlywheelSegment(run=run, t=t, theta=theta, current=current[a:b], flywheel_friction=q_fly[a:b - 1],
                            step_samples=n, chunks=chunks)
 
 
