@@ -17,7 +17,10 @@ from addedinertia_env.identify.common import check_physical
 from addedinertia_env.plausibility import check_plausible
 from addedinertia_env.record import RecordError, RunRecord, read_record, write_record
 
-FOREIGN = Path("/work/shared/data/foreign-lab.tar.xz")
+# ../shared beside the project root (as CI lays it out), else this workplace's copy.
+FOREIGN = next((p for p in (Path(__file__).resolve().parents[2] / "shared" / "data" / "foreign-lab.tar.xz",
+                            Path("/work/shared/data/foreign-lab.tar.xz")) if p.exists()),
+               Path("../shared/data/foreign-lab.tar.xz"))
 
 
 def _written(tmp_path, rec: RunRecord, name: str = "run") -> Path:
