@@ -337,12 +337,7 @@ class BenchRig:
             self._recv(deadline - now, hold=True)
         frame, msg = self._queued.popleft()
         reading = self._accept(frame, msg)
-        now = time.perf_counter()
-        if self._last_sample_wall is not None:
-            self.timing.intervals.append(now - self._last_sample_wall)
-        self._last_sample_wall = now
-        self.watchdog.kick()
-        return reading
+        return self._arrived(reading)
 
     # --- arming -------------------------------------------------------------------------
     def query(self) -> tuple[m.Sample, Reading]:
@@ -534,6 +529,10 @@ class BenchRig:
                 reading = self._accept(*more)
         self.timing.skipped_samples += skipped
         self.timing.overruns += skipped
+        return self._arrived(reading)
+
+    def _arrived(self, reading: Reading) -> Reading:
+        """Book the wall-clock interval since the last sample handed on and kick the watchdog."""
         now = time.perf_counter()
         if self._last_sample_wall is not None:
             self.timing.intervals.append(now - self._last_sample_wall)
