@@ -104,10 +104,9 @@ BATCHED_ENV_ID = "AddedInertia/ReverseStroke-v0"
 def uses_batched(env_id: str, residual: dict[str, Any] | None, vec_env: str,
                  env_kwargs: dict[str, Any] | None = None) -> bool:
     """Whether ``vec_env="batched"`` applies: the reverse stroke without a residual base (the base
-    controllers run per environment in Python, so residual training uses single envs) and without
-    a suite's control loop (``env_kwargs["suite"]``, not on the batched engine yet)."""
-    return (vec_env == "batched" and env_id == BATCHED_ENV_ID and not (residual and residual.get("enabled"))
-            and (env_kwargs or {}).get("suite") is None)
+    controllers run per environment in Python, so residual training uses single envs); a suite's
+    scenarios (``env_kwargs["suite"]``, control loop included) run batched too."""
+    return vec_env == "batched" and env_id == BATCHED_ENV_ID and not (residual and residual.get("enabled"))
 
 
 def make_vec(env_id: str, env_kwargs: dict[str, Any], residual: dict[str, Any] | None, n_envs: int, seed: int,

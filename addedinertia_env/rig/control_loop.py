@@ -18,14 +18,21 @@ experiment, the benchmark and the environment all see the same loop:
 Nothing here is known to the controller except through its control period (the context's
 ``dt`` is ``command_every`` samples). The wrapper passes everything else (``params``,
 ``true_state``, ``truth``, ``k_t``, ...) through to the wrapped rig.
+
+The arithmetic lives in one place, :class:`LoopState`: the loops of ``n`` environments on
+arrays (delay lines of readings, held set-points, the hold clock). :class:`LoopRig` is
+that state with ``n = 1``; the batched experiment pool (``vector/pool.py``) runs the same
+class over all its slots, so a suite's loop (hard-v0) trains on the batched engine
+exactly as it runs in the single environment and on the benchmark.
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Sequence
+
+import numpy as np
 
 from .motor import MotorCommand
 from .sensors import Reading
@@ -62,18 +69,113 @@ class ControlLoop:
                 "current_step_A": self.current_step_A}
 
 
+def quantise_current(value, step_A):
+    """``value`` (A) rounded to the nearest multiple of ``step_A`` (A; 0: unchanged), ties up;
+    scalars or arrays (elementwise)."""
+    q = np.asarray(step_A, dtype=float)
+    v = np.asarray(value, dtype=float)
+    out = np.where(q > 0, q * np.floor(v / np.where(q > 0, q, 1.0) + 0.5), v)
+    return float(out) if out.ndim == 0 else out
+
+
+class LoopState:
+    """The control loops of ``n`` environments at sample period ``dt`` (s), on arrays.
+
+    Per environment: ``delay`` (samples of reading delay), ``every`` (samples per drive
+    set-point), ``step_A`` (A, set-point quantum), the held set-point and its clock, and a
+    delay line of the last ``size`` readings (``phi, psi, u, i``). :meth:`command` is the
+    drive's side (quantise, latch every ``every`` driven samples, hold), :meth:`arrive`
+    the host's (the reading ``delay`` samples old). Environments not named in a call keep
+    their state (a paused slot of the batched pool).
+    """
+
+    FIELDS = ("phi", "psi", "u", "i")
+
+    def __init__(self, n: int, dt: float, size: int = 64):
+        self.n, self.dt, self.size = int(n), float(dt), int(size)
+        self.delay = np.zeros(n, dtype=np.int64)
+        self.every = np.ones(n, dtype=np.int64)
+        self.step_A = np.zeros(n)
+        self.held = np.zeros(n)  # A or V, the set-point the drive holds
+        self.holding = np.zeros(n, dtype=bool)  # False: the next driven sample latches
+        self.since = np.zeros(n, dtype=np.int64)  # driven samples since the last latch
+        self._ring = np.zeros((len(self.FIELDS), self.size, n))
+        self._count = np.zeros(n, dtype=np.int64)  # readings pushed since reset
+        self.ideal = True  # no environment delays, holds or quantises: both calls pass through
+
+    def configure(self, envs: Sequence[int], loops: Sequence[ControlLoop | None]) -> None:
+        """Environments ``envs`` get the loops ``loops`` (None: ideal); call :meth:`reset` next."""
+        for k, loop in zip(envs, loops):
+            loop = loop or ControlLoop()
+            delay = loop.delay_samples(self.dt)
+            if delay >= self.size:
+                raise ValueError(f"ControlLoop.obs_delay_s = {loop.obs_delay_s} s: {delay} samples at "
+                                 f"{self.dt} s; expected fewer than {self.size}")
+            self.delay[k], self.every[k], self.step_A[k] = delay, loop.command_every(self.dt), loop.current_step_A
+        self.ideal = not (np.any(self.delay) or np.any(self.every != 1) or np.any(self.step_A))
+
+    def reset(self, envs, reading: Sequence[np.ndarray]) -> None:
+        """Environments ``envs`` start over: no set-point held, delay line holding only ``reading``
+        (its ``phi, psi, u, i`` for those environments)."""
+        envs = np.asarray(envs, dtype=np.int64)
+        self.holding[envs] = False
+        self.since[envs] = 0
+        self._count[envs] = 0
+        active = np.zeros(self.n, dtype=bool)
+        active[envs] = True
+        full = [np.zeros(self.n) for _ in self.FIELDS]
+        for f, x in zip(full, reading):
+            f[envs] = x
+        self.arrive(full, active)
+
+    def command(self, value: np.ndarray, driven: np.ndarray, passive: np.ndarray, quantise: bool | np.ndarray):
+        """The set-points the drives act on this sample: ``value`` (A or V per environment)
+        quantised where ``quantise`` (current mode), latched where ``driven`` and the hold is
+        due, held otherwise; ``passive`` environments drop their held set-point. Entries
+        that are not ``driven`` come back as given."""
+        if self.ideal:
+            return value
+        v = np.where(quantise, quantise_current(value, self.step_A), value)
+        latch = driven & (~self.holding | (self.since >= self.every))
+        np.copyto(self.held, v, where=latch)
+        self.since[latch] = 0
+        self.since += driven
+        self.holding |= driven
+        self.holding &= ~passive
+        return np.where(driven, self.held, value)
+
+    def arrive(self, reading: Sequence[np.ndarray], active: np.ndarray | None = None) -> list[np.ndarray]:
+        """What the hosts receive now: each ``active`` environment's reading (``phi, psi, u,
+        i`` arrays) pushed into its delay line, and the one taken ``delay`` samples ago (the
+        first reading while fewer have come) given back; the others' entries as given."""
+        if self.ideal:
+            return list(reading)
+        cols = np.arange(self.n) if active is None else np.nonzero(active)[0]
+        pos = self._count[cols] % self.size
+        for j, x in enumerate(reading):
+            self._ring[j, pos, cols] = np.asarray(x)[cols]
+        self._count[cols] += 1
+        back = np.maximum(self._count[cols] - 1 - self.delay[cols], 0) % self.size
+        out = [np.array(x, dtype=float, copy=True) for x in reading]
+        for j, o in enumerate(out):
+            o[cols] = self._ring[j, back, cols]
+        return out
+
+
 class LoopRig:
-    """``rig`` seen through ``loop`` (module doc); implements the rig protocol."""
+    """``rig`` seen through ``loop`` (module doc); implements the rig protocol with a
+    one-environment :class:`LoopState`."""
 
     def __init__(self, rig: Any, loop: ControlLoop):
         self.rig = rig
         self.loop = loop
         self.source = getattr(rig, "source", "sim")
-        self._delay = loop.delay_samples(rig.dt)
-        self.command_every = loop.command_every(rig.dt)
-        self._queue: deque[Reading] = deque(maxlen=self._delay + 1)
+        self.state = LoopState(1, rig.dt, size=loop.delay_samples(rig.dt) + 1)
+        self.state.configure([0], [loop])
+        self.command_every = int(self.state.every[0])
         self._held: MotorCommand | None = None
-        self._since_latch = 0
+        self._one = np.ones(1, dtype=bool)
+        self._none = np.zeros(1, dtype=bool)
 
     def __getattr__(self, name: str) -> Any:  # params, true_state, truth, k_t, sensors, ...
         return getattr(self.__dict__["rig"], name)
@@ -88,10 +190,9 @@ class LoopRig:
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
         r = self.rig.reset(phi0=phi0, psi0=psi0, omega0=omega0, brake=brake)
-        self._queue.clear()
+        self.state.reset([0], [np.array([getattr(r, f)]) for f in LoopState.FIELDS])
         self._held = None
-        self._since_latch = 0
-        return self._arrive(r)
+        return r
 
     def set_brake(self, on: bool) -> None:
         self.rig.set_brake(on)
@@ -107,20 +208,21 @@ class LoopRig:
 
     # --- internals ------------------------------------------------------------------
     def _applied(self, cmd: MotorCommand) -> MotorCommand:
-        """The set-point the drive acts on this sample (quantised, held)."""
-        if cmd.mode == "passive":
+        """The set-point the drive acts on this sample (quantised, held): :meth:`LoopState.command`."""
+        passive = cmd.mode == "passive"
+        s = self.state
+        was = bool(s.holding[0]) and int(s.since[0]) < int(s.every[0])
+        value = s.command(np.array([float(cmd.value)]), self._none if passive else self._one,
+                          self._one if passive else self._none, cmd.mode == "current")
+        if passive:
             self._held = None
             return cmd
-        if cmd.mode == "current" and self.loop.current_step_A > 0:
-            q = self.loop.current_step_A
-            cmd = replace(cmd, value=q * math.floor(cmd.value / q + 0.5))
-        if self._held is None or self._since_latch >= self.command_every:
-            self._held, self._since_latch = cmd, 0
-        self._since_latch += 1
+        if not was or self._held is None:  # latched now: the drive takes this command's mode
+            self._held = cmd
+        self._held = replace(self._held, value=float(value[0]))
         return self._held
 
     def _arrive(self, r: Reading) -> Reading:
         """The reading the host receives now: the one taken ``delay`` samples ago, stamped now."""
-        self._queue.append(r)
-        old = self._queue[0]
-        return old if old is r else replace(old, t=r.t, brake=r.brake)
+        phi, psi, u, i = self.state.arrive([np.array([getattr(r, f)]) for f in LoopState.FIELDS])
+        return replace(r, phi=float(phi[0]), psi=float(psi[0]), u=float(u[0]), i=float(i[0]))

@@ -16,6 +16,11 @@ episode of environment ``e`` after ``reset(seed=s)`` is the single environment's
 environment with ``scenario_seed=`` that number runs the same episode
 (tests/test_vector_env.py holds the two equal).
 
+``suite="hard-v0"`` (``suite_split`` ``"train"`` or ``"tuning"``) draws a benchmark suite's
+scenarios as the single environment does, hidden effects and control loop (reading delay,
+held and quantised set-points: :class:`~addedinertia_env.rig.control_loop.LoopState`, the
+single environment's own loop code) included.
+
 Differences from ``num_envs`` single environments, by design: the passive tail after the
 reverse stroke is not simulated, so the terminal observation is the one at the end of the
 reverse stroke (``is_reverse`` 0) instead of 0.1 s later, and the episode's record ends
@@ -58,7 +63,8 @@ class ReverseStrokeVectorEnv(VectorEnv):
 
     Keyword arguments: those of :class:`~addedinertia_env.envs.ReverseStrokeEnv` (``preset``,
     ``randomize``, ``ranges``, ``fixed``, ``sensor_quality``, ``hold_s``, ``alpha``,
-    ``scenario_seed``, ``action_repeat``, ``control_mode``, ``reward_weights``), plus
+    ``scenario_seed``, ``action_repeat``, ``control_mode``, ``reward_weights``, ``suite``,
+    ``suite_split``), plus
     ``autoreset_mode``, ``spare_fraction`` (spare slots per environment, >= 0.1) and
     ``score_episodes`` (default True: every ended episode's record is identified, as the
     single env does; False skips the identification, so ``info`` has no benchmark numbers,
@@ -73,12 +79,15 @@ class ReverseStrokeVectorEnv(VectorEnv):
         if render_mode is not None:
             raise ValueError(f"ReverseStrokeVectorEnv option render_mode={render_mode!r}: the vector environment "
                              "does not render; render one gym.make('AddedInertia/ReverseStroke-v0') instead")
-        if env_kwargs.get("suite") is not None:
-            raise ValueError(f"ReverseStrokeVectorEnv option suite={env_kwargs['suite']!r}: a suite's control loop "
-                             "(delayed, held, quantised commands) is not on the batched engine yet; use "
-                             "gym.make_vec(..., vectorization_mode='sync') for suite scenarios")
-        env_kwargs.pop("suite", None)
-        env_kwargs.pop("suite_split", None)
+        suite, suite_split = env_kwargs.pop("suite", None), env_kwargs.pop("suite_split", "train")
+        self.suite, self.suite_split = None, suite_split
+        if suite is not None:  # a benchmark suite's scenarios, control loop included (as ReverseStrokeEnv)
+            from ..bench.suites import load_suite  # noqa: PLC0415
+
+            if suite_split not in ("train", "tuning"):
+                raise ValueError(f"ReverseStrokeVectorEnv option suite_split={suite_split!r}: expected 'train' "
+                                 "(seeds outside both splits) or 'tuning'; the test split is held out")
+            self.suite = load_suite(suite)
         for key in ("rig_factory", "width", "height"):
             if key in env_kwargs:
                 raise ValueError(f"ReverseStrokeVectorEnv option {key}: not available on the batched engine "
@@ -116,13 +125,21 @@ class ReverseStrokeVectorEnv(VectorEnv):
         self._needs_reset = np.zeros(num_envs, dtype=bool)
         self.env_slot = np.zeros(num_envs, dtype=np.int64)
         self._owned = np.zeros(self.n_slots, dtype=bool)
+        self.slot_seed = np.zeros(self.n_slots, dtype=np.int64)  # the scenario_seed each slot runs
         self.episode_config = self.config
         self._task: ReverseStrokeTask | None = None
         self.episodes_ended = 0
 
     # --- scenarios and slots ---------------------------------------------------------------
     def _scenario(self, seed: int):
+        """Scenario number ``seed`` (as ReverseStrokeEnv.reset: of the suite's split, if a suite is set)."""
+        if self.suite is not None:
+            return self.suite.scenario(self.suite.split_seed(self.suite_split, seed))
         return self.episode_config.scenario(seed, self._default_ranges)
+
+    def _begin(self, slots: np.ndarray, seeds: list[int]) -> None:
+        self.slot_seed[slots] = seeds
+        self.pool.begin(slots, [self._scenario(s) for s in seeds])
 
     def _draw(self, rng: np.random.Generator) -> int:
         drawn = int(rng.integers(0, 2**63 - 1))  # as ReverseStrokeEnv.reset: always drawn
@@ -133,7 +150,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
         pool = self.pool
         free = np.nonzero((pool.stage == EMPTY) & ~self._owned)[0]
         if len(free) >= minimum:
-            pool.begin(free, [self._scenario(self._draw(self._spare_rng)) for _ in free])
+            self._begin(free, [self._draw(self._spare_rng) for _ in free])
 
     def _claim(self, envs: np.ndarray) -> None:
         """Environments ``envs`` take ready slots (running the spares on until enough are ready)."""
@@ -175,10 +192,9 @@ class ReverseStrokeVectorEnv(VectorEnv):
             base = seeds[0] if seeds[0] is not None else None
             self._spare_rng = np.random.default_rng(None if base is None else [int(base), 0x5EA5])
         self.episode_config = self.config.with_options(options)
-        firsts = [self._scenario(self._draw(rng)) for rng in self._env_rngs]
-        spares = [self._scenario(self._draw(self._spare_rng)) for _ in range(self.n_spare)]
-        self.pool = pool = ExperimentPool(self.n_slots, firsts[0], self.config.control_mode)
-        pool.begin(np.arange(self.n_slots), firsts + spares)
+        seeds = [self._draw(rng) for rng in self._env_rngs] + [self._draw(self._spare_rng) for _ in range(self.n_spare)]
+        self.pool = pool = ExperimentPool(self.n_slots, self._scenario(seeds[0]), self.config.control_mode)
+        self._begin(np.arange(self.n_slots), seeds)
         mine = np.arange(self.num_envs)
         zeros, no_control = np.zeros(pool.n), np.zeros(pool.n, dtype=bool)
         while np.any(pool.stage[mine] != READY):
@@ -200,7 +216,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
         quality = np.full(n, None, dtype=object)
         for e in envs:
             s = pool.scenarios[self.env_slot[e]]
-            seeds[e], names[e], quality[e] = s.seed, s.name, s.sensor_quality
+            seeds[e], names[e], quality[e] = self.slot_seed[self.env_slot[e]], s.name, s.sensor_quality
         return {"scenario": names, "_scenario": mask, "scenario_seed": seeds, "_scenario_seed": mask,
                 "sensor_quality": quality, "_sensor_quality": mask.copy()}
 
@@ -315,7 +331,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
                 out[key][e] = v
             out["ci95"][e] = ci
             out["failed"][e] = failed
-            out["scenario_seed"][e] = pool.scenarios[k].seed
+            out["scenario_seed"][e] = self.slot_seed[k]
             accuracy[j] = self._task.accuracy_term(rel, failed=failed)
         for key in list(out):
             out["_" + key] = mask.copy()

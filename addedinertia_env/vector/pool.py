@@ -24,8 +24,14 @@ not simulated; a slot's record ends with its last reverse-stroke sample. The tai
 carries no reward and no term of the energy balance (tests/test_vector_env.py checks
 that the identified lambda66 equals the single environment's).
 
+A scenario's control loop (a benchmark suite's: reading delay, a 100 Hz drive with
+zero-order hold, quantised set-points; hard-v0) runs on the pool's
+:class:`~addedinertia_env.rig.control_loop.LoopState`, the class the single environment's
+:class:`~addedinertia_env.rig.control_loop.LoopRig` runs with one environment: commands
+pass through it to the rig, readings through its delay lines to everything here.
+
 Paused slots (``empty``, ``ready``, ``ended``) keep their state, clock, noise counter
-and delay line: the rig's ``active`` mask. Every slot's samples go to a staging block
+and delay lines: the rig's ``active`` mask. Every slot's samples go to a staging block
 (``STAGE`` samples x columns x slots) and from there to the slot's own log arrays.
 """
 
@@ -43,7 +49,9 @@ from ..experiment.sample_log import make_record
 from ..metrics import current_at_limit, voltage_at_limit
 from ..rig import forces
 from ..rig.batched import CURRENT, PASSIVE, VOLTAGE, BatchedRig
+from ..rig.control_loop import LoopState
 from ..rig.interface import SimulatedRigBase
+from ..rig.sensors import BatchedReading
 from ..scenarios import Scenario
 from .reference import MirroredReferences
 
@@ -60,14 +68,18 @@ class SlotRig(SimulatedRigBase):
 
     source = "sim"
 
-    def __init__(self, params):
+    def __init__(self, params, loop=None):
         self.params = params
+        self.loop = loop  # the scenario's ControlLoop (None: ideal)
 
     def truth(self) -> dict:
         h = self.params.hull
-        return {"lambda66": h.lambda66, "effects": self.params.effects.to_dict(),
-                "damping": {"b1": h.b1, "b2": h.b2}, "k_t": float(forces.true_torque_constant(self.params)),
-                "phi_neutral": forces.true_neutral(self.params)}
+        truth = {"lambda66": h.lambda66, "effects": self.params.effects.to_dict(),
+                 "damping": {"b1": h.b1, "b2": h.b2}, "k_t": float(forces.true_torque_constant(self.params)),
+                 "phi_neutral": forces.true_neutral(self.params)}
+        if self.loop is not None and not self.loop.ideal:  # as LoopRig.truth
+            truth["control_loop"] = self.loop.to_dict()
+        return truth
 
 
 def sample_times(n: int, sample_dt: float, substeps: int) -> np.ndarray:
@@ -91,6 +103,7 @@ class ExperimentPool:
         self.dt = rig.sensors.dt
         self.substeps = rig.physics_substeps
         self.rig = BatchedRig([rig] * n, seed=list(range(n)), initial_reading=False)
+        self.loop = LoopState(n, self.dt, size=RING)  # the scenarios' control loops (ideal until begin)
         self.stage = np.full(n, EMPTY, dtype=np.int8)
         self.scenarios: list[Scenario | None] = [None] * n
         self.views: list[SlotRig | None] = [None] * n
@@ -164,7 +177,7 @@ class ExperimentPool:
         for k, s in zip(slots, scenarios):
             k = int(k)
             self.scenarios[k] = s
-            self.views[k] = SlotRig(s.rig)
+            self.views[k] = SlotRig(s.rig, s.loop)
             known, plan = s.rig.known(), s.plan
             self.phi_n[k], self.c_known[k] = known.phi_neutral, known.c_torsion
             self.k_t_known[k], self.J_f_known[k] = known.k_t, known.J_flywheel
@@ -181,7 +194,9 @@ class ExperimentPool:
                 raise ValueError(f"stop_window_s of {plan.stop_window_s} s: at most {RING} samples")
             self.window = window
         phi0 = self.phi_n[slots] - np.array([s.plan.alpha for s in scenarios])
+        self.loop.configure(slots, [s.loop for s in scenarios])
         reading = self.rig.reset(phi0=phi0, envs=slots)
+        self.loop.reset(slots, [reading.phi, reading.psi, reading.u, reading.i])
         for name in ("t_cross", "t_release", "t_brake", "inertia_prior"):
             getattr(self, name)[slots] = math.nan
         for name in ("peak", "energy", "fit_rms"):
@@ -226,7 +241,11 @@ class ExperimentPool:
         active = running | controlled
         mode = np.where(controlled, self.mode_code, PASSIVE)
         energy_before = self.energy.copy()
-        r = self.rig.step(mode, np.where(controlled, value, 0.0), active=active)
+        applied = self.loop.command(value, controlled, active & ~controlled, self.mode_code == CURRENT)
+        r = self.rig.step(mode, np.where(controlled, applied, 0.0), active=active)
+        if not self.loop.ideal:  # what the hosts receive: readings through the loops' delay lines
+            phi, psi, u, i = self.loop.arrive([r.phi, r.psi, r.u, r.i], active)
+            r = BatchedReading(t=r.t, phi=phi, psi=psi, u=u, i=i, brake=r.brake)
         self._log(r, value, controlled, active)
         # electric energy over hold and reverse (Experiment._log_reading)
         e_inc = np.abs(r.u * r.i) * (r.t - self.last_t)
