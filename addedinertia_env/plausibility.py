@@ -37,7 +37,6 @@ CRLF, non-uniform ``t``, gaps) are not refused here for that form.
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -207,12 +206,15 @@ def _check_phase_order(rec: RunRecord) -> None:
 
 def _first_out_of_order(phase: np.ndarray, order: tuple[str, ...]) -> tuple[int, str] | None:
     """(sample index, label) of the first phase block that breaks ``order``, or None."""
-    pos, k = -1, 0
-    for label, block in itertools.groupby(phase):
+    phase = np.asarray(phase)
+    if not len(phase):
+        return None
+    starts = np.concatenate([[0], np.nonzero(phase[1:] != phase[:-1])[0] + 1])  # first sample of each block
+    pos = -1
+    for k, label in zip(starts.tolist(), phase[starts].tolist()):
         label = str(label)
         nxt = next((p for p in range(pos + 1, len(order)) if order[p] == label), None)
         if nxt is None:
             return k, label
         pos = nxt
-        k += sum(1 for _ in block)
     return None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -131,12 +132,57 @@ def smooth_angle(t: np.ndarray, angle: np.ndarray, window_s: float = 0.04, degre
     percent of the reverse work for a 17-bit encoder. Smoothing over ~40 samples spreads
     each sample's error over the window and removes that correlation.
     """
-    from scipy.signal import savgol_filter  # noqa: PLC0415
-
     if len(t) < 2:  # a block of one sample (a bench's sensed brake a sample off the phase change)
         return np.asarray(angle, dtype=float)
     dt = float(np.median(np.diff(t)))
     n = max(degree + 2, int(round(window_s / dt)) | 1)
     if len(angle) <= n:
         return angle.astype(float)
-    return savgol_filter(angle, n, degree)
+    return savgol(angle, n, degree)
+
+
+@lru_cache(maxsize=64)
+def _savgol_maps(window: int, degree: int, deriv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The filter's taps (for ``np.convolve``) and the edge maps of :func:`savgol`, delta 1.
+
+    The edge maps take the first (last) ``window`` samples to the first (last) ``window // 2``
+    outputs: the least-squares polynomial of ``degree`` through the window, differentiated
+    ``deriv`` times, evaluated there (scipy's ``mode='interp'``). Built on a centred, scaled
+    abscissa, so the map is well conditioned for any window.
+    """
+    from scipy.signal import savgol_coeffs  # noqa: PLC0415
+
+    taps = savgol_coeffs(window, degree, deriv=deriv)
+    half = window // 2
+    s = (np.arange(window) - half) / half  # the window's abscissa, in [-1, 1]
+    fit = np.linalg.pinv(np.vander(s, degree + 1, increasing=True))  # (degree + 1, window)
+    powers = np.arange(degree + 1)
+    # d^deriv/di^deriv of s^p at s = x: p!/(p-deriv)! x^(p-deriv) / half^deriv
+    factor = np.array([float(np.prod(np.arange(p - deriv + 1, p + 1))) if p >= deriv else 0.0 for p in powers])
+    def at(x):
+        e = np.clip(powers - deriv, 0, None)
+        return factor * x[:, None] ** e / half**deriv
+    left = at(s[:half]) @ fit
+    right = at(s[window - half:]) @ fit
+    for m in (taps, left, right):
+        m.flags.writeable = False
+    return taps, left, right
+
+
+def savgol(x: np.ndarray, window: int, degree: int, deriv: int = 0, delta: float = 1.0) -> np.ndarray:
+    """Savitzky-Golay filter of a 1-D series: ``scipy.signal.savgol_filter(x, window, degree,
+    deriv, delta)`` (mode ``interp``) to float rounding, about 5x faster (cached maps, one
+    ``np.convolve``). ``window`` odd and at most ``len(x)``; ``delta``: the sample spacing
+    (the derivative's unit is x's per ``delta``'s unit to the ``deriv``).
+    """
+    x = np.asarray(x, dtype=float)
+    if window % 2 != 1 or window > len(x) or degree >= window:
+        raise ValueError(f"savgol: window {window} must be odd, > degree {degree} and <= len(x) = {len(x)}")
+    taps, left, right = _savgol_maps(int(window), int(degree), int(deriv))
+    y = np.convolve(x, taps, "same")
+    half = window // 2
+    y[:half] = left @ x[:window]
+    y[len(x) - half:] = right @ x[len(x) - window:]
+    if deriv:
+        y /= delta**deriv
+    return y

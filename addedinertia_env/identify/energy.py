@@ -60,7 +60,9 @@ import numpy as np
 from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
-from .common import IdentificationError, Result, largest_gap, local_fit, pooled_interval, segment, smooth_angle
+from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol, segment,
+                     smooth_angle)
+from .crossings import crossing_fits, first_crossings
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
 # the patent drops the nearly uniform middle of the stroke, and too near the stop the
@@ -186,7 +188,7 @@ def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bo
     balance, phi1_list, weights, first = prepared_balance(rec, work, fractions, asymmetry_correction)
     if not np.isfinite(first.value):
         return first
-    return _combine(balance, [balance.interval(phi1) for phi1 in phi1_list], weights)
+    return _combine(balance, balance.intervals(np.asarray(phi1_list, dtype=float)), weights)
 
 
 def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_FRACTIONS,
@@ -208,7 +210,7 @@ def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_F
         weights = hann_weights(f, fractions[0], fractions[1])
     else:
         phi1_list, weights = [balance.phi_n + x * (balance.phi2 - balance.phi_n) for x in fractions], None
-    first = _combine(balance, [balance.interval(phi1) for phi1 in phi1_list], weights)
+    first = _combine(balance, balance.intervals(np.asarray(phi1_list, dtype=float)), weights)
     if np.isfinite(first.value):
         balance.use_total_inertia(first.value + balance.J_h)
     return balance, phi1_list, weights, first
@@ -321,6 +323,7 @@ class RunBalance:
         self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros_like(t)
         self.asymmetry_correction = asymmetry_correction
         self._fits: dict = {}
+        self._dsq_cum: np.ndarray | None = None
         self.law: dict | None = None
         self.dW_of = None  # set by use_total_inertia once a first estimate exists
         sat = None
@@ -347,77 +350,131 @@ class RunBalance:
     # --- per boundary angle ----------------------------------------------------------
     def terms(self, phi1: float) -> tuple[BalanceTerms, dict] | str:
         """The balance terms at ``phi1`` and fit details, or the reason the angle cannot be used."""
+        got = self.terms_many(np.array([float(phi1)]))
+        if got["reason"][0]:
+            return got["reason"][0]
+        T = BalanceTerms(**{name: float(getattr(got["terms"], name)[0]) for name in BalanceTerms.__dataclass_fields__})
+        fit = got["fits"]
+        return T, {"fit_f": {key: fit["f"][key][0] for key in fit["f"]},
+                   "fit_r": {key: fit["r"][key][0] for key in fit["r"]},
+                   "s_dW": float(got["s_dW"][0]), "k1": int(got["k1s"][0]), "k4": int(got["k4s"][0])}
+
+    def _fits_at(self, phi1: np.ndarray) -> dict:
+        """Crossing samples, rejections and crossing fits at the angles ``phi1`` (the second pass reuses the first's)."""
+        key = phi1.tobytes()
+        if key in self._fits:
+            return self._fits[key]
         t, phi = self.t, self.phi
-        k1 = _crossing(phi, self.free.start, self.k2, phi1, self.direction)
-        k4 = _crossing(phi, self.rev.start, self.rev.stop - 1, phi1, -self.direction)
-        if k1 is None or k4 is None:
-            return "boundary angle not passed on both strokes"
-        gap = largest_gap(self.rec, k1, self.k2) or largest_gap(self.rec, self.k3, k4)
-        if gap is not None:  # the work sums and rate fits assume the stroke was sampled throughout
-            return (f"a gap of {gap[1]:.4g} s in 't' after t = {gap[0]:.4f} s inside the integrated stroke "
-                    f"({MAX_GAP_PERIODS:g} sample periods allowed)")
-        key = (k1, k4, float(phi1))
-        if key not in self._fits:  # the second pass reuses the first pass's fits
-            self._fits[key] = (_crossing_fit(t, phi, k1, phi1), _crossing_fit(t, phi, k4, phi1))
-        f1, f4 = self._fits[key]
-        t1, w1f, t4, w1r = f1["t"], f1["rate"], f4["t"], f4["rate"]
+        k1 = first_crossings(phi, self.free.start, self.k2, phi1, self.direction)
+        k4 = first_crossings(phi, self.rev.start, self.rev.stop - 1, phi1, -self.direction)
+        reason = ["" if a >= 0 and b >= 0 else "boundary angle not passed on both strokes" for a, b in zip(k1, k4)]
+        # the work sums and rate fits assume the stroke was sampled throughout
+        period = 1.0 / float(self.rec.rig["sample_rate"])
+        big = np.concatenate([[0], np.cumsum(np.diff(t) > MAX_GAP_PERIODS * period * (1 + 1e-6))])
+        for j in np.nonzero((k1 >= 0) & (k4 >= 0))[0]:
+            if big[self.k2] - big[k1[j]] or big[k4[j]] - big[self.k3]:  # a long gap: the message names it
+                gap = largest_gap(self.rec, int(k1[j]), self.k2) or largest_gap(self.rec, self.k3, int(k4[j]))
+                reason[j] = (f"a gap of {gap[1]:.4g} s in 't' after t = {gap[0]:.4f} s inside the integrated "
+                             f"stroke ({MAX_GAP_PERIODS:g} sample periods allowed)")
+        ok = np.array([not r for r in reason], dtype=bool)
+        good = np.nonzero(ok)[0]
+        # forward and reverse fit of each angle in turn (the first short window raises, as angle by angle)
+        both = crossing_fits(t, phi, np.stack([k1[good], k4[good]], axis=1).ravel(), np.repeat(phi1[good], 2),
+                             RATE_HALF_WIDTH, RATE_DEGREE)
+        fits = {side: {"t": both["t"][j::2], "rate": both["rate"][j::2], "sigma_rate": both["sigma_rate"][j::2],
+                       "kernel": both["kernel"][j::2]} for j, side in enumerate("fr")}
+        self._fits[key] = got = {"ok": ok, "reason": reason, "good": good, "fits": fits}
+        return got
+
+    def terms_many(self, phi1: np.ndarray) -> dict:
+        """The balance terms at every angle of ``phi1`` (rad) that both strokes pass: a
+        :class:`BalanceTerms` of arrays over the usable angles ``good`` (indices into
+        ``phi1``), their fits (``fits["f"]``, ``fits["r"]``: crossing time, rate, its sigma,
+        kernel), ``s_dW``, ``k1s``, ``k4s``; ``reason`` says why each other angle cannot be used."""
+        phi1 = np.asarray(phi1, dtype=float)
+        got = self._fits_at(phi1)
+        good, fits = got["good"], got["fits"]
+        p = phi1[good]
+        t = self.t
+        t1, w1f, t4, w1r = fits["f"]["t"], fits["f"]["rate"], fits["r"]["t"], fits["r"]["rate"]
         t2, t3 = t[self.k2], t[self.k3]
         W, B = self.work_cum, self.bearing_cum
-        A_f = float(np.interp(t2, t, W) - np.interp(t1, t, W))
-        A_r = float(np.interp(t4, t, W) - np.interp(t3, t, W))
-        B_f = float(np.interp(t2, t, B) - np.interp(t1, t, B))
-        B_r = float(np.interp(t4, t, B) - np.interp(t3, t, B))
+        A_f = np.interp(t2, t, W) - np.interp(t1, t, W)
+        A_r = np.interp(t4, t, W) - np.interp(t3, t, W)
+        B_f = np.interp(t2, t, B) - np.interp(t1, t, B)
+        B_r = np.interp(t4, t, B) - np.interp(t3, t, B)
         c, n, p2, p3 = self.c, self.phi_n, self.phi_rest2, self.phi_rest3
-        spring = 0.5 * c * ((p2 - n) ** 2 - (phi1 - n) ** 2 + (p3 - n) ** 2 - (phi1 - n) ** 2)
-        terms = BalanceTerms(phi1=float(phi1), t1=t1, t4=t4, w1f=w1f, w1r=w1r, spring=float(spring),
-                             A_f=A_f, A_r=A_r, B_f=B_f, B_r=B_r, hull_rest=float(self.hull_rest))
+        spring = 0.5 * c * ((p2 - n) ** 2 - (p - n) ** 2 + (p3 - n) ** 2 - (p - n) ** 2)
+        zero = np.zeros(len(good))
+        T = BalanceTerms(phi1=p, t1=t1, t4=t4, w1f=w1f, w1r=w1r, spring=spring, A_f=A_f, A_r=A_r, B_f=B_f,
+                         B_r=B_r, K1=zero.copy(), K2=zero.copy(), K3=zero.copy(), K4=zero.copy(),
+                         hull_rest=np.full(len(good), float(self.hull_rest)), dW=zero.copy())
         if self.work != "reaction":
-            terms.K1 = self._flywheel_energy_at(t1, w1f)
-            terms.K4 = self._flywheel_energy_at(t4, w1r)
+            T.K1 = np.array([self._flywheel_energy_at(a, b) for a, b in zip(t1, w1f)])
+            T.K4 = np.array([self._flywheel_energy_at(a, b) for a, b in zip(t4, w1r)])
             # At t2 and t3 the brake is set and released and the motor's torque jumps: the
             # flywheel's rate there comes from the samples before each instant only.
             omega2 = self._rest_rate(self.k2, self.free.start, RATE_HALF_WIDTH, self.psi)
             omega3 = self._rest_rate(self.k3, self.hold_start if self.k3 != self.k2 else self.free.start,
                                      RATE_HALF_WIDTH, self.psi)
-            terms.K2 = 0.5 * self.J_f * (omega2 + self.rest_w2) ** 2
-            terms.K3 = 0.5 * self.J_f * (omega3 + self.rest_w3) ** 2
-        s_dW = 0.0
+            T.K2[:] = 0.5 * self.J_f * (omega2 + self.rest_w2) ** 2
+            T.K3[:] = 0.5 * self.J_f * (omega3 + self.rest_w3) ** 2
+        s_dW = zero.copy()
         if self.dW_of is not None:
-            terms.dW, s_dW = self.dW_of(phi1)
-        k1s, k4s = int(np.searchsorted(t, t1)), int(np.searchsorted(t, t4))
-        return terms, {"fit_f": f1, "fit_r": f4, "s_dW": s_dW, "k1": k1s, "k4": k4s}
+            T.dW, s_dW = self.dW_of(p)
+        return {"terms": T, "fits": fits, "good": good, "reason": got["reason"], "s_dW": s_dW,
+                "k1s": np.searchsorted(t, t1), "k4s": np.searchsorted(t, t4)}
 
     def interval(self, phi1: float) -> Interval:
         """One boundary angle's estimate with its uncertainty parts, or a rejected interval."""
-        iv = Interval(run=self.rec.name, phi1=float(phi1), lambda66=float("nan"), sigma=float("inf"),
-                      w1f=0.0, w1r=0.0)
-        got = self.terms(phi1)
-        if isinstance(got, str):
-            iv.rejected = got
-            return iv
-        T, fit = got
+        return self.intervals(np.array([float(phi1)]))[0]
+
+    def intervals(self, phi1: np.ndarray) -> list[Interval]:
+        """Each boundary angle's estimate with its uncertainty parts, or a rejected interval."""
+        phi1 = np.asarray(phi1, dtype=float)
+        got = self.terms_many(phi1)
+        out = [Interval(run=self.rec.name, phi1=float(x), lambda66=float("nan"), sigma=float("inf"), w1f=0.0, w1r=0.0,
+                        rejected=why) for x, why in zip(phi1, got["reason"])]
+        good = got["good"]
+        if not len(good):
+            return out
+        T, fit = got["terms"], got["fits"]
         lam = inertia_from_terms(T, self.J_h)
         denom = 0.5 * (T.w1f**2 + T.w1r**2)
         J_total = lam + self.J_h
-        sA_f, sA_r = self._work_noise(fit["k1"], self.k2), self._work_noise(self.k3, fit["k4"])
-        s_den = float(np.hypot(T.w1f * fit["fit_f"]["sigma_rate"], T.w1r * fit["fit_r"]["sigma_rate"]))
-        s_current = float(np.hypot(sA_f, sA_r)) / denom
-        s_independent = float(np.hypot(s_current, J_total * s_den / denom))
+        k1s, k4s = got["k1s"], got["k4s"]
+        sA_f, sA_r = self._work_noise(k1s, self.k2), self._work_noise(self.k3, k4s)
+        s_den = np.hypot(T.w1f * fit["f"]["sigma_rate"], T.w1r * fit["r"]["sigma_rate"])
+        s_current = np.hypot(sA_f, sA_r) / denom
+        s_independent = np.hypot(s_current, J_total * s_den / denom)
         gain_u = CALIBRATED_TORQUE_UNCERTAINTY if self.calibrated else CURRENT_GAIN_UNCERTAINTY
-        s_gain = gain_u * float(np.hypot(T.A_f, T.A_r))
-        s_common = float(np.hypot(s_gain, fit["s_dW"])) / denom
-        iv.lambda66, iv.w1f, iv.w1r = float(lam), float(T.w1f), float(T.w1r)
-        iv.sigma_independent, iv.sigma_common = s_independent, s_common
-        iv.sigma = float(np.hypot(s_independent, s_common))
-        sat = float(np.mean(self.saturated[self.k3:fit["k4"] + 1])) if self.saturated is not None else 0.0
-        iv.terms = {**T.__dict__, "hull_rest": T.hull_rest, "saturated_frac": sat, "s_current": s_current,
-                    "rate_kernel_f": fit["fit_f"]["kernel"], "rate_kernel_r": fit["fit_r"]["kernel"],
-                    "speed_mismatch": abs(abs(T.w1r) - abs(T.w1f)) / max(abs(T.w1f), 1e-12)}
-        if sat > 0.02:
-            iv.rejected = f"current at its limit for {sat:.0%} of the reverse stroke"
-        elif iv.terms["speed_mismatch"] > 0.2:
-            iv.rejected = f"reverse speed at phi1 differs by {iv.terms['speed_mismatch']:.0%} from the forward speed"
-        return iv
+        s_gain = gain_u * np.hypot(T.A_f, T.A_r)
+        s_common = np.hypot(s_gain, got["s_dW"]) / denom
+        sigma = np.hypot(s_independent, s_common)
+        if self.saturated is not None:  # fraction of samples k3..k4 at the limit
+            count = np.concatenate([[0], np.cumsum(self.saturated)])
+            sat = (count[np.minimum(k4s + 1, len(count) - 1)] - count[self.k3]) / (
+                np.minimum(k4s + 1, len(self.saturated)) - self.k3)
+        else:
+            sat = np.zeros(len(good))
+        mismatch = np.abs(np.abs(T.w1r) - np.abs(T.w1f)) / np.maximum(np.abs(T.w1f), 1e-12)
+        names = list(BalanceTerms.__dataclass_fields__)
+        columns = [getattr(T, name) for name in names]
+        for row, j in enumerate(good.tolist()):
+            iv = out[j]
+            iv.lambda66, iv.w1f, iv.w1r = float(lam[row]), float(T.w1f[row]), float(T.w1r[row])
+            iv.sigma_independent, iv.sigma_common = float(s_independent[row]), float(s_common[row])
+            iv.sigma = float(sigma[row])
+            terms = {name: float(col[row]) for name, col in zip(names, columns)}
+            terms.update(saturated_frac=float(sat[row]), s_current=float(s_current[row]),
+                         rate_kernel_f=fit["f"]["kernel"][row], rate_kernel_r=fit["r"]["kernel"][row],
+                         speed_mismatch=float(mismatch[row]))
+            iv.terms = terms
+            if sat[row] > 0.02:
+                iv.rejected = f"current at its limit for {sat[row]:.0%} of the reverse stroke"
+            elif mismatch[row] > 0.2:
+                iv.rejected = f"reverse speed at phi1 differs by {mismatch[row]:.0%} from the forward speed"
+        return out
 
     def averaged_rate_sigma(self, ivs: list[Interval], g: np.ndarray) -> float:
         """1-sigma of the weighted average's rate part, kg m^2, from the fits' linear kernels.
@@ -507,11 +564,15 @@ class RunBalance:
         omega = float(local_fit(self.t, self.psi, tc, half_width=RATE_HALF_WIDTH, degree=RATE_DEGREE)[1])
         return 0.5 * self.J_f * (hull_rate + omega) ** 2
 
-    def _work_noise(self, a: int, b: int) -> float:
-        """1-sigma of the motor work on [t_a, t_b] from white current noise, J."""
-        s = slice(a, b + 1)
-        d = np.diff(self.phi_s[s]) if self.work == "reaction" else np.diff(self.psi_s[s])
-        return self.k_t * self.noise_i * float(np.sqrt(np.sum(d**2) / 2.0))
+    def _work_noise(self, a, b):
+        """1-sigma of the motor work on [t_a, t_b] from white current noise, J (``a``, ``b``:
+        sample indices, integers or arrays of them)."""
+        if self._dsq_cum is None:  # sum of the squared angle increments from the first sample
+            d = np.diff(self.phi_s) if self.work == "reaction" else np.diff(self.psi_s)
+            self._dsq_cum = np.concatenate([[0.0], np.cumsum(d**2)])
+        last = len(self._dsq_cum) - 1
+        total = self._dsq_cum[np.minimum(b, last)] - self._dsq_cum[np.minimum(a, last)]
+        return self.k_t * self.noise_i * np.sqrt(np.maximum(total, 0.0) / 2.0)
 
     def _cumulative_work(self) -> np.ndarray:
         """Motor work from the first sample to each sample, J (the form chosen by ``work``)."""
@@ -592,13 +653,22 @@ def _smooth_by_phase(rec: RunRecord, angle: np.ndarray) -> np.ndarray:
     about 1e-6 J of that correlation on the reverse stroke (a cubic over 40 ms: 3e-5 J,
     0.03 % of lambda66), while following the stroke itself (period 3-6 s) exactly.
     """
-    brake = rec["brake"] if "brake" in rec.samples else np.zeros(len(rec.t))
-    key = np.array([f"{p}/{b:g}" for p, b in zip(rec.phase, brake)])
-    cuts = np.concatenate([[0], np.nonzero(key[1:] != key[:-1])[0] + 1, [len(key)]])
+    cuts = phase_blocks(rec)
     out = np.empty(len(angle), dtype=float)
     for a, b in zip(cuts[:-1], cuts[1:]):
         out[a:b] = smooth_angle(rec.t[a:b], angle[a:b], window_s=WORK_SMOOTHING_S, degree=5)
     return out
+
+
+def phase_blocks(rec: RunRecord) -> np.ndarray:
+    """Boundaries of the record's contiguous blocks of one phase and one brake state: sample
+    indices ``[0, ..., len]`` (block ``j`` is ``cuts[j]:cuts[j + 1]``)."""
+    phase = np.asarray(rec.phase)
+    change = phase[1:] != phase[:-1]
+    if "brake" in rec.samples:
+        b = np.asarray(rec["brake"], dtype=float)
+        change |= (b[1:] != b[:-1]) & ~(np.isnan(b[1:]) & np.isnan(b[:-1]))
+    return np.concatenate([[0], np.nonzero(change)[0] + 1, [len(phase)]])
 
 
 def _n_samples(t: np.ndarray, span_s: float) -> int:
@@ -627,19 +697,27 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     om = np.gradient(psi[a:b + 1], tt)  # psi already smoothed phase by phase
     friction = f_visc * om + f_coul * np.sign(om)
 
-    def twice(x):
-        c1 = np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(tt))])
-        return np.concatenate([[0.0], np.cumsum(0.5 * (c1[1:] + c1[:-1]) * np.diff(tt))])
+    dtt = np.diff(tt)
+
+    def twice(x):  # along the last axis
+        zero = np.zeros(x.shape[:-1] + (1,))
+        c1 = np.concatenate([zero, np.cumsum(0.5 * (x[..., 1:] + x[..., :-1]) * dtt, axis=-1)], axis=-1)
+        return np.concatenate([zero, np.cumsum(0.5 * (c1[..., 1:] + c1[..., :-1]) * dtt, axis=-1)], axis=-1)
 
     y = th + twice(friction) / J_f
     lags = np.arange(-2e-3, MAX_LAG_S + 1e-9, 2.5e-4)
-    fits = []
-    for lag in lags:
-        X = np.column_stack([np.ones_like(tt), tt - tt[0], k_t * twice(np.interp(tt + lag, t, i)) / J_f])
-        coef, *_ = np.linalg.lstsq(X, y, rcond=None)
-        r = y - X @ coef
-        fits.append((float(r @ r), float(coef[2])))
-    rss = np.array([f[0] for f in fits])
+    # Least squares on (1, t - t_a, the lagged current's column), every lag at once: the first two
+    # columns are shared, so they are projected out (twice, for orthogonality to rounding) and
+    # each lag's column is then a one-column fit; the residuals are formed explicitly.
+    Z = k_t * twice(np.interp(tt[None, :] + lags[:, None], t, i)) / J_f  # (lags, samples)
+    Q, _ = np.linalg.qr(np.column_stack([np.ones_like(tt), tt - tt[0]]))
+    for _ in range(2):
+        y = y - Q @ (Q.T @ y)
+        Z = Z - (Z @ Q) @ Q.T
+    zz = np.einsum("ij,ij->i", Z, Z)
+    coef = (Z @ y) / np.where(zz > 0, zz, np.inf)
+    r = y[None, :] - coef[:, None] * Z
+    rss = np.einsum("ij,ij->i", r, r)
     j = int(np.argmin(rss))
     if not 0 < j < len(lags) - 1 or np.sqrt(rss[j] / len(tt)) > 1e-3:
         return None
@@ -651,7 +729,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     frac = 0.5 * (rss[j - 1] - rss[j + 1]) / den if den > 0 else 0.0
     lag = float(lags[j] + frac * (lags[1] - lags[0]))
     X = np.column_stack([np.ones_like(tt), tt - tt[0], k_t * twice(np.interp(tt + lag, t, i)) / J_f])
-    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    coef, *_ = np.linalg.lstsq(X, th + twice(friction) / J_f, rcond=None)
     scale = float(coef[2])
     if not 0.5 < scale < 2.0:
         return None
@@ -698,40 +776,6 @@ def _quantum(angle: np.ndarray, counts: int) -> float:
     return float(np.min(steps)) if len(steps) else 0.0
 
 
-def _crossing(phi: np.ndarray, a: int, b: int, level: float, direction: float) -> int | None:
-    """First sample in [a, b) after which ``phi`` has crossed ``level`` moving in ``direction``."""
-    seg = direction * (phi[a:b] - level)
-    idx = np.nonzero((seg[:-1] < 0) & (seg[1:] >= 0))[0]
-    return None if not len(idx) else int(a + idx[0] + 1)
-
-
-def _crossing_fit(t: np.ndarray, phi: np.ndarray, k: int, level: float,
-                  half_width: float = RATE_HALF_WIDTH, degree: int = RATE_DEGREE) -> dict:
-    """Where a local polynomial through ``phi`` equals ``level``: time, rate, its sigma, and the
-    rate's linear kernel over the samples (indices, weights)."""
-    tc = t[k]
-    sel = np.nonzero(np.abs(t - tc) <= half_width)[0]
-    if len(sel) < degree + 3:
-        raise IdentificationError(f"too few samples ({len(sel)}) around t = {tc:.4f} s for a local fit")
-    sv = t[sel] - tc
-    scale = half_width
-    X = np.vander(sv / scale, degree + 1, increasing=True)
-    pinv = np.linalg.pinv(X)
-    coef = pinv @ phi[sel]
-    poly = np.polynomial.Polynomial(coef)  # phi ~ poly(s / scale)
-    dpoly = poly.deriv()
-    x = 0.0
-    for _ in range(8):  # Newton on poly(x) = level
-        x -= (poly(x) - level) / dpoly(x)
-    rate = float(dpoly(x)) / scale
-    grad = np.array([j * x ** (j - 1) if j else 0.0 for j in range(degree + 1)]) / scale
-    kernel = grad @ pinv
-    resid = phi[sel] - X @ coef
-    var = max(float(resid @ resid) / max(len(sel) - degree - 1, 1), 1e-24)
-    return {"t": float(tc + x * scale), "rate": rate, "sigma_rate": float(np.sqrt(var) * np.linalg.norm(kernel)),
-            "kernel": (sel, kernel)}
-
-
 def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c: float,
                          phi_n: float) -> dict | None:
     """Damping torque magnitude ``D(w) = d1 |w| + d2 w^2`` (N m) seen on the forward stroke.
@@ -742,8 +786,6 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c
     noise among the regressors and shrink ``J`` (and inflate ``d2`` several-fold) when the
     encoder's quantisation is a sizeable part of the acceleration.
     """
-    from scipy.signal import savgol_filter  # noqa: PLC0415
-
     t, phi = rec.t, rec["phi"]
     a = free.start + (k2 - free.start) // 3
     dt = float(np.median(np.diff(t[free])))
@@ -751,8 +793,8 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c
     if k2 - a < 2 * win:
         return None
     seg = phi[a - win:k2 + 1] if a >= win else phi[a:k2 + 1]
-    w = savgol_filter(seg, win, 3, deriv=1, delta=dt)
-    acc = savgol_filter(seg, win, 3, deriv=2, delta=dt)
+    w = savgol(seg, win, 3, deriv=1, delta=dt)
+    acc = savgol(seg, win, 3, deriv=2, delta=dt)
     keep = slice(win, len(seg) - win // 2)
     w, acc, ph = w[keep], acc[keep], seg[keep]
     # -c (phi - phi_n) - J acc = d1 w + d2 w|w|   (linear in d1, d2)
@@ -772,13 +814,11 @@ class _DissipationMismatch:
     speed profiles over angle and the forward stroke's damping law; returns (dW, sigma) in J."""
 
     def __init__(self, t, phi, free, k2, k3, rev, law, direction):
-        from scipy.signal import savgol_filter  # noqa: PLC0415
-
         def speed_over_angle(a: int, b: int):
             lo, hi = max(a, 0), min(b, len(t) - 1)
             dt = float(np.median(np.diff(t[lo:hi])))
             win = max(7, int(round(DAMPING_FIT_WINDOW_S / dt)) | 1)
-            speed = np.abs(savgol_filter(phi[lo:hi + 1], win, 3, deriv=1, delta=dt))
+            speed = np.abs(savgol(phi[lo:hi + 1], win, 3, deriv=1, delta=dt))
             ang = phi[lo:hi + 1]
             order = np.argsort(ang)
             return ang[order], speed[order]
@@ -793,10 +833,12 @@ class _DissipationMismatch:
         cum = np.concatenate([[0.0], np.cumsum(0.5 * (dD[1:] + dD[:-1]) * np.diff(self.grid))])
         self.cum, self.phi2, self.direction = cum, phi2, direction
 
-    def __call__(self, phi1: float) -> tuple[float, float]:
-        at = np.interp([phi1, self.phi2], self.grid, self.cum)
-        dW = float(self.direction * (at[1] - at[0]))
-        return dW, 0.5 * abs(dW)
+    def __call__(self, phi1):
+        """(dW, sigma) at the angle(s) ``phi1``, J: floats for a float, arrays for an array."""
+        dW = self.direction * (np.interp(self.phi2, self.grid, self.cum) - np.interp(phi1, self.grid, self.cum))
+        if np.ndim(dW) == 0:
+            return float(dW), 0.5 * abs(float(dW))
+        return dW, 0.5 * np.abs(dW)
 
 
 def _voltage_offset(t: np.ndarray, psi: np.ndarray, u: np.ndarray) -> float:

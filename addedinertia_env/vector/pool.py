@@ -431,14 +431,23 @@ class ExperimentPool:
         at the row before the current one)."""
         self._flush(slots)
         g = self._g
-        for k in slots:
-            n = int(self._flushed[k])
-            m = min(n, RING - 1)
-            rows = (g - m + np.arange(m)) % RING
-            for j in (0, 1):
-                values = self._logs[k][j, n - m:n]
-                self._ring[j, rows, k] = values
-                self._ring[j, rows + RING, k] = values
+        n = self._flushed[slots]
+        m = np.minimum(n, RING - 1)
+        depth = int(m.max()) if len(m) else 0
+        if not depth:
+            return
+        # history[r, j, s]: sample n - depth + r of slot s (rows before a slot's first sample stay unused)
+        history = np.zeros((depth, 2, len(slots)))
+        for s, (k, nk, mk) in enumerate(zip(slots.tolist(), n.tolist(), m.tolist())):
+            if mk:
+                history[depth - mk:, :, s] = self._logs[k][:2, nk - mk:nk].T
+        rows = (g - depth + np.arange(depth)) % RING
+        keep = np.arange(depth)[:, None] >= depth - m[None, :]  # rows that hold a slot's own samples
+        for j in (0, 1):
+            current = self._ring[j][np.ix_(rows, slots)]
+            values = np.where(keep, history[:, j, :], current)
+            self._ring[j][np.ix_(rows, slots)] = values
+            self._ring[j][np.ix_(rows + RING, slots)] = values
 
     def _flush(self, slots) -> None:
         for k in slots:

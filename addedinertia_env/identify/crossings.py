@@ -1,0 +1,114 @@
+"""Where a stroke crosses its boundary angles, and the hull's rate there: many angles at once.
+
+The energy method evaluates its balance at a few dozen boundary angles per record
+(:mod:`.energy`). Each angle needs the sample after which each stroke crossed it
+(:func:`first_crossings`) and a local quintic through the encoder angle around that
+sample, solved for the instant it equals the angle (:func:`crossing_fits`). Both are
+written on arrays of angles, so one record costs a few dozen numpy calls instead of a
+few thousand; every angle's numbers are those of the one-angle computation (the same
+operations element by element; where the fits' design matrices agree to 1e-10, as on an
+evenly sampled record, one pseudo-inverse serves them all, which changes the rates by
+float rounding only).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .common import IdentificationError
+
+SHARED_DESIGN_TOLERANCE = 1e-10  # design matrices (entries in [-1, 1]) this close share one pseudo-inverse
+
+
+def first_crossings(phi: np.ndarray, a: int, b: int, levels: np.ndarray, direction: float) -> np.ndarray:
+    """For each of ``levels``: the first sample in [a, b) after which ``phi`` has crossed it
+    moving in ``direction`` (the index of the first sample at or past it), or -1."""
+    levels = np.asarray(levels, dtype=float)
+    seg = direction * (phi[a:b][None, :] - levels[:, None])
+    hit = (seg[:, :-1] < 0) & (seg[:, 1:] >= 0)
+    first = np.argmax(hit, axis=1)
+    return np.where(hit.any(axis=1), a + first + 1, -1) if hit.shape[1] else np.full(len(levels), -1)
+
+
+def _windows(t: np.ndarray, tc: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
+    """First and one-past-last sample with ``|t - tc| <= half_width`` (``t`` ascending)."""
+    n = len(t)
+    lo = np.clip(np.searchsorted(t, tc - half_width, side="left") - 2, 0, n)
+    hi = np.clip(np.searchsorted(t, tc + half_width, side="right") + 2, 0, n)
+    first, stop = np.empty_like(lo), np.empty_like(hi)
+    for j, (a, b) in enumerate(zip(lo.tolist(), hi.tolist())):  # the exact test on a handful of samples at each end
+        inside = np.nonzero(np.abs(t[a:b] - tc[j]) <= half_width)[0]
+        first[j], stop[j] = (a + inside[0], a + inside[-1] + 1) if len(inside) else (a, a)
+    return first, stop
+
+
+def _polyval(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Power series with per-row coefficients ``coef`` (fits x terms) at ``x`` (Horner, as ``polyval``)."""
+    out = coef[:, -1] + x * 0
+    for j in range(2, coef.shape[1] + 1):
+        out = coef[:, -j] + out * x
+    return out
+
+
+def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.ndarray,
+                  half_width: float, degree: int) -> dict:
+    """Where a local polynomial through ``phi`` around sample ``ks[j]`` equals ``levels[j]``.
+
+    For each fit, least squares of ``degree`` in ``(t - t[k]) / half_width`` over
+    ``|t - t[k]| <= half_width``, then Newton (8 steps from ``t[k]``) for the crossing.
+    Returns arrays over the fits: ``t`` (s), ``rate`` (rad/s), ``sigma_rate`` (rad/s, from
+    the fit's residual scatter), and ``kernel``: per fit the rate's linear kernel over the
+    samples, ``(indices, weights)``. Raises :class:`IdentificationError` for the first fit
+    with fewer than ``degree + 3`` samples.
+    """
+    ks = np.asarray(ks, dtype=np.int64)
+    levels = np.asarray(levels, dtype=float)
+    n_fit = len(ks)
+    tc = t[ks]
+    ascending = bool(np.all(np.diff(t) >= 0))
+    if ascending:
+        first, stop = _windows(t, tc, half_width)
+    else:  # not sorted: the plain test over the whole record
+        sels = [np.nonzero(np.abs(t - c) <= half_width)[0] for c in tc]
+        first = np.array([s[0] if len(s) else 0 for s in sels], dtype=np.int64)
+        stop = np.array([s[-1] + 1 if len(s) else 0 for s in sels], dtype=np.int64)
+        if any(len(s) and s[-1] + 1 - s[0] != len(s) for s in sels):
+            raise IdentificationError("the record's time column is not ordered; expected increasing 't'")
+    size = stop - first
+    short = np.nonzero(size < degree + 3)[0]
+    if len(short):
+        j = int(short[0])
+        raise IdentificationError(f"too few samples ({int(size[j])}) around t = {tc[j]:.4f} s for a local fit")
+    out_t, rate, sigma = np.empty(n_fit), np.empty(n_fit), np.empty(n_fit)
+    kernels: list = [None] * n_fit
+    powers = np.arange(degree + 1)
+    for m in np.unique(size).tolist():
+        g = np.nonzero(size == m)[0]
+        idx = first[g][:, None] + np.arange(m)[None, :]  # (fits, m) sample indices
+        sv = t[idx] - tc[g][:, None]
+        X = np.empty((len(g), m, degree + 1))  # np.vander(sv / half_width, degree + 1, increasing=True)
+        X[:, :, 0] = 1.0
+        if degree:
+            X[:, :, 1:] = (sv / half_width)[:, :, None]
+            np.multiply.accumulate(X[:, :, 1:], out=X[:, :, 1:], axis=2)
+        if np.max(np.abs(X - X[:1])) <= SHARED_DESIGN_TOLERANCE:
+            P = np.broadcast_to(np.linalg.pinv(X[0]), (len(g), degree + 1, m))
+        else:
+            P = np.linalg.pinv(X)
+        y = phi[idx]
+        coef = np.matmul(P, y[:, :, None])[:, :, 0]  # (fits, degree + 1)
+        dcoef = coef[:, 1:] * powers[1:]
+        lev = levels[g]
+        x = np.zeros(len(g))
+        for _ in range(8):  # Newton on poly(x) = level
+            x = x - (_polyval(coef, x) - lev) / _polyval(dcoef, x)
+        rate[g] = _polyval(dcoef, x) / half_width
+        out_t[g] = tc[g] + x * half_width
+        grad = np.where(powers > 0, powers * x[:, None] ** np.maximum(powers - 1, 0), 0.0) / half_width
+        kernel = np.matmul(grad[:, None, :], P)[:, 0, :]  # (fits, m)
+        resid = y - np.matmul(X, coef[:, :, None])[:, :, 0]
+        var = np.maximum(np.einsum("ij,ij->i", resid, resid) / max(m - degree - 1, 1), 1e-24)
+        sigma[g] = np.sqrt(var) * np.linalg.norm(kernel, axis=1)
+        for row, j in enumerate(g.tolist()):
+            kernels[j] = (idx[row], kernel[row])
+    return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": kernels}

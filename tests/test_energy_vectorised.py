@@ -1,0 +1,168 @@
+"""The energy method's array paths against the plain computations they replace.
+
+The energy method evaluates its balance at dozens of boundary angles at once
+(:func:`~addedinertia_env.identify.crossings.crossing_fits`, ``RunBalance.intervals``),
+fits the current's lag for every lag at once (``_flywheel_calibration``) and smooths with
+cached Savitzky-Golay maps (:func:`~addedinertia_env.identify.common.savgol`). Each is held
+here to the straightforward one-at-a-time computation (written out in this file, as the
+method was before it was vectorised) on batched-env episodes, clean and through DAQ
+quirks: a jittered clock, dropped samples, a decimated record, the release logged as
+moving, and a brake column that flips a sample off the phase change.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import savgol_filter
+
+from addedinertia_env.daq import Quirks, apply_quirks
+from addedinertia_env.identify import identify
+from addedinertia_env.identify import energy
+from addedinertia_env.identify.common import savgol
+from addedinertia_env.identify.crossings import crossing_fits, first_crossings
+from addedinertia_env.vector.env import ReverseStrokeVectorEnv
+
+SHORT = dict(hold_s=0.5, fixed={"period_s": 3.0}, action_repeat=10)
+
+
+def _brake_off_phase(rec):
+    """The brake column set one sample after the hold begins (a sensed brake a sample late)."""
+    s = {k: np.array(v, copy=True) for k, v in rec.samples.items()}
+    k = int(np.nonzero(s["phase"] == "hold")[0][0])
+    s["brake"][k] = s["brake"][k - 1]
+    return type(rec)(s, rec.meta)
+
+
+@pytest.fixture(scope="module")
+def records():
+    env = ReverseStrokeVectorEnv(2, **SHORT)
+    env.reset(seed=11)
+    rng = np.random.default_rng(4)
+    clean = []
+    while len(clean) < 2:
+        _, _, term, _, _ = env.step(rng.uniform(-0.4, 0.4, size=(2, 1)).astype(np.float32))
+        clean += [env.record(int(e)) for e in np.nonzero(term)[0]]
+    out = {}
+    variants = {"jitter": Quirks(jitter=3e-5), "drop": Quirks(drop=0.002, drop_release=True),
+                "decimated": Quirks(decimate=2), "release moving": Quirks(release_moving=True)}
+    for j, rec in enumerate(clean):
+        out[f"clean {j}"] = rec
+        out[f"brake off-phase {j}"] = _brake_off_phase(rec)
+        for name, q in variants.items():
+            out[f"{name} {j}"] = apply_quirks(rec, q, np.random.default_rng(j))
+    return out
+
+
+@pytest.mark.parametrize("n, window, degree, deriv", [(6000, 201, 5, 0), (900, 101, 3, 1), (900, 101, 3, 2),
+                                                      (41, 41, 3, 0), (9, 7, 3, 1)])
+def test_savgol_equals_scipys_filter(n, window, degree, deriv):
+    x = 0.3 + np.cumsum(np.random.default_rng(n).normal(size=n)) * 1e-3
+    ours, scipys = savgol(x, window, degree, deriv, 1e-3), savgol_filter(x, window, degree, deriv, delta=1e-3)
+    np.testing.assert_allclose(ours, scipys, rtol=0, atol=1e-11 * np.max(np.abs(scipys)))
+
+
+def _one_fit(t, phi, k, level, half_width, degree):
+    """One crossing fit, as the method computed it angle by angle."""
+    tc = t[k]
+    sel = np.nonzero(np.abs(t - tc) <= half_width)[0]
+    X = np.vander((t[sel] - tc) / half_width, degree + 1, increasing=True)
+    pinv = np.linalg.pinv(X)
+    poly = np.polynomial.Polynomial(pinv @ phi[sel])
+    dpoly = poly.deriv()
+    x = 0.0
+    for _ in range(8):
+        x -= (poly(x) - level) / dpoly(x)
+    grad = np.array([j * x ** (j - 1) if j else 0.0 for j in range(degree + 1)]) / half_width
+    kernel = grad @ pinv
+    resid = phi[sel] - X @ poly.coef
+    var = max(float(resid @ resid) / max(len(sel) - degree - 1, 1), 1e-24)
+    return tc + x * half_width, dpoly(x) / half_width, np.sqrt(var) * np.linalg.norm(kernel), sel, kernel
+
+
+def test_crossing_fits_equal_the_fits_one_at_a_time(records):
+    for name, rec in records.items():
+        bal = energy.RunBalance(rec.without_truth())
+        levels = bal.phi_n + np.linspace(0.25, 0.75, 9) * (bal.phi2 - bal.phi_n)
+        ks = first_crossings(bal.phi, bal.free.start, bal.k2, levels, bal.direction)
+        assert np.all(ks > 0), name
+        for k, level in zip(ks, levels):  # the first crossing, as a scan would find it
+            seg = bal.direction * (bal.phi[bal.free.start:bal.k2] - level)
+            assert k == bal.free.start + np.nonzero((seg[:-1] < 0) & (seg[1:] >= 0))[0][0] + 1
+        got = crossing_fits(bal.t, bal.phi, ks, levels, energy.RATE_HALF_WIDTH, energy.RATE_DEGREE)
+        for j, (k, level) in enumerate(zip(ks, levels)):
+            tc, rate, sigma, sel, kernel = _one_fit(bal.t, bal.phi, k, level, energy.RATE_HALF_WIDTH,
+                                                    energy.RATE_DEGREE)
+            assert got["t"][j] == pytest.approx(tc, rel=0, abs=1e-12), name
+            assert got["rate"][j] == pytest.approx(rate, rel=1e-10), name
+            assert got["sigma_rate"][j] == pytest.approx(sigma, rel=1e-8), name
+            assert np.array_equal(got["kernel"][j][0], sel), name
+            np.testing.assert_allclose(got["kernel"][j][1], kernel, rtol=0, atol=1e-10 * np.abs(kernel).max())
+
+
+def test_all_angles_at_once_equal_each_angle_alone(records):
+    for name, rec in records.items():
+        balance, phi1, weights, first = energy.prepared_balance(rec.without_truth())
+        assert np.isfinite(first.value), name
+        together = balance.intervals(np.asarray(phi1))
+        for p, iv in zip(phi1, together):
+            alone = energy.RunBalance(rec.without_truth())
+            alone.use_total_inertia(first.value + alone.J_h)
+            one = alone.interval(p)
+            assert one.rejected == iv.rejected, name
+            if not iv.rejected:
+                assert one.lambda66 == pytest.approx(iv.lambda66, rel=1e-10), name
+                assert one.sigma == pytest.approx(iv.sigma, rel=1e-8), name
+                assert one.terms["dW"] == pytest.approx(iv.terms["dW"], rel=1e-10, abs=1e-15), name
+
+
+def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul):
+    """The flywheel calibration's lag search with one least-squares fit per lag (rss per lag)."""
+    tt, th = t[a:b + 1], theta[a:b + 1]
+    om = np.gradient(psi[a:b + 1], tt)
+    friction = f_visc * om + f_coul * np.sign(om)
+
+    def twice(x):
+        c1 = np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(tt))])
+        return np.concatenate([[0.0], np.cumsum(0.5 * (c1[1:] + c1[:-1]) * np.diff(tt))])
+
+    y = th + twice(friction) / J_f
+    rss = []
+    for lag in np.arange(-2e-3, energy.MAX_LAG_S + 1e-9, 2.5e-4):
+        X = np.column_stack([np.ones_like(tt), tt - tt[0], k_t * twice(np.interp(tt + lag, t, i)) / J_f])
+        coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+        r = y - X @ coef
+        rss.append(float(r @ r))
+    return np.array(rss)
+
+
+def test_flywheel_calibration_equals_a_fit_per_lag(records, monkeypatch):
+    seen = []
+    original = energy._flywheel_calibration
+
+    def spy(*args):
+        seen.append(args)
+        return original(*args)
+
+    monkeypatch.setattr(energy, "_flywheel_calibration", spy)
+    calibrated = 0
+    for name, rec in records.items():
+        seen.clear()
+        bal = energy.RunBalance(rec.without_truth())
+        (args,) = seen
+        rss = _calibration_lag_by_lag(*args)
+        lags = np.arange(-2e-3, energy.MAX_LAG_S + 1e-9, 2.5e-4)
+        j = int(np.argmin(rss))
+        if not bal.calibrated:
+            continue
+        calibrated += 1
+        den = rss[j - 1] - 2 * rss[j] + rss[j + 1]
+        lag = lags[j] + 0.5 * (rss[j - 1] - rss[j + 1]) / den * (lags[1] - lags[0])
+        assert bal.current_lag == pytest.approx(lag, rel=0, abs=1e-9), name
+    assert calibrated >= 2, "the episodes should calibrate the current's lag on the flywheel"
+
+
+def test_identify_on_each_record_is_finite_and_repeatable(records):
+    for name, rec in list(records.items())[:3]:
+        a, b = identify([rec], "energy"), identify([rec], "energy")
+        assert np.isfinite(a.lambda66) and a.lambda66 == b.lambda66, name
