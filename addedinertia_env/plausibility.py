@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .record import RecordError, RunRecord
+from .run_record import RecordError, RunRecord
 
 MARGIN = 1.5  # how far a measured value may exceed a limit derived from physics (sensor gain, noise)
 LIMIT_MARGIN = 2.0  # how far |i| or |u| may exceed the rig's stated i_max / u_max

@@ -22,8 +22,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
+
+from ..config_io import ConfigError
 
 SHAPES = ("wigley", "spheroid")
 SUBMERGENCE = ("floating", "deep")
@@ -231,3 +234,23 @@ def gdf_text(q: QuarterMesh, title: str = "addedinertia hull mesh") -> str:
         for v in q.vertices[face]:
             lines.append(f"{v[0]:.9f} {v[1]:.9f} {v[2]:.9f}")
     return "\n".join(lines) + "\n"
+
+
+GEOMETRY_KEYS = ("shape", "length", "beam", "draft")
+
+
+def shape_from_mapping(block: Any, where: str) -> HullShape:
+    """A :class:`HullShape` from a preset's ``hull.geometry`` mapping (lengths in m).
+
+    ``where`` names the block in messages (file and key). Raises :class:`ConfigError`
+    naming the field when the block is not a mapping, has unknown keys or bad values.
+    """
+    if not isinstance(block, dict):
+        raise ConfigError(f"{where} = {block!r}: expected a mapping with keys {list(GEOMETRY_KEYS)}")
+    unknown = sorted(set(block) - set(GEOMETRY_KEYS))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(GEOMETRY_KEYS)}")
+    try:
+        return HullShape(**block)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{where}: {e}") from None

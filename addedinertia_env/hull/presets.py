@@ -12,22 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..rig.presets import ConfigError, load_preset, load_rig
-from .geometry import HullShape
-
-GEOMETRY_KEYS = ("shape", "length", "beam", "draft")
-
-
-def shape_from_mapping(block: Any, where: str) -> HullShape:
-    """A :class:`HullShape` from a ``geometry`` mapping; ConfigError naming the field otherwise."""
-    if not isinstance(block, dict):
-        raise ConfigError(f"{where} = {block!r}: expected a mapping with keys {list(GEOMETRY_KEYS)}")
-    unknown = sorted(set(block) - set(GEOMETRY_KEYS))
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(GEOMETRY_KEYS)}")
-    try:
-        return HullShape(**block)
-    except (TypeError, ValueError) as e:
-        raise ConfigError(f"{where}: {e}") from None
+from .geometry import HullShape, shape_from_mapping
 
 
 def preset_hull(name: str) -> tuple[HullShape, dict[str, Any]]:

@@ -16,6 +16,7 @@ from typing import Any
 
 from ..config_io import ConfigError, read_yaml
 
+from ..hull.geometry import shape_from_mapping
 from . import hydro
 from .effects import Effects
 from .params import HullParams, MotorParams, RigParams, SensorParams, SpringParams
@@ -110,8 +111,6 @@ def _hull(d: dict[str, Any], where: str) -> HullParams:
     _only_keys(d, set(HULL_KEYS), where)
     out: dict[str, Any] = {}
     if "geometry" in d:  # the analytic hull shape, for `addedinertia hull` (addedinertia_env/hull)
-        from ..hull.presets import shape_from_mapping  # noqa: PLC0415 - hull imports this module
-
         shape_from_mapping(d["geometry"], f"{where}.geometry")
     if "name" in d:
         out["name"] = str(d["name"])
