@@ -91,6 +91,7 @@ def atomic_write_texts(files: list[tuple[Path, str]]) -> None:
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (a temporary file beside it, then ``os.replace``)."""
     atomic_write_texts([(Path(path), text)])
 
 

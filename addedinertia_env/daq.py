@@ -53,6 +53,7 @@ class Quirks:
     release_moving: bool = False  # the release sample logged as moving, not as braked
 
     def to_dict(self) -> dict:
+        """The quirks that differ from a perfect DAQ, as ``{field: value}`` (units as the fields')."""
         return {k: v for k, v in asdict(self).items() if v != getattr(Quirks(), k)}
 
 

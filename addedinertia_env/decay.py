@@ -57,6 +57,8 @@ class DecayInputError(ValueError):
 
 @dataclass
 class Amplitudes:
+    """A free-decay amplitude series read from ``path``: half-swing numbers and amplitudes in deg."""
+
     path: str
     swing: np.ndarray  # half-swing numbers
     theta: np.ndarray  # deg
@@ -235,6 +237,14 @@ def law_nu(law: str, params: dict[str, float], theta_deg) -> np.ndarray:
 
 @dataclass
 class LawFit:
+    """One damping law fitted to an amplitude series (:func:`fit_law`).
+
+    ``params`` in the units of :data:`UNITS` (``theta0`` deg, ``a`` 1/half-swing, ``b``
+    1/(deg half-swing), ``c`` deg/half-swing), with standard errors and 95 % intervals;
+    ``residuals`` in deg; chi-square against the reading resolution, AIC and BIC (sigma
+    fitted), lag-1 autocorrelation and the sign-runs test of the residuals.
+    """
+
     law: str
     params: dict[str, float]
     stderr: dict[str, float]
@@ -252,6 +262,7 @@ class LawFit:
     extra: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
+        """The fit as a JSON-ready dict (parameters with their units, statistics, residuals in deg)."""
         return {"law": self.law, "params": self.params, "units": {k: UNITS[k] for k in self.params},
                 "stderr": self.stderr, "ci95": self.ci95, "rms_deg": float(np.sqrt(np.mean(self.residuals**2))),
                 "max_abs_residual_deg": float(np.max(np.abs(self.residuals))), "chi2": self.chi2, "dof": self.dof,
@@ -275,6 +286,12 @@ def _runs_test(r: np.ndarray) -> tuple[int, float, float]:
 
 
 def fit_law(law: str, amp: Amplitudes, sigma: float = READING_SIGMA_DEG) -> LawFit:
+    """Fit the envelope law ``law`` (a key of :data:`LAWS`) to ``amp`` by output error.
+
+    ``sigma`` is the reading standard deviation in deg (the residuals are weighted by it).
+    Every damping coefficient is bounded at >= 0. Returns the :class:`LawFit`; its intervals
+    are widened by the reduced chi-square when the law fits worse than ``sigma`` allows.
+    """
     names = ("theta0",) + LAWS[law]
     n = amp.swing - amp.swing[0]
     th = amp.theta
@@ -326,6 +343,7 @@ def fit_law(law: str, amp: Amplitudes, sigma: float = READING_SIGMA_DEG) -> LawF
 
 
 def fit_laws(amp: Amplitudes) -> list[LawFit]:
+    """Fit every law of :data:`LAWS` to ``amp``; returns the fits, best (lowest BIC) first."""
     fits = [fit_law(law, amp) for law in LAWS]
     fits.sort(key=lambda f: f.bic)
     return fits

@@ -19,6 +19,7 @@ def cpu_model() -> str:
 
 
 def machine_info() -> dict[str, object]:
+    """This machine as a dict: CPU count ``nproc``, ``cpu`` model, ``os`` and ``python`` versions."""
     return {"nproc": os.cpu_count(), "cpu": cpu_model(), "os": f"{platform.system()} {platform.release()}",
             "python": platform.python_version()}
 

@@ -29,6 +29,13 @@ RANGE_KEYS = {"lambda_ratio", "drag_coefficient", "b1", "period_s", "J_flywheel"
 
 @dataclass(frozen=True)
 class Scenario:
+    """One seeded scenario: the rig (true parameters), the experiment plan and the seed streams.
+
+    ``sensor_seed`` and ``controller_seed`` are independent streams spawned from ``seed``;
+    ``sensor_quality`` is one of :data:`~addedinertia_env.rig.presets.SENSOR_QUALITY`;
+    ``loop`` the control loop's delay, command rate and quantisation (``None``: ideal).
+    """
+
     name: str
     seed: int
     rig: RigParams
@@ -50,6 +57,12 @@ def build_rig(scenario: Scenario, seed: int | np.random.SeedSequence | None = No
 
 
 def load_ranges(path: str | Path | None = None) -> dict[str, Any]:
+    """The randomisation ranges (``configs/randomization.yaml``, or ``path``) as ``{key: [low, high]}``.
+
+    Keys are :data:`RANGE_KEYS`, each in its own unit (``period_s`` s, ``J_flywheel`` kg m^2,
+    ``k_t`` N m/A, ...). Raises ConfigError naming the file for an unknown key or a range
+    that is not ``[low, high]`` with ``low <= high``.
+    """
     path = Path(path) if path else CONFIG_DIR / "randomization.yaml"
     data = read_yaml(path, "randomisation ranges") or {}
     if not isinstance(data, dict):

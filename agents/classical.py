@@ -18,6 +18,8 @@ CLASSICAL: dict[str, str] = {
 
 
 class UnknownController(ValueError):
+    """A controller name or ``module:attribute`` that names no controller; the message lists the known ones."""
+
     pass
 
 

@@ -92,6 +92,11 @@ class StrokeController(Controller):
         return stroke_feedforward_current(self.ctx, obs["phi_ref"], obs["accel_ref"], self.J)
 
     def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:  # pragma: no cover
+        """Feedback current, A, added to the feed-forward on the reverse stroke (subclasses write it).
+
+        ``e = phi_ref - phi`` (rad) and ``e_rate`` (rad/s) are the tracking errors from
+        :meth:`track_state`; a positive error (hull behind) needs negative current.
+        """
         raise NotImplementedError
 
     # --- two-rate bench, board mode "pd" (addedinertia_env/experiment/two_rate.py) -------
@@ -127,6 +132,7 @@ class FeedforwardPD(StrokeController):
     KNOBS = {"omega_c": (3.0, 40.0, "log"), "zeta": (0.5, 2.0, "lin"), "observer_bandwidth": (2.0, 80.0, "log")}
 
     def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:
+        """PD on the tracking error, A: ``-J (omega_c^2 e + 2 zeta omega_c e_rate) / k_t`` (``J`` the inertia prior, kg m^2)."""
         kp, kd = self.omega_c**2, 2.0 * self.zeta * self.omega_c
         # Positive error (hull behind) needs more hull torque, i.e. negative current.
         return -self.J * (kp * e + kd * e_rate) / self.ctx.k_t

@@ -27,6 +27,13 @@ from .feedforward_pd import FeedforwardPD
 
 
 class ILC(FeedforwardPD):
+    """Feedforward-PD plus a feed-forward correction learned from the feedback of earlier cycles.
+
+    Knobs beyond :class:`FeedforwardPD`'s: ``learning_gain`` (fraction of the last cycle's
+    feedback folded in), ``smooth_bins`` (width of the Q-filter, bins) and ``bins`` (bins
+    over the stroke's progress). :attr:`BENCH_CYCLES` episodes per benchmark scenario.
+    """
+
     name = "ilc"
     DEFAULTS = {**FeedforwardPD.DEFAULTS, "learning_gain": 0.8, "smooth_bins": 9, "bins": 400}
     KNOBS = {"omega_c": (3.0, 40.0, "log"), "zeta": (0.5, 2.0, "lin"), "learning_gain": (0.2, 1.0, "lin"),
@@ -42,6 +49,7 @@ class ILC(FeedforwardPD):
         self.cycles_seen = 0
 
     def reset(self, context) -> None:
+        """Start a cycle: fold the last cycle's mean feedback per bin (smoothed, times ``learning_gain``) into the learned current, then reset as :class:`FeedforwardPD` does."""
         if self._count.any():  # a cycle ended: learn from it
             fb = np.divide(self._sum, self._count, out=np.zeros(self.bins), where=self._count > 0)
             width = max(1, int(round(self.smooth_bins)))
@@ -55,9 +63,11 @@ class ILC(FeedforwardPD):
         return min(self.bins - 1, int(obs["phase_progress"] * self.bins))
 
     def feedforward_current(self, obs: dict[str, float]) -> float:
+        """Feed-forward current, A: the recorded law's plus the learned correction at this point of the stroke."""
         return super().feedforward_current(obs) + float(self.learned[self._bin(obs)])
 
     def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:
+        """PD feedback, A, as :class:`FeedforwardPD`'s; also recorded per bin of the stroke's progress for the next cycle."""
         fb = super().feedback(obs, e, e_rate)
         k = self._bin(obs)
         self._sum[k] += fb

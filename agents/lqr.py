@@ -32,6 +32,12 @@ def lqr_gain(c_over_J: float, dt: float, q: np.ndarray, r: float) -> np.ndarray:
 
 
 class LQR(StrokeController):
+    """Tracking LQR on ``[e, e', integral(e)]`` plus the recorded-law feed-forward and pre-spin.
+
+    Knobs (see the module docstring): ``e_scale`` (rad), ``rate_ratio``, ``integral_weight``,
+    ``disturbance_gain`` (0..1), ``observer_bandwidth`` (rad/s).
+    """
+
     name = "lqr"
     DEFAULTS = {**StrokeController.DEFAULTS, "e_scale": 2e-4, "rate_ratio": 10.0, "integral_weight": 1.0,
                 "disturbance_gain": 0.5}
@@ -40,6 +46,7 @@ class LQR(StrokeController):
              "observer_bandwidth": (2.0, 80.0, "log")}
 
     def reset(self, context) -> None:
+        """Start a stroke as :class:`StrokeController` does and compute the discrete LQR gain for this period ``context.dt`` (s)."""
         super().reset(context)
         q = np.array([1.0 / self.e_scale**2, 1.0 / (self.e_scale * self.rate_ratio) ** 2,
                       self.integral_weight / self.e_scale**2])
@@ -62,6 +69,7 @@ class LQR(StrokeController):
         return scale * K[0], scale * K[1], scale * K[2] * self.integral
 
     def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:
+        """LQR feedback current, A: ``J u / k_t`` with ``u = -K [e, e', integral(e)]`` (rad/s^2), plus the observer's residual torque cancelled by ``disturbance_gain``."""
         self.integral += e * self.ctx.dt
         # The error's acceleration is +u: more hull torque (negative current) lowers it.
         u = -float(self.K @ np.array([e, e_rate, self.integral]))  # rad/s^2 on the error

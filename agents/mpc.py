@@ -29,6 +29,12 @@ from .feedforward_pd import StrokeController
 
 
 class MPC(StrokeController):
+    """Energy-aware receding-horizon control on the linearised error model (see the module docstring).
+
+    Knobs: ``e_scale`` (rad), ``rate_ratio``, ``energy_weight`` (on ``(i / i_max)^2``),
+    ``horizon_s`` (s), ``observer_bandwidth`` (rad/s); ``step_s`` (s) is the prediction step.
+    """
+
     name = "mpc"
     DEFAULTS = {**StrokeController.DEFAULTS, "e_scale": 2e-4, "rate_ratio": 10.0, "energy_weight": 1e-3,
                 "horizon_s": 0.1, "step_s": 0.01}
@@ -37,6 +43,7 @@ class MPC(StrokeController):
              "observer_bandwidth": (2.0, 80.0, "log")}
 
     def reset(self, context) -> None:
+        """Start a stroke as :class:`StrokeController` does and set up the closed-form minimiser's gains for the horizon (once per stroke)."""
         super().reset(context)
         n = max(2, int(round(self.horizon_s / self.step_s)))
         h = self.step_s
@@ -70,6 +77,7 @@ class MPC(StrokeController):
         self._n = n
 
     def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:
+        """The first current correction, A, of the horizon's optimum given the errors, the observer's residual torque and the feed-forward ahead."""
         ctx, h, n = self.ctx, self.step_s, self._n
         # The error state x = [e, e']; its model input is -(residual torque)/J.
         dist = -(self.obs_filter.disturbance / self.J) if self.observer else 0.0

@@ -14,6 +14,12 @@ from .feedforward_pd import StrokeController
 
 
 class PID(StrokeController):
+    """PID on the observer's tracking error, with pre-spin and no model feed-forward.
+
+    Loop at ``omega_c`` rad/s with damping ``zeta``; the integral gain is
+    ``integral_ratio * omega_c^3``.
+    """
+
     name = "pid"
     DEFAULTS = {**StrokeController.DEFAULTS, "feedforward": False, "omega_c": 15.0, "zeta": 1.0,
                 "integral_ratio": 0.3}
@@ -21,10 +27,12 @@ class PID(StrokeController):
              "observer_bandwidth": (2.0, 80.0, "log")}
 
     def reset(self, context) -> None:
+        """Start a stroke as :class:`StrokeController` does, with the error integral at 0."""
         super().reset(context)
         self.integral = 0.0  # rad s
 
     def feedback(self, obs: dict[str, float], e: float, e_rate: float) -> float:
+        """PID current, A: ``-J (kp e + kd e_rate + ki integral(e)) / k_t``; the integral stops while the current is at its limit (anti-windup)."""
         w = self.omega_c
         self.integral += e * self.ctx.dt
         kp, kd, ki = w * w, 2.0 * self.zeta * w, self.integral_ratio * w**3

@@ -16,7 +16,9 @@ class ZeroCurrent:
     name = "zero"
 
     def reset(self, context) -> None:
+        """Keep the episode's context (nothing else to prepare)."""
         self.ctx = context
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        """Always 0 A (action 0) (Stable-Baselines3 ``predict`` signature)."""
         return np.zeros(1, dtype=np.float32), state

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from addedinertia_env.atomic import atomic_write_text
+from addedinertia_env.machine import machine_line
 from addedinertia_env.reports import accuracy_table as at
 
 
@@ -40,14 +42,14 @@ def test_score_and_summary():
 def test_render_names_command_machine_and_every_hull(tmp_path):
     rows = [_row(k, {"energy": 0.01, "free-decay": -0.002, "forced": None}) for k in range(3)]
     text = at.render(rows, {"command": "python -m addedinertia_env.reports.accuracy_table --hulls 3 --out X.md",
-                            "date": "today", "machine": at.machine(), "wall_s": 1.0, "cpu_s": 1.0, "seed": 100,
+                            "date": "today", "machine": machine_line(), "wall_s": 1.0, "cpu_s": 1.0, "seed": 100,
                             "controller": "feedforward-pd"})
     assert "--hulls 3 --out X.md" in text and "nproc" in text
     assert "| energy | 1.00 % | 1.00 % | 3/3 (100 %)" in text
     assert "| forced | n/a | n/a | 0/3 (0 %)" in text
     assert sum(line.startswith("| 2 | 102 |") for line in text.splitlines()) == 1
     out = tmp_path / "docs" / "ACC.md"
-    at.write_atomic(out, text)
+    atomic_write_text(out, text)
     assert out.read_text() == text and [p.name for p in out.parent.iterdir()] == ["ACC.md"]
 
 

@@ -35,6 +35,12 @@ class RowsError(ValueError):
 
 
 def load_rows(paths: list[str | Path]) -> list[dict[str, Any]]:
+    """Read benchmark rows (JSON lines) from ``paths``, every file in turn.
+
+    Raises FileNotFoundError for a missing file and :class:`RowsError` naming file and line
+    for a line that is not JSON or lacks a field of :data:`REQUIRED_FIELDS`, or when no
+    file holds a row.
+    """
     rows = []
     for path in paths:
         path = Path(path)

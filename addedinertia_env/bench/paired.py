@@ -31,6 +31,7 @@ ORACLE = "oracle"
 
 
 def scenario_key(row: dict[str, Any]) -> tuple[str, str, int]:
+    """What makes two rows the same scenario: ``(suite, split, seed)``."""
     return (str(row["suite"]), str(row.get("split", "?")), int(row["seed"]))
 
 

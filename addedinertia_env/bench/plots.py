@@ -23,6 +23,7 @@ FLOOR = 1e-5  # |error| plotted at least this (log axis)
 
 
 def plot_error_vs_energy(rows: list[dict], order: list[str], path: Path) -> Path:
+    """Scatter |lambda66 error| (%) against the motor energy (J), one point per episode, a colour per controller in ``order``; writes the PNG ``path`` and returns it."""
     plt = _axes()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for name in order:
@@ -44,6 +45,7 @@ def plot_error_vs_energy(rows: list[dict], order: list[str], path: Path) -> Path
 
 
 def plot_per_scenario(rows: list[dict], order: list[str], path: Path) -> Path:
+    """Plot |lambda66 error| (%) per scenario seed for each controller in ``order`` (failures as red x at 100 %); writes the PNG ``path`` and returns it."""
     plt = _axes()
     seeds = sorted({r["seed"] for r in rows})
     pos = {s: k for k, s in enumerate(seeds)}

@@ -84,6 +84,7 @@ def pairwise_table(entries: list[dict]) -> str:
 
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,
                     preamble: str = "") -> str:
+    """The leaderboard as Markdown: ``preamble``, the table of ``entries``, the tie rule, the verdict, the paired tests and the figures (linked relative to ``relative_to``)."""
     lines = [preamble.rstrip(), ""] if preamble else []
     lines += ["| " + " | ".join(md_cell(c) for c in COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(md_cell(c) for c in cells(e)) + " |" for e in entries]

@@ -101,12 +101,14 @@ class RowAppender:
         self.written = 0
 
     def append(self, row: dict[str, Any]) -> None:
+        """Append ``row`` as one JSON line (non-finite numbers as null), flushed and synced to disk."""
         self._f.write(json.dumps(finite(row), allow_nan=False) + "\n")
         self._f.flush()
         os.fsync(self._f.fileno())
         self.written += 1
 
     def close(self) -> None:
+        """Close the file; every appended row is already on disk."""
         self._f.close()
 
     def __enter__(self) -> "RowAppender":

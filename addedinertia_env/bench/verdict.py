@@ -31,6 +31,7 @@ TARGET = 0.01  # relative lambda66: the accuracy the experiment is for
 
 
 def pct(x: float | None) -> str:
+    """A fraction as a percentage for the tables: ``-`` for none or NaN, ``fail`` for infinite, never a non-zero shown as 0.000 %."""
     if x is None or (isinstance(x, float) and math.isnan(x)):
         return "-"
     if not math.isfinite(x):

@@ -26,11 +26,13 @@ class OneLineErrorParser(argparse.ArgumentParser):
     """
 
     def error(self, message: str):
+        """Print the usage error as one line naming the fix (``--help``) on stderr and exit 2."""
         print(f"{self.prog}: error: {message} (see '{self.prog} --help')", file=sys.stderr)
         raise SystemExit(2)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``addedinertia`` argument parser, with every subcommand module's ``register`` applied."""
     parser = OneLineErrorParser(
         prog="addedinertia",
         description="Identify the added moment of inertia lambda66 of a hull on a reverse-symmetric yaw rig.")
@@ -63,6 +65,13 @@ def _sigterm_as_interrupt():
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit status.
+
+    0 done; 2 bad input (one line on stderr naming file, field, value and what was
+    expected) or a usage error; 130 interrupted (Ctrl-C or SIGTERM); 70 a bug (it
+    logs the traceback to a file named on stderr); a subcommand's own codes otherwise (``deploy``,
+    ``bench-faults``).
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

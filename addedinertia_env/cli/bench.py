@@ -19,6 +19,7 @@ from .common import BadInput, emit_json, info, positive_int
 
 
 def register(sub) -> None:
+    """Add ``bench`` with its actions ``run``, ``leaderboard`` and ``tune`` to the subparsers ``sub``."""
     p = sub.add_parser("bench", help="benchmark controllers on a suite of scenarios; rank them")
     bsub = p.add_subparsers(dest="bench_command", required=True, metavar="ACTION")
 
@@ -85,6 +86,7 @@ def _check_controller(name: str) -> None:
 
 
 def run_bench(args) -> int:
+    """Run ``addedinertia bench run`` with the parsed ``args``; one JSON line per episode is appended to ``--out`` (a run resumes the rows already there); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..bench.resume import RowAppender, prepare_output  # noqa: PLC0415
     from ..bench.runner import run_tasks  # noqa: PLC0415
     from ..bench.suites import load_suite  # noqa: PLC0415
@@ -149,6 +151,7 @@ def invoked_command(args) -> str:
 
 
 def run_leaderboard(args) -> int:
+    """Run ``addedinertia bench leaderboard`` with the parsed ``args``; writes (or prints) the ranking as Markdown, HTML or JSON; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..bench.leaderboard import RowsError, load_rows, public  # noqa: PLC0415
     from ..bench.report import build, finite_or_none  # noqa: PLC0415
 
@@ -187,6 +190,7 @@ def run_leaderboard(args) -> int:
 
 
 def run_tune(args) -> int:
+    """Run ``addedinertia bench tune`` with the parsed ``args``; tunes the controller on the suite's tuning split and writes its tuned file (not with ``--dry-run``); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..bench.tuning import tune, write_tuned  # noqa: PLC0415
 
     from ..bench.suites import load_suite  # noqa: PLC0415

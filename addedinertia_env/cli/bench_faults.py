@@ -22,6 +22,7 @@ EXIT_NO_BENCH = 4
 
 
 def register(sub) -> None:
+    """Add the ``bench-faults`` subcommand and its options to the subparsers ``sub`` (``addedinertia bench-faults --help``)."""
     p = sub.add_parser("bench-faults", help="show (and with --clear, clear) a bench board's latched faults",
                        description="Connect to a bench board, show its present state and latched faults; "
                                    "--clear resets them, keeping the hull where it is (docs/BENCH.md).")
@@ -62,6 +63,7 @@ def _state(sample, caps) -> dict:
 
 
 def run(args) -> int:
+    """Run ``addedinertia bench-faults`` with the parsed ``args``; returns 0 (no latched fault left), :data:`EXIT_FAULTS` (3, faults remain) or :data:`EXIT_NO_BENCH` (4, the bench did not answer); bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from hw_adapter import messages as m  # noqa: PLC0415
     from hw_adapter.link import Link, LinkError  # noqa: PLC0415
 

@@ -16,6 +16,7 @@ from .common import BadInput, info
 
 
 def register(sub) -> None:
+    """Add the ``bench-server`` subcommand and its options to the subparsers ``sub`` (``addedinertia bench-server --help``)."""
     p = sub.add_parser("bench-server", help="run the bench emulator (simulated rig behind the bench protocol)",
                        description="Serve the simulated rig behind the bench wire protocol (docs/PROTOCOL.md) on "
                                    "127.0.0.1, for `addedinertia deploy --bench socket://127.0.0.1:PORT`.")
@@ -37,6 +38,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia bench-server`` with the parsed ``args``; serves until interrupted (or, with ``--once``, until the first host leaves); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from hw_adapter.board import Board, BoardLimits  # noqa: PLC0415 - keep `addedinertia --help` light
     from hw_adapter.emulator import EmulatorServer  # noqa: PLC0415
     from hw_adapter.faults import FaultSpecError, parse_faults  # noqa: PLC0415

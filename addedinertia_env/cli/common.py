@@ -97,6 +97,7 @@ def info(*parts: Any) -> None:
 
 
 def non_negative_float(text: str) -> float:
+    """argparse type: ``text`` as a finite float >= 0 (in the option's unit); ArgumentTypeError otherwise."""
     try:
         v = float(text)
     except ValueError:
@@ -118,6 +119,7 @@ def non_negative_int(text: str) -> int:
 
 
 def positive_int(text: str) -> int:
+    """argparse type: ``text`` as an integer > 0; ArgumentTypeError otherwise."""
     try:
         v = int(text)
     except ValueError:

@@ -6,6 +6,7 @@ from .common import BadInput, emit_json, info
 
 
 def register(sub) -> None:
+    """Add the ``decay`` subcommand and its options to the subparsers ``sub`` (``addedinertia decay --help``)."""
     p = sub.add_parser("decay", help="damping laws from successive free-decay amplitudes (docs/TEXTBOOK_DECAY.md)",
                        description="Fit candidate damping laws to a series of successive half-swing amplitudes "
                                    "(columns 'swing', 'theta_deg') and reproduce the textbook's nu (6.17, 6.18).")
@@ -18,6 +19,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia decay`` with the parsed ``args``; prints the damping laws ranked by BIC (with ``--json``, one object on stdout); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..decay import DecayInputError, analyse, plot  # noqa: PLC0415
 
     try:

@@ -17,6 +17,7 @@ from .common import emit_json, info, non_negative_int
 
 
 def register(sub) -> None:
+    """Add the ``demo`` subcommand and its options to the subparsers ``sub`` (``addedinertia demo --help``)."""
     p = sub.add_parser("demo", help="simulate the default rig, identify lambda66, plot the run")
     p.add_argument("--out", default="out/demo")
     p.add_argument("--rig", default="wigley-2m")
@@ -27,6 +28,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia demo`` with the parsed ``args``; writes the record and the figure under ``--out`` and prints the identified lambda66 (kg m^2) against the simulator's; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     out = Path(args.out)
     data = load_preset(args.rig)
     rig = rig_from_mapping(data)

@@ -15,6 +15,7 @@ from .common import BadInput, emit_json, info, non_negative_float
 
 
 def register(sub) -> None:
+    """Add the ``deploy`` subcommand and its options to the subparsers ``sub`` (``addedinertia deploy --help``)."""
     p = sub.add_parser("deploy", help="run one experiment on a bench (real or emulated)",
                        description="One reverse-symmetric experiment on a bench through the safety envelope, "
                                    "record written as it goes, lambda66 identified at the end (docs/BENCH.md).")
@@ -56,6 +57,7 @@ def _check_url(url: str) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia deploy`` with the parsed ``args``; returns the exit status of :func:`hw_adapter.deploy.deploy` (0 ok, 1 not identified, 2 refused before arming, 3 aborted in the safe state, 4 no bench); bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from agents.registry import UnknownController, make_controller  # noqa: PLC0415
     from hw_adapter.deploy import DeployOptions, deploy  # noqa: PLC0415
     from hw_adapter.lab import load_lab  # noqa: PLC0415

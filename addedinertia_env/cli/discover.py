@@ -7,6 +7,7 @@ from .common import BadInput, emit_json, info
 
 
 def register(sub) -> None:
+    """Add the ``discover`` subcommand and its options to the subparsers ``sub`` (``addedinertia discover --help``)."""
     p = sub.add_parser("discover", help="diagnose which effect the nominal model lacks (docs/DISCOVERY.md)",
                        description="Fit the nominal gray-box model to all strokes of the given free-decay and "
                                    "reverse-symmetric runs, try each candidate effect of the vocabulary (and pairs), "
@@ -19,6 +20,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia discover`` with the parsed ``args``; prints what the nominal model misses and its likely causes (and writes ``--report``); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..discover import DiscoveryInputError, discover  # noqa: PLC0415
 
     records = [read_record(path) for path in args.records]

@@ -8,6 +8,7 @@ from .common import emit_json, info, positive_int
 
 
 def register(sub) -> None:
+    """Add the ``export`` subcommand and its options to the subparsers ``sub`` (``addedinertia export --help``)."""
     p = sub.add_parser("export", help="export a trained model to ONNX (docs/LEARNING.md)",
                        description="Write the deterministic actor with observation normalisation and action "
                                    "clipping as ONNX, a policy card (<stem>.json) beside it, and check parity "
@@ -21,6 +22,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia export`` with the parsed ``args``; writes the ONNX file with its card and prints parity and latency; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..learning.export import export_onnx  # noqa: PLC0415 - torch is heavy
     from .common import BadInput  # noqa: PLC0415
 

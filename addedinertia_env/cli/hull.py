@@ -19,6 +19,7 @@ SOLVE_HELP = "recompute with the BEM even when a cache exists (needs Capytaine: 
 
 
 def register(sub) -> None:
+    """Add the ``hull`` subcommand and its options to the subparsers ``sub`` (``addedinertia hull --help``)."""
     p = sub.add_parser("hull", help="hull hydrodynamics from geometry: BEM A66(omega), limits, memory, stability",
                        description="A66 and B66 of a hull in yaw from its shape (BEM), at the rig's swing "
                                    "frequency and at zero and infinite frequency, with a convergence check; "
@@ -114,6 +115,7 @@ def _study_mesh(args) -> dict:
 
 
 def run(args) -> int:
+    """Run ``addedinertia hull`` with the parsed ``args``; prints the radiation study of the hull (added inertia A66 in kg m^2 and damping over frequency, convergence) from its cache or solved now, or with ``--export-mesh`` writes the mesh only; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..hull import study as st  # noqa: PLC0415
 
     if args.export_mesh:  # write the mesh and stop: nothing is solved

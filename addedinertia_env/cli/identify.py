@@ -8,6 +8,7 @@ from .common import emit_json, info
 
 
 def register(sub) -> None:
+    """Add the ``identify`` subcommand and its options to the subparsers ``sub`` (``addedinertia identify --help``)."""
     p = sub.add_parser("identify", help="estimate lambda66 from run records",
                        description="Estimate lambda66 (kg m^2) with a 95 %% interval from one or more run records.")
     p.add_argument("records", nargs="+", metavar="RUN.csv")
@@ -23,6 +24,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia identify`` with the parsed ``args``; prints lambda66 (kg m^2) with its 95 % interval (``--json``: one object); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     records = [read_record(path) for path in args.records]
     for rec in records:
         for t_before, gap in rec.gaps:

@@ -9,6 +9,7 @@ from .common import BadInput, emit_json, info, positive_int
 
 
 def register(sub) -> None:
+    """Add the ``perf`` subcommand and its options to the subparsers ``sub`` (``addedinertia perf --help``)."""
     p = sub.add_parser("perf", help="measure simulation throughput (single MuJoCo rig vs batched rig)")
     p.add_argument("--max-envs", type=positive_int, default=16384,
                    help="largest batch; the sweep is 1, 4, 16, ... up to it (default 16384)")
@@ -28,6 +29,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia perf`` with the parsed ``args``; measures steps per second of the single and the batched rig and prints the table (``--out``: writes it); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..perf import plot_time_vs_n, render_markdown, run_perf  # noqa: PLC0415
 
     if not (0 < args.seconds <= 60):

@@ -17,6 +17,7 @@ MAX_CYCLES = 1000  # records per call
 
 
 def register(sub) -> None:
+    """Add the ``simulate`` subcommand and its options to the subparsers ``sub`` (``addedinertia simulate --help``)."""
     p = sub.add_parser("simulate", help="simulate experiments and write run records")
     p.add_argument("--rig", default="wigley-2m", help="rig preset name or YAML path")
     p.add_argument("--controller", default=DEFAULT_CONTROLLER, help="controller name (see docs/CONTROLLERS.md)")
@@ -37,6 +38,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia simulate`` with the parsed ``args``; writes one run record (CSV + JSON) per run under ``--out``; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     if args.cycles > MAX_CYCLES:
         raise BadInput(f"--cycles {args.cycles}: expected at most {MAX_CYCLES} records per call (docs/RELIABILITY.md)")
     data = load_preset(args.rig)

@@ -9,6 +9,7 @@ from .common import emit_json, info, positive_int
 
 
 def register(sub) -> None:
+    """Add the ``train`` subcommand and its options to the subparsers ``sub`` (``addedinertia train --help``)."""
     p = sub.add_parser("train", help="train a policy with stable-baselines3 (docs/LEARNING.md)",
                        description="Train a policy on AddedInertia/ReverseStroke-v0 with vectorised environments, "
                                    "VecNormalize, periodic evaluation on fixed seeds, checkpoints and TensorBoard.")
@@ -32,6 +33,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``addedinertia train`` with the parsed ``args``; trains and writes the model (``model.zip``) and its card under ``--out``; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..learning.config import DEFAULT_ENV_ID, load_config  # noqa: PLC0415 - torch is heavy
     from ..learning.train import train  # noqa: PLC0415
 

@@ -40,6 +40,7 @@ class DatasetSpec:
 
     @property
     def runs(self) -> list[tuple[float, float]]:
+        """Every (twist ``alpha`` in rad, hold in s) pair of the dataset, one run each."""
         return [(a, h) for a in self.alphas for h in self.holds]
 
 

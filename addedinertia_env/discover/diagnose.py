@@ -79,6 +79,7 @@ class Candidate:
     against: str = "nominal"
 
     def to_json(self) -> dict:
+        """The candidate as a JSON-ready dict: its fitted effect sizes with standard errors, delta BIC, held-out gain, lambda66 (kg m^2) and verdict."""
         p = self.fit.params
         se = self.fit.stderr()
         extra = {k: p[k] for k in p if k not in ("lambda66", "b1", "b2")}
@@ -141,6 +142,7 @@ class Diagnosis:
                 "heldout_gain": b.heldout_gain if b is not None else 0.0}
 
     def to_json(self) -> dict:
+        """The whole diagnosis as a JSON-ready dict (``discovery.json``): cause, candidates, nominal and extended fits, residual summaries, runs, thresholds."""
         nominal_se = self.nominal.stderr()
         ext = self.extended
         bp = self.best_pair

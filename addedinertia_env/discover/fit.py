@@ -39,7 +39,7 @@ class Fit:
 
     @property
     def hull_residuals(self) -> np.ndarray:
-        """rad"""
+        """Hull-angle residuals, rad (unscaled), of every run in turn."""
         return self.model.split(self.residuals)[0]
 
     @property
@@ -84,6 +84,7 @@ class Fit:
         return bread @ meat @ bread * (G / max(G - 1, 1))
 
     def stderr(self, inflate: bool = True) -> dict[str, float]:
+        """Standard error of each parameter (its own unit), by name; ``inflate`` widens for correlated residuals."""
         sd = np.sqrt(np.clip(np.diag(self.covariance(inflate)), 0, None))
         return self.model.as_dict(sd)
 

@@ -38,6 +38,7 @@ def _segment_times(fit: Fit):
 
 
 def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
+    """Write the residual figures (by stroke, by amplitude and hold, autocorrelation) into ``folder``; returns their paths."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -101,6 +102,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
 
 
 def markdown(diag: Diagnosis, figures: list[Path]) -> str:
+    """The readable report (Markdown) of ``diag`` with links to its ``figures``."""
     j = diag.to_json()
     g = j["gain"]
     sn, sx = j["residuals_nominal"], j["residuals_extended"]
@@ -145,6 +147,7 @@ def _fmt(x) -> str:
 
 
 def write_report(diag: Diagnosis, folder: str | os.PathLike) -> Path:
+    """Write ``report.md``, its figures and ``discovery.json`` into ``folder`` (atomically); returns the report's path."""
     folder = Path(folder)
     figures = plot_residuals(diag, folder)
     path = folder / "report.md"

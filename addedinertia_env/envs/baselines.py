@@ -55,6 +55,9 @@ POLICIES: dict[str, tuple[Callable[[], Policy], int]] = {
 
 
 def evaluate(policy: Policy, action_repeat: int, seeds: list[int]) -> dict[str, Any]:
+    """Run ``policy`` for one episode per seed with ``action_repeat``; returns the mean return,
+    its reward terms, the median |rel_error| of lambda66, the failures and the motor energy (J).
+    """
     env = ReverseStrokeEnv(action_repeat=action_repeat)
     returns, errors, failed, energy = [], [], 0, []
     terms: dict[str, list[float]] = {}
@@ -84,6 +87,7 @@ def evaluate(policy: Policy, action_repeat: int, seeds: list[int]) -> dict[str, 
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Print the reference returns of :data:`POLICIES` as JSON; ``argv`` as on the command line; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)

@@ -61,6 +61,7 @@ def _env(repeat: int, samples: int) -> tuple[float, float, float]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Print the environment's cost per step against the bare experiment loop (microseconds) as JSON; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, nargs="+", default=[1, 10], help="action repeats to time")
     ap.add_argument("--samples", type=int, default=1200, help="rig samples per timing (below one episode: 1497)")

@@ -58,6 +58,7 @@ class RigRenderer:
         return self._renderer.render().copy()
 
     def close(self) -> None:
+        """Free the MuJoCo renderer (safe to call twice)."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None

@@ -49,11 +49,13 @@ class TruthLoggingRig(MujocoRig):
     """A MuJoCo rig that keeps the true state after every sample (row k of the record = ``states[k]``)."""
 
     def reset(self, *args, **kwargs):
+        """Reset as :class:`MujocoRig` does and start the true-state log with the state after the reset."""
         reading = super().reset(*args, **kwargs)
         self.states: list[TrueState] = [self.true_state()]
         return reading
 
     def step(self, cmd):
+        """Step as :class:`MujocoRig` does and log the true state at the new sample."""
         reading = super().step(cmd)
         self.states.append(self.true_state())
         return reading
@@ -70,6 +72,7 @@ class TrueRun:
 
     @property
     def truth(self) -> float:
+        """The simulator's lambda66, kg m^2 (scoring only)."""
         return self.params.hull.lambda66
 
 

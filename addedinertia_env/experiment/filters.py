@@ -32,10 +32,16 @@ class RateEstimator:
         self.value = 0.0  # rad/s, estimate at the newest sample
 
     def reset(self) -> None:
+        """Forget the samples so far (a new run); the rate reads 0 again until the window refills."""
         self.buf.clear()
         self.value = 0.0
 
     def update(self, angle: float) -> float:
+        """Add the newest ``angle`` (rad); returns the rate estimate, rad/s.
+
+        The slope of a quadratic least-squares fit at the newest sample once the window is
+        full; before that the mean slope over the samples so far (0 with fewer than two).
+        """
         self.buf.append(angle)
         n = len(self.buf)
         if n == self.n:

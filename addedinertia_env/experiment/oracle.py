@@ -14,6 +14,12 @@ from ..rig.mujoco_rig import MujocoRig
 
 
 class OracleController:
+    """Computed-torque tracking of the reverse stroke on the simulator's true state and parameters.
+
+    The floor of the benchmark (row ``oracle``): no real controller can know the truth.
+    ``omega_c`` (rad/s) sets the tracking bandwidth: ``kp = omega_c^2``, ``kd = 2 omega_c``.
+    """
+
     name = "oracle"
 
     def __init__(self, rig: MujocoRig, omega_c: float = 40.0):
@@ -21,9 +27,13 @@ class OracleController:
         self.kp, self.kd = omega_c**2, 2.0 * omega_c
 
     def reset(self, context) -> None:
+        """Keep the episode's controller context (reference, sample period)."""
         self.ctx = context
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        """The motor current (fraction of ``i_max``, clipped to [-1, 1]) whose reaction makes the true
+        hull follow the reference; 0 before the reverse stroke begins. Returns ``(action, state)``.
+        """
         p, s, ctx = self.rig.params, self.rig.true_state(), self.ctx
         ref = ctx.reference
         t = s.t + 0.5 * ctx.dt  # the torque acts over the coming sample

@@ -171,6 +171,7 @@ class Experiment:
     # --- the controlled part -----------------------------------------------------------
     @property
     def needs_control(self) -> bool:
+        """Whether the controller acts now: during the hold and the reverse stroke, until the experiment is done."""
         return not self.done and self.phase in ("hold", "reverse")
 
     def step(self, cmd: MotorCommand | None) -> Reading:

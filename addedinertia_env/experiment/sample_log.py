@@ -23,6 +23,9 @@ class SampleLog:
         self.last: Reading | None = None
 
     def add(self, r: Reading, cmd: MotorCommand | None, phase: str) -> Reading:
+        """Append reading ``r`` in ``phase`` with the command ``cmd`` in force (its current in A or
+        voltage in V in ``i_cmd`` / ``u_cmd``, 0 otherwise); returns ``r``.
+        """
         c = self.columns
         c["t"].append(r.t)
         c["phase"].append(phase)

@@ -70,6 +70,10 @@ class SegmentPlanner:
         self.period_us = int(round(1e6 * self.period_s))
 
     def plan(self, rig: Any) -> Segment:
+        """The segment the board plays from the newest sample on: the controller's held command
+        (board mode ``zoh``) or its PD law for the board (``pd``), with the switch time (board
+        microseconds) when the reverse stroke begins within the horizon.
+        """
         exp = self.exp
         t_last = exp.last.t
         t0 = rig.board_time_us(t_last)

@@ -76,6 +76,7 @@ class HullShape:
         return self.displaced_volume("floating") / (self.length * self.beam * float(self.draft))
 
     def as_dict(self) -> dict:
+        """The shape as the ``geometry`` mapping of a preset: ``shape`` and ``length``, ``beam``, ``draft`` in m."""
         return {"shape": self.shape, "length": self.length, "beam": self.beam, "draft": self.draft}
 
 
@@ -96,6 +97,7 @@ class QuarterMesh:
 
     @property
     def nb_faces_full(self) -> int:
+        """Number of panels on the whole hull (the quarter mirrored twice)."""
         return 4 * len(self.faces)
 
 

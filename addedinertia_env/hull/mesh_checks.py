@@ -43,6 +43,7 @@ class MeshReport:
     area: float
 
     def as_dict(self) -> dict:
+        """The report as a JSON-ready dict (``volume`` in m^3, ``area`` in m^2)."""
         return dataclasses.asdict(self)
 
 

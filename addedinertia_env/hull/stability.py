@@ -54,10 +54,12 @@ class Ship:
 
     @property
     def mass(self) -> float:
+        """Displaced mass, kg: ``rho * C_B * L * B * T``."""
         return self.rho * self.block_coefficient * self.length * self.beam * self.draft
 
     @property
     def yaw_inertia(self) -> float:
+        """Yaw moment of inertia of the ship's mass, kg m^2: ``mass * k^2`` (``k`` the radius of gyration, default ``L / 4``)."""
         k = self.radius_of_gyration if self.radius_of_gyration is not None else 0.25 * self.length
         return self.mass * k * k
 

@@ -26,6 +26,7 @@ class Result:
     details: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self, verbose: bool = False) -> dict[str, Any]:
+        """The result as a JSON-ready dict (lambda66 and interval in kg m^2, details); the per-interval list only when ``verbose``."""
         out = {"method": self.method, "lambda66": self.lambda66, "ci95": list(self.ci95),
                "n_intervals": self.n_intervals}
         details = dict(self.details)

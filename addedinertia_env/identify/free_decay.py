@@ -60,6 +60,8 @@ MIN_SWING_COUNTS = 60  # hull-encoder counts: smaller swings are left out (quant
 
 @dataclass
 class Extremum:
+    """One extremum of a free decay: its time (s), hull angle (rad) and 1-sigma timing error (s)."""
+
     t: float  # s
     phi: float  # rad
     sigma_t: float  # s, 1-sigma timing error from the local fit

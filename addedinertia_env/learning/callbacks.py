@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
+from ..atomic import atomic_write_text
+
 METRICS = ("rel_error", "energy_J", "tracking_rms_rad", "saturated_frac")  # the benchmark numbers of an episode
 
 
@@ -52,13 +54,16 @@ class TrainingClock:
 
     @property
     def wall_s(self) -> float:
+        """Wall seconds of training so far, resumed runs' earlier time included."""
         return self.offset_wall_s + time.perf_counter() - self.t0
 
     @property
     def cpu_s(self) -> float:
+        """CPU seconds of training so far (this process, finished children, live workers), resumed runs' included."""
         return self.offset_cpu_s + self._own_cpu() - self.cpu0 + self._workers_cpu()
 
     def snapshot(self, env_steps: int) -> dict[str, Any]:
+        """The cost so far as a JSON-ready dict: ``env_steps``, ``wall_s`` and ``cpu_s`` (s)."""
         return {"env_steps": int(env_steps), "wall_s": round(self.wall_s, 2), "cpu_s": round(self.cpu_s, 2)}
 
 
@@ -165,8 +170,5 @@ class CostCheckpointCallback(CheckpointCallback):
 
 
 def write_json_atomic(path: Path, obj: dict[str, Any]) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=2, allow_nan=False) + "\n")
-    os.replace(tmp, path)
+    """Write ``obj`` as indented strict JSON (no NaN) to ``path`` atomically, making its folder."""
+    atomic_write_text(path, json.dumps(obj, indent=2, allow_nan=False) + "\n")

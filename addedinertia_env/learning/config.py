@@ -71,10 +71,12 @@ class TrainConfig:
 
     @property
     def algo_class(self):
+        """The algorithm's class (``stable_baselines3.PPO``, ``sb3_contrib.RecurrentPPO``, ...), imported on demand."""
         module, _, name = ALGOS[self.algo][1].partition(":")
         return getattr(__import__(module, fromlist=[name]), name)
 
     def as_dict(self) -> dict[str, Any]:
+        """The config as a plain dict (deep copies), as written into the training card."""
         return {k: copy.deepcopy(getattr(self, k)) for k in ("algo", "env_id", "path", "policy", "n_timesteps",
                                                              "n_envs", "vec_env", "normalize", "env_kwargs",
                                                              "residual", "eval", "checkpoint_freq", "hyperparams")}
@@ -97,6 +99,7 @@ class TrainConfig:
 
 
 def config_path(algo: str) -> Path:
+    """The YAML file of algorithm ``algo`` in ``configs/algos/``; ConfigError naming the known algorithms otherwise."""
     if algo not in ALGOS:
         raise ConfigError(f"unknown algorithm {algo!r}; expected one of {', '.join(ALGOS)}")
     return ALGO_DIR / f"{ALGOS[algo][0]}.yaml"

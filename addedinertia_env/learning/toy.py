@@ -28,6 +28,12 @@ TOY_ENV_ID = "AddedInertia/ToyTracking-v0"
 
 
 class ToyTrackingEnv(gym.Env):
+    """The toy tracking task of the module docstring (``AddedInertia/ToyTracking-v0``).
+
+    ``n_steps`` steps per episode of ``action_repeat`` integration steps of ``dt`` s each;
+    hull ``J`` = 1 kg m^2, ``c`` = 2 N m/rad, ``k_t`` = 0.25 N m/A, ``i_max`` = 10 A.
+    """
+
     metadata = {"render_modes": []}
 
     def __init__(self, n_steps: int = 200, dt: float = 0.01, action_repeat: int = 1):
@@ -39,6 +45,7 @@ class ToyTrackingEnv(gym.Env):
         self.J, self.c, self.k_t, self.i_max = 1.0, 2.0, 0.25, 10.0  # kg m^2, N m/rad, N m/A, A
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Draw a new reference (amplitude 0.02-0.08 rad, 1-3 rad/s) from ``seed``; returns ``(obs, {})``."""
         super().reset(seed=seed)
         self.amplitude = float(self.np_random.uniform(0.02, 0.08))  # rad
         self.omega = float(self.np_random.uniform(1.0, 3.0))  # rad/s
@@ -62,6 +69,7 @@ class ToyTrackingEnv(gym.Env):
         return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
 
     def step(self, action):
+        """Apply the normalised current ``action`` for ``action_repeat`` steps; returns ``(obs, reward, False, truncated, info)``."""
         torque = self.k_t * self.i_max * float(np.clip(np.asarray(action).reshape(-1)[0], -1, 1))
         for _ in range(self.action_repeat):
             acc = (torque - self.c * self.phi) / self.J
@@ -75,6 +83,7 @@ class ToyTrackingEnv(gym.Env):
 
 
 def register_toy() -> None:
+    """Register ``AddedInertia/ToyTracking-v0`` with Gymnasium (once; later calls do nothing)."""
     if TOY_ENV_ID not in gym.registry:
         gym.register(id=TOY_ENV_ID, entry_point=ToyTrackingEnv)
 

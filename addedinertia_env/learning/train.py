@@ -141,7 +141,7 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
         "command": command,
         "resumed_from": str(resume) if resume else None,
         "cost": {**cost, "cpu_minutes": round(cost["cpu_s"] / 60.0, 2), "env_steps_before_resume": done_before},
-        "machine": {**machine(), "device": str(model.device)},
+        "machine": {**machine_info(), "device": str(model.device)},
         "final_eval": final,
         "best_eval_mean_reward": (float(evaluator.best_mean_reward) if np.isfinite(evaluator.best_mean_reward)
                                   else None),  # None: no periodic evaluation ran
@@ -176,7 +176,3 @@ def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]
     if energy:
         result["mean_energy_J"] = float(np.mean(energy))
     return result
-
-
-def machine() -> dict[str, Any]:
-    return machine_info()

@@ -60,6 +60,13 @@ class Score:
 
 @dataclass
 class HullRow:
+    """One simulated hull of the table: its drawn parameters and each method's :class:`Score`.
+
+    ``lambda66`` and ``J_hull`` in kg m^2 (the simulator's truth, for scoring), ``period_s``
+    the swing period in s, ``b2`` the quadratic damping in N m s^2, ``alpha`` the rod's
+    twist before release in rad and ``hold_s`` the hold in s.
+    """
+
     index: int
     seed: int
     lambda_ratio: float
@@ -81,6 +88,11 @@ def lambda_ratios(hulls: int) -> list[float]:
 
 
 def score(estimate: float, ci95: tuple[float, float], truth: float) -> Score:
+    """Score an estimate (kg m^2) with its 95 % interval against the true lambda66 (kg m^2).
+
+    Returns a :class:`Score` with the error and the interval half-width as fractions of
+    ``truth`` and whether the interval covers it.
+    """
     lo, hi = ci95
     return Score(lambda66=estimate, rel_error=(estimate - truth) / truth, rel_half_width=0.5 * (hi - lo) / truth,
                  covered=bool(lo <= truth <= hi))
@@ -116,10 +128,6 @@ def summary(rows: list[HullRow], method: str) -> dict[str, Any]:
             "covered": sum(s.covered for s in ok),
             "coverage": (sum(s.covered for s in ok) / len(scores)) if scores else math.nan,
             "mean_half_width": float(np.mean([s.rel_half_width for s in ok])) if ok else math.nan}
-
-
-def machine() -> str:
-    return machine_line()
 
 
 def _pct(x: float, digits: int = 2) -> str:
@@ -205,12 +213,13 @@ All three use only the record's samples and its `rig` and `experiment` blocks; t
 """
 
 
-def write_atomic(path: Path, text: str) -> None:
-    atomic_write_text(path, text)
-
-
 def build(hulls: int, seed: int = DEFAULT_SEED, controller: str = DEFAULT_CONTROLLER, methods=METHODS,
           progress: bool = True, effect: str | None = None) -> list[HullRow]:
+    """Run every method on ``hulls`` simulated hulls (hull ``k`` has seed ``seed + k``); returns their rows.
+
+    Ratios lambda66 / J_hull are spread evenly over 0.5..2.5 (:func:`lambda_ratios`); ``effect``
+    hides one effect of run-record.md in every hull.
+    """
     from tqdm import tqdm  # noqa: PLC0415
 
     rows = []
@@ -221,6 +230,7 @@ def build(hulls: int, seed: int = DEFAULT_SEED, controller: str = DEFAULT_CONTRO
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Regenerate ``docs/ACCURACY.md`` (the command is in the module docstring; ``--hulls`` at least 2); ``argv`` as on the command line; returns 0."""
     ap = argparse.ArgumentParser(prog=COMMAND, description=__doc__.split("\n\n")[0])
     ap.add_argument("--hulls", type=int, default=24, help="number of simulated hulls (>= 2)")
     ap.add_argument("--out", type=Path, default=Path("docs/ACCURACY.md"), help="Markdown file to write")
@@ -240,9 +250,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.effect:
         command += f" --effect {args.effect}"
     info = {"command": command, "date": dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
-            "machine": machine(), "wall_s": time.time() - t0, "cpu_s": time.process_time() - c0,
+            "machine": machine_line(), "wall_s": time.time() - t0, "cpu_s": time.process_time() - c0,
             "seed": args.seed, "controller": args.controller, "effect": args.effect}
-    write_atomic(args.out, render(rows, info))
+    atomic_write_text(args.out, render(rows, info))
     for m in METHODS:
         s = summary(rows, m)
         print(f"{m:11s} median |err| {_pct(s['median_abs_error'])}, p90 {_pct(s['p90_abs_error'])}, "

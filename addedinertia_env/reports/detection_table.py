@@ -15,23 +15,28 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
 
+from ..machine import machine_line
 from ..record import read_record
 from ..rig.effects import EFFECT_NAMES
 from ..discover.dataset import DatasetSpec, hidden_effect, simulate_dataset
 from ..discover.diagnose import discover
+from .sections import replace_section
 
 BEGIN, END = "<!-- detection-table:begin -->", "<!-- detection-table:end -->"
 ROWS = ("none",) + EFFECT_NAMES
 
 
 def dataset_records(effect: str, seed: int, cache: Path | None):
+    """The records of one simulated discovery dataset (``effect`` hidden, ``seed``).
+
+    With a ``cache`` folder, records already there are read instead of simulated again, and
+    new ones are written there.
+    """
     spec = DatasetSpec()
     if cache is not None:
         folder = cache / f"{effect}-{seed}"
@@ -43,6 +48,9 @@ def dataset_records(effect: str, seed: int, cache: Path | None):
 
 
 def evaluate(effect: str, seed: int, cache: Path | None) -> dict:
+    """Run ``discover`` on one dataset; returns the named cause, the gain of the extended model,
+    the lambda66 errors (fractions; truth read for scoring only) and the times (s).
+    """
     t0 = time.perf_counter()
     records = dataset_records(effect, seed, cache)
     t1 = time.perf_counter()
@@ -57,22 +65,11 @@ def evaluate(effect: str, seed: int, cache: Path | None) -> dict:
             "sim_s": t1 - t0, "discover_s": t2 - t1}
 
 
-def machine() -> str:
-    model = "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{os.cpu_count()} CPU cores (nproc), {model}, Python {platform.python_version()}"
-
-
 def table(rows: list[dict], seeds: int, wall_s: float) -> str:
+    """The marked Markdown block of detection and false-alarm rates and the confusion table, from the rows of :func:`evaluate`."""
     lines = [BEGIN, "",
              f"Measured by `python -m addedinertia_env.reports.detection_table --seeds {seeds} --out docs/DISCOVERY.md`"
-             f" on {machine()}; {wall_s / 60:.1f} min in all, median `discover` "
+             f" on {machine_line()}; {wall_s / 60:.1f} min in all, median `discover` "
              f"{np.median([r['discover_s'] for r in rows]):.1f} s per dataset of 4 runs.", "",
              "| hidden effect | seeds | detected | wrong effect named | missed (`none`) | `unexplained` "
              "| median residual RMS nominal -> extended (urad) | median held-out gain "
@@ -114,20 +111,8 @@ def table(rows: list[dict], seeds: int, wall_s: float) -> str:
     return "\n".join(lines)
 
 
-def write_into(path: Path, block: str) -> None:
-    text = path.read_text() if path.exists() else ""
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        tail = rest.split(END, 1)[1]
-        text = head + block + tail
-    else:
-        text = block + "\n"
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def main(argv: list[str] | None = None) -> int:
+    """Regenerate ``the detection table of docs/DISCOVERY.md`` (the command is in the module docstring; also one JSON line per dataset in ``--jsonl``); ``argv`` as on the command line; returns 0."""
     from tqdm import tqdm  # noqa: PLC0415
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -151,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
             f.write(json.dumps(r) + "\n")
             f.flush()
     block = table(rows, args.seeds, time.perf_counter() - t0)
-    write_into(Path(args.out), block)
+    replace_section(args.out, block, BEGIN, END)
     print(block)
     return 0
 

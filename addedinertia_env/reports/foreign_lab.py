@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_write_texts
 from ..discover import discover
 from ..identify import identify
 from ..machine import machine_line
 from ..record import read_record
+from .sections import replace_section
 
 BEGIN, END = "<!-- foreign-lab-table:begin -->", "<!-- foreign-lab-table:end -->"
 COMMAND = "python -m addedinertia_env.reports.foreign_lab --data ../shared/data/foreign-lab.tar.xz --out docs/DISCOVERY.md"
@@ -58,6 +58,7 @@ def evaluate_case(folder: Path) -> dict:
 
 
 def table(rows: list[dict], answers: dict, wall_s: float) -> str:
+    """The marked Markdown block of the foreign-lab cases: named cause, lambda66 errors (% of the lab's answer), interval coverage, time."""
     lines = [BEGIN, "",
              f"Measured by `{COMMAND}` on {machine_line()}; {wall_s / 60:.1f} min in all. "
              "lambda66 errors are against the lab's `answers.json` (read for scoring only). "
@@ -94,17 +95,8 @@ def table(rows: list[dict], answers: dict, wall_s: float) -> str:
     return "\n".join(lines)
 
 
-def write_into(path: Path, block: str) -> None:
-    text = path.read_text() if path.exists() else ""
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        text = head + block + rest.split(END, 1)[1]
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    atomic_write_texts([(path, text)])
-
-
 def main(argv: list[str] | None = None) -> int:
+    """Regenerate ``the foreign-lab table of docs/DISCOVERY.md`` (the command is in the module docstring; ``--data`` is the lab's archive); ``argv`` as on the command line; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default="../shared/data/foreign-lab.tar.xz", help="the lab's archive (.tar.xz)")
     ap.add_argument("--out", default="docs/DISCOVERY.md")
@@ -129,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
                 f.flush()
                 print(f"{row['case']}: {row['cause']} ({row['discover_s']:.0f} s)", flush=True)
     block = table(rows, answers, time.perf_counter() - t0)
-    write_into(Path(args.out), block)
+    replace_section(args.out, block, BEGIN, END)
     print(block)
     return 0
 

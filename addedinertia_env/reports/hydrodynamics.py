@@ -66,6 +66,7 @@ def solve_lamb_check(progress=print) -> dict:
 
 
 def lamb_figure(data: dict, path: Path) -> Path:
+    """Plot the BEM's error against Lamb's value (%) over the panel count for each L/B; writes the PNG ``path`` atomically and returns it."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -284,6 +285,7 @@ def build(root: Path, solve: bool = False, progress=print, solve_lamb: bool = Fa
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Regenerate ``docs/HYDRODYNAMICS.md and its figures`` (the command is in the module docstring; ``--solve`` re-solves with Capytaine); ``argv`` as on the command line; returns 0."""
     p = argparse.ArgumentParser(prog=COMMAND, description=__doc__.split("\n")[0])
     p.add_argument("--solve", action="store_true", help="re-solve the Lamb check and the presets' caches (Capytaine)")
     p.add_argument("--solve-lamb", action="store_true", help="re-solve only the Lamb check (Capytaine; ~3 min)")

@@ -21,13 +21,14 @@ import argparse
 import json
 import math
 import os
-import re
 import shlex
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .sections import replace_section
 
 MARK = "<!-- curves:{algo}:{end} -->"
 DOC = Path("docs/LEARNING.md")
@@ -78,6 +79,7 @@ def classical_reference(controller: str, eval_seed: int, n_episodes: int, action
 
 
 def read_curve(out: Path) -> list[dict[str, Any]]:
+    """The evaluation curve of a training run folder ``out`` (``eval/curve.jsonl``), one dict per evaluation."""
     path = out / "eval" / "curve.jsonl"
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
@@ -94,6 +96,7 @@ def aggregate(curves: list[list[dict[str, Any]]], key: str) -> dict[str, np.ndar
 
 
 def plot(algo: str, metric: dict[str, np.ndarray], reward: dict[str, np.ndarray], path: Path, title: str) -> None:
+    """Plot the metric (median |rel_error|, %) against agent steps, wall and CPU minutes; writes the PNG ``path`` atomically."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -119,6 +122,7 @@ def plot(algo: str, metric: dict[str, np.ndarray], reward: dict[str, np.ndarray]
 
 def section(algo: str, args, cards: list[dict[str, Any]], metric, reward, figure: str, command: str,
             reference: dict[str, Any] | None = None) -> str:
+    """The marked Markdown section of one algorithm: the command, the machine, the figure, the curve table and the cost per seed (CPU minutes)."""
     from ..machine import machine_info  # noqa: PLC0415
 
     m = {**machine_info(), "load_avg_1_5_15": [round(x, 1) for x in os.getloadavg()]}
@@ -147,20 +151,8 @@ def section(algo: str, args, cards: list[dict[str, Any]], metric, reward, figure
     return "\n".join(lines)
 
 
-def write_section(doc: Path, algo: str, text: str) -> None:
-    old = doc.read_text()
-    begin, end = MARK.format(algo=algo, end="begin"), MARK.format(algo=algo, end="end")
-    if begin in old and end in old:
-        new = re.sub(re.escape(begin) + r".*?" + re.escape(end), lambda _m: text, old, flags=re.S)
-    else:
-        head = "## Learning curves on the batched engine"
-        new = old.rstrip("\n") + "\n\n" + (head + "\n\n" if head not in old else "") + text + "\n"
-    tmp = doc.with_name(doc.name + ".tmp")
-    tmp.write_text(new)
-    os.replace(tmp, doc)
-
-
 def main(argv: list[str] | None = None) -> int:
+    """Regenerate ``one algorithm's section of docs/LEARNING.md and its figure`` (the command is in the module docstring; training runs in ``--runs`` are reused when finished; returns 2 for out-of-range options); ``argv`` as on the command line; returns 0."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--algo", required=True, choices=["ppo", "sac", "td3", "recurrent-ppo"])
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
@@ -192,8 +184,9 @@ def main(argv: list[str] | None = None) -> int:
     command = "python -m addedinertia_env.reports.learning_curves " + shlex.join(sys.argv[1:] if argv is None else argv)
     plot(args.algo, metric, reward, fig, f"{args.algo}, batched engine, {len(args.seeds)} seeds")
     reference = None if args.reference == "none" else classical_reference(args.reference, 10000, args.eval_episodes)
-    write_section(doc, args.algo, section(args.algo, args, cards, metric, reward, os.path.relpath(fig, doc.parent),
-                                          command, reference))
+    text = section(args.algo, args, cards, metric, reward, os.path.relpath(fig, doc.parent), command, reference)
+    replace_section(doc, text, MARK.format(algo=args.algo, end="begin"), MARK.format(algo=args.algo, end="end"),
+                    heading="## Learning curves on the batched engine")
     print(f"wrote {doc} ({args.algo}) and {fig}", file=sys.stderr)
     return 0
 

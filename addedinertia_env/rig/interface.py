@@ -19,6 +19,13 @@ if TYPE_CHECKING:
 
 @runtime_checkable
 class Rig(Protocol):
+    """What a rig offers the experiment and the task: the sim, the emulator and the bench alike.
+
+    ``dt`` is the sample (control) period in s, ``known`` the experimenter's constants; the
+    methods move the hull, set the brake and the motor command, and step one period,
+    returning each time a :class:`~addedinertia_env.rig.sensors.Reading` (SI units).
+    """
+
     source: str  # "sim", "emulator" or "bench": the run record's ``source``
 
     @property

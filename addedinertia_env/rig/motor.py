@@ -27,6 +27,13 @@ MODES = ("passive", "current", "voltage")
 
 @dataclass(frozen=True)
 class MotorCommand:
+    """What the motor driver is asked to do: ``mode`` in :data:`MODES` and its ``value``.
+
+    ``value`` is a current in A (``current`` mode) or a voltage in V (``voltage`` mode);
+    ``passive`` leaves the winding open. Raises ValueError for an unknown mode or a value
+    that is not finite.
+    """
+
     mode: str = "passive"  # one of MODES
     value: float = 0.0  # A in current mode, V in voltage mode
 

@@ -147,9 +147,11 @@ class RigParams:
 
     @property
     def physics_dt(self) -> float:
+        """Physics integration step, s: the sample period over ``physics_substeps``."""
         return self.sensors.dt / self.physics_substeps
 
     def replace(self, **changes) -> "RigParams":
+        """A copy with the given fields replaced (``dataclasses.replace``; validated again)."""
         return replace(self, **changes)
 
     def known(self) -> "KnownRig":

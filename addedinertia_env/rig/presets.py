@@ -26,6 +26,7 @@ RIG_DIR = CONFIG_DIR / "rigs"
 
 
 def available_rigs() -> list[str]:
+    """Names of the rig presets in ``configs/rigs/`` (file stems), sorted."""
     return sorted(p.stem for p in RIG_DIR.glob("*.yaml"))
 
 
@@ -42,6 +43,7 @@ def config_path(kind: str, name: str, folder: Path) -> Path:
 
 
 def rig_path(name: str) -> Path:
+    """The YAML file of rig preset ``name`` (a preset name or a path); ConfigError if there is none."""
     return config_path("rig", name, RIG_DIR)
 
 
@@ -82,6 +84,12 @@ def load_rig(name: str, effects: Effects | None = None, sensors: SensorParams | 
 
 def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
                      sensors: SensorParams | None = None) -> RigParams:
+    """:class:`RigParams` from a preset's parsed mapping (blocks ``hull``, ``spring``, ``motor``, ...).
+
+    ``effects`` and ``sensors``, when given, replace the mapping's own blocks. Every value
+    is in SI units. Raises ConfigError naming the file (``data['_path']``) and the field for
+    an unknown key or an invalid value.
+    """
     where = data.get("_path", "rig")
     _only_keys(data, set(TOP_KEYS), where)
     hull_block = data.get("hull") or {}

@@ -240,8 +240,14 @@ class Sensors:
         self.model = SensorModel(BatchedParams.repeat(params, 1), seed=[seed])
 
     def reset(self) -> None:
+        """Empty the sensor delay lines (a new run); the noise streams go on."""
         self.model.reset()
 
     def read(self, t: float, phi: float, psi: float, u: float, i: float, brake: bool) -> Reading:
+        """What the instruments report at time ``t`` (s) for the true state of one rig.
+
+        ``phi`` and ``psi`` in rad, ``u`` in V, ``i`` in A, ``brake`` engaged or not. Returns
+        a :class:`Reading` of plain floats.
+        """
         return self.model.read(np.array([t]), np.array([phi]), np.array([psi]), np.array([u]), np.array([i]),
                                np.array([brake])).single(0)
