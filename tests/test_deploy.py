@@ -181,3 +181,24 @@ def test_deploy_bad_input_and_an_absent_bench(tmp_path, capsys):
     # loop:// echoes our own frames back: no board answers HELLO -> exit 4, nothing moved
     status, summary = run_deploy(capsys, "--bench", "loop://", "--controller", "pd")
     assert status == 4 and summary["status"].startswith("aborted: link") and summary["record"] is None
+
+
+def test_a_link_slower_than_half_the_watchdog_fails_the_arming_check(tmp_path):
+    """The round-trip check before arming, made deterministic: the emulator delays every frame
+    it sends by 60 ms, the host's watchdog is 40 ms (lock-step), so every echo takes longer than
+    the 20 ms bound whatever the machine's load (a loaded machine is only slower). deploy stops
+    before arming; the board never moved. (The passing side is every other deploy test.)"""
+    server = start_emulator(fast=True, seed=SEED, faults="latency=60")
+    try:
+        summary, status = deploy(DeployOptions(bench=server.url, controller="lqr", lab=load_lab("wigley-2m"),
+                                               out=tmp_path, hold_s=HOLD_S, watchdog_s=0.04, rtt_pings=3),
+                                 make_controller("lqr"))
+    finally:
+        server.stop()
+    assert status == EXIT_ABORTED, summary["status"]
+    check = next(c for c in summary["arm_checks"] if c["check"] == "link_round_trip")
+    assert not check["ok"] and "3/3 echoes" in check["detail"] and "half the watchdog" in check["detail"]
+    assert all(c["ok"] for c in summary["arm_checks"] if c["check"] != "link_round_trip")
+    assert "arming check failed: link_round_trip" in summary["status"]
+    assert all(c.mode == "passive" and c.brake and not c.armed for c in server.board.commands)  # only safe stops
+    assert not server.board.armed and summary["safe_stop"]

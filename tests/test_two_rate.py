@@ -30,8 +30,10 @@ def test_lockstep_two_rate_deploy_matches_the_simulated_two_rate_board(tmp_path)
     no link latency (lock-step) the host's record and lambda66 agree with the simulation."""
     server = start_emulator(RIG, fast=True)
     try:
+        # rtt_pings=0: the link's timing is not what this test is about (a loaded machine can stretch
+        # an echo past the bound); the round-trip check has its own test in test_deploy.py.
         opts = DeployOptions(bench=server.url, controller="lqr", lab=load_lab(RIG), out=tmp_path, hold_s=HOLD_S,
-                             host_rate_hz=100.0)
+                             host_rate_hz=100.0, rtt_pings=0)
         summary, status = deploy(opts, make_controller("lqr"))
     finally:
         server.stop()
