@@ -8,13 +8,30 @@ was expected, never a ``UnicodeDecodeError`` or ``yaml`` traceback.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import yaml
 
 
 class ConfigError(ValueError):
     """A configuration file or override that cannot be used; the message says how to fix it."""
+
+
+def check_keys(block: Any, allowed: Iterable[str], where: str) -> dict[str, Any]:
+    """``block`` itself if it is a mapping whose keys are all in ``allowed``; else ConfigError.
+
+    ``where`` names the file and the block in the message (``"configs/rigs/x.yaml: hull"``);
+    the message lists the unknown keys and the allowed ones. The loader's own ``_path``
+    key is always allowed.
+    """
+    allowed = set(allowed)
+    if not isinstance(block, dict):
+        raise ConfigError(f"{where} = {block!r}: expected a mapping with keys from {sorted(allowed)}")
+    unknown = sorted(map(str, set(block) - allowed - {"_path"}))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(allowed)}")
+    return block
+
 
 MAX_CONFIG_BYTES = 1_000_000  # a configuration file is a few kB; beyond this it is not one
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from .config_io import read_yaml
+from .config_io import check_keys, read_yaml
 
 from .experiment.protocol import ExperimentPlan
 from .rig.control_loop import ControlLoop, LoopRig
@@ -64,12 +64,7 @@ def load_ranges(path: str | Path | None = None) -> dict[str, Any]:
     that is not ``[low, high]`` with ``low <= high``.
     """
     path = Path(path) if path else CONFIG_DIR / "randomization.yaml"
-    data = read_yaml(path, "randomisation ranges") or {}
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: expected a mapping of [low, high] ranges")
-    unknown = sorted(set(data) - RANGE_KEYS)
-    if unknown:
-        raise ConfigError(f"{path}: unknown key(s) {unknown}; allowed keys are {sorted(RANGE_KEYS)}")
+    data = check_keys(read_yaml(path, "randomisation ranges") or {}, RANGE_KEYS, str(path))
     for key, value in data.items():
         if key == "sensor_quality":
             continue

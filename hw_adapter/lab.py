@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from addedinertia_env.config_io import read_yaml
+from addedinertia_env.config_io import check_keys, read_yaml
 
 from addedinertia_env.rig.known import KnownRig
 from addedinertia_env.rig.presets import ConfigError, load_preset, rig_from_mapping
@@ -88,11 +88,7 @@ def load_lab(name_or_path: str) -> LabConfig:
 
 def lab_from_mapping(data: Any, where: str) -> LabConfig:
     """Check a lab file's mapping (``where`` names it in errors); raises ``ConfigError``."""
-    if not isinstance(data, dict):
-        raise ConfigError(f"{where}: expected a mapping with keys {sorted(LAB_KEYS)}")
-    unknown = sorted(set(data) - LAB_KEYS)
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(LAB_KEYS)}")
+    check_keys(data, LAB_KEYS, where)
     constants: dict[str, Any] = {}
     for key in MECHANICAL_KEYS:
         if key not in data:

@@ -17,25 +17,12 @@ from pathlib import Path
 from typing import Any, Callable
 
 from addedinertia_env.atomic import atomic_write_text
+from addedinertia_env.jsonable import plain
 from addedinertia_env.record import FORMAT
 from addedinertia_env.rig.motor import MotorCommand
 from addedinertia_env.rig.sensors import Reading
 
 COLUMNS = ("t", "phase", "phi", "psi", "u", "i", "i_cmd", "u_cmd", "brake")
-
-
-
-def json_safe(x: Any) -> Any:
-    """NaN and infinities become null, so the JSON is standard."""
-    if isinstance(x, dict):
-        return {str(k): json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [json_safe(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if hasattr(x, "item") and callable(x.item):  # numpy scalars
-        return json_safe(x.item())
-    return x
 
 
 class IncrementalRecord:
@@ -58,7 +45,7 @@ class IncrementalRecord:
         self.csv_path.parent.mkdir(parents=True, exist_ok=True)
         meta = {"format": FORMAT, "run_id": self.run_id, **meta}
         meta.setdefault("experiment", {})["status"] = "running"
-        atomic_write_text(self.json_path, json.dumps(json_safe(meta), indent=2) + "\n")
+        atomic_write_text(self.json_path, json.dumps(plain(meta), indent=2, allow_nan=False) + "\n")
         self._file = open(self.csv_path, "w", newline="")  # noqa: SIM115 - kept open for the run
         self._file.write(",".join(COLUMNS) + "\n")
         self._file.flush()
@@ -88,5 +75,5 @@ class IncrementalRecord:
             self._file = None
         meta = {"format": FORMAT, "run_id": self.run_id, **meta}
         meta.setdefault("experiment", {})["status"] = status
-        atomic_write_text(self.json_path, json.dumps(json_safe(meta), indent=2) + "\n")
+        atomic_write_text(self.json_path, json.dumps(plain(meta), indent=2, allow_nan=False) + "\n")
         return self.csv_path

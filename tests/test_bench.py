@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -46,6 +47,23 @@ def test_standard_suite_has_disjoint_tuning_and_test_splits():
 def test_unknown_suite_is_a_config_error():
     with pytest.raises(ConfigError, match="unknown suite"):
         load_suite("no-such-suite")
+
+
+@pytest.mark.parametrize("block, value, message", [
+    ("fixed", "3", r"fixed = 3: expected a mapping with keys from \['J_flywheel'"),
+    ("fixed", "{colour: red}", r"fixed: unknown key\(s\) \['colour'\]; allowed keys are"),
+    ("ranges", "{colour: [1, 2]}", r"ranges: unknown key\(s\) \['colour'\]"),
+])
+def test_a_suite_block_that_is_no_mapping_or_has_unknown_keys_is_refused_by_name(tmp_path, block, value, message):
+    """Every block of a suite file is checked the same way (config_io.check_keys): a value that
+    is not a mapping was a TypeError (exit 70) before; now a ConfigError naming file and block."""
+    text = (Path(__file__).resolve().parents[1] / "configs" / "suites" / "smoke.yaml").read_text()
+    lines = [line for line in text.splitlines() if not line.startswith(("fixed:", "ranges:", "  hold_s:",
+                                                                          "  sensor_quality:"))]
+    path = tmp_path / "suite.yaml"
+    path.write_text("\n".join(lines) + f"\n{block}: {value}\n")
+    with pytest.raises(ConfigError, match=rf"{path}: {message}"):
+        load_suite(str(path))
 
 
 def test_bench_run_writes_rows_with_required_fields(tmp_path, capsys):

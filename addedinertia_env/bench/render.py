@@ -12,7 +12,6 @@ import html
 import json
 import math
 from pathlib import Path
-from typing import Any
 
 from . import ranking
 from .plots import pareto_front

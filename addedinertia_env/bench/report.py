@@ -7,7 +7,6 @@ self-contained HTML page and writes its figures beside ``out`` (``figures/``).
 from __future__ import annotations
 
 import datetime
-import math
 from pathlib import Path
 from typing import Any
 
@@ -133,16 +132,3 @@ def build(rows: list[dict], command: str, fmt: str = "md", out: Path | None = No
         if len({str(r.get(key)) for r in rows}) > 1 or key == "preset":
             text += f"\n## Median |error| (as written) by {label}\n\n" + breakdown(rows, order, key) + "\n"
     return text, entries
-
-
-def finite_or_none(x: Any) -> Any:
-    """JSON-safe copy: non-finite floats become None, tuples lists."""
-    if isinstance(x, dict):
-        return {str(k): finite_or_none(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [finite_or_none(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x

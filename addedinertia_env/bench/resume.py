@@ -12,14 +12,12 @@ another controller, suite or split is never mixed with or overwritten unless ``f
 from __future__ import annotations
 
 import json
-import math
 import os
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
-
 from ..atomic import atomic_write_text
+from ..jsonable import plain
 
 KEY_FIELDS = ("controller", "suite", "split")
 
@@ -102,7 +100,7 @@ class RowAppender:
 
     def append(self, row: dict[str, Any]) -> None:
         """Append ``row`` as one JSON line (non-finite numbers as null), flushed and synced to disk."""
-        self._f.write(json.dumps(finite(row), allow_nan=False) + "\n")
+        self._f.write(json.dumps(plain(row), allow_nan=False) + "\n")
         self._f.flush()
         os.fsync(self._f.fileno())
         self.written += 1
@@ -116,19 +114,6 @@ class RowAppender:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-def finite(x: Any) -> Any:
-    """JSON-safe copy: non-finite floats become None, numpy scalars plain numbers."""
-    if isinstance(x, dict):
-        return {k: finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [finite(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
 
 
 RowCallback = Callable[[dict[str, Any]], None]

@@ -19,7 +19,6 @@ every controller) and identifies them jointly. Controllers that learn across cyc
 from __future__ import annotations
 
 import functools
-import json
 import math
 import multiprocessing
 import os
@@ -28,7 +27,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -202,27 +201,3 @@ def run_tasks(tasks: list[EpisodeTask], jobs: int = 1, progress: bool = True, de
     finally:
         bar.close()
     return rows
-
-
-def write_rows(rows: Iterable[dict], path: str | Path) -> Path:
-    """JSON lines, written atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w") as f:
-        for row in rows:
-            f.write(json.dumps(_finite(row), allow_nan=False) + "\n")
-    os.replace(tmp, path)
-    return path
-
-
-def _finite(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x

@@ -30,7 +30,7 @@ from typing import Any
 
 from agents.tuned import load_tuned
 
-from ..config_io import read_yaml
+from ..config_io import check_keys, read_yaml
 
 from ..rig.presets import CONFIG_DIR, ConfigError, config_path
 from ..scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
@@ -146,12 +146,7 @@ def suite_path(name: str) -> Path:
 def load_suite(name: str) -> Suite:
     """The suite ``name`` (a file in configs/suites/ or a path), validated."""
     path = suite_path(name)
-    data = read_yaml(path, "suite") or {}
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: expected a mapping with keys {sorted(SUITE_KEYS)}")
-    unknown = sorted(set(data) - SUITE_KEYS)
-    if unknown:
-        raise ConfigError(f"{path}: unknown key(s) {unknown}; allowed keys are {sorted(SUITE_KEYS)}")
+    data = check_keys(read_yaml(path, "suite") or {}, SUITE_KEYS, str(path))
     presets = data.get("presets") or ["wigley-2m"]
     if not (isinstance(presets, list) and all(isinstance(p, str) for p in presets)):
         raise ConfigError(f"{path}: presets = {presets!r}; expected a list of rig preset names")
@@ -162,10 +157,7 @@ def load_suite(name: str) -> Suite:
         ranges = _validate_inline_ranges(ranges_spec, path)
     else:
         raise ConfigError(f"{path}: ranges = {ranges_spec!r}; expected a file name in configs/ or a mapping")
-    fixed = data.get("fixed") or {}
-    bad = sorted(set(fixed) - RANGE_KEYS)
-    if bad:
-        raise ConfigError(f"{path}: fixed has unknown key(s) {bad}; allowed keys are {sorted(RANGE_KEYS)}")
+    fixed = check_keys(data.get("fixed") or {}, RANGE_KEYS, f"{path}: fixed")
     splits_raw = data.get("splits") or {}
     splits: dict[str, tuple[int, int]] = {}
     for split, spec in splits_raw.items():
@@ -206,9 +198,7 @@ def load_suite(name: str) -> Suite:
 
 
 def _validate_inline_ranges(ranges: dict[str, Any], path: Path) -> dict[str, Any]:
-    unknown = sorted(set(ranges) - RANGE_KEYS)
-    if unknown:
-        raise ConfigError(f"{path}: ranges has unknown key(s) {unknown}; allowed keys are {sorted(RANGE_KEYS)}")
+    check_keys(ranges, RANGE_KEYS, f"{path}: ranges")
     for key, value in ranges.items():
         if key == "sensor_quality":
             if not (isinstance(value, list) and value):

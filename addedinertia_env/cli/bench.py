@@ -153,7 +153,8 @@ def invoked_command(args) -> str:
 def run_leaderboard(args) -> int:
     """Run ``addedinertia bench leaderboard`` with the parsed ``args``; writes (or prints) the ranking as Markdown, HTML or JSON; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..bench.leaderboard import RowsError, load_rows, public  # noqa: PLC0415
-    from ..bench.report import build, finite_or_none  # noqa: PLC0415
+    from ..bench.report import build  # noqa: PLC0415
+    from ..jsonable import plain  # noqa: PLC0415
 
     try:
         rows = load_rows(args.files)
@@ -166,7 +167,7 @@ def run_leaderboard(args) -> int:
 
         entries = summarise(rows)
         disc = discrimination(entries)
-        obj = finite_or_none({"title": args.title, "entries": public(entries), "files": args.files,
+        obj = plain({"title": args.title, "entries": public(entries), "files": args.files,
                               "verdict": verdict(entries),
                               "discrimination": {k: v for k, v in disc.items()} if disc else None,
                               "command": invoked_command(args)})

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config_io import ConfigError
+from ..config_io import ConfigError, check_keys
 from ..record import RunRecord
 from ..rig.interface import Rig
 from ..rig.motor import MotorCommand
@@ -78,11 +78,8 @@ def plan_from_preset(data: dict[str, Any], **overrides: Any) -> ExperimentPlan:
     """A rig preset's (or lab file's) ``experiment`` block as an :class:`ExperimentPlan`, with
     ``overrides`` (``None`` values ignored); ``ConfigError`` naming the file and the key."""
     where = data.get("_path", "rig")
-    exp = dict(data.get("experiment") or {})
     allowed = {f.name for f in dataclasses.fields(ExperimentPlan)}
-    unknown = sorted(set(exp) - allowed)
-    if unknown:
-        raise ConfigError(f"{where}: experiment: unknown key(s) {unknown}; allowed keys are {sorted(allowed)}")
+    exp = dict(check_keys(data.get("experiment") or {}, allowed, f"{where}: experiment"))
     exp.update({k: v for k, v in overrides.items() if v is not None})
     numeric = {f.name for f in dataclasses.fields(ExperimentPlan) if f.type in ("float", float)}
     for key, value in exp.items():

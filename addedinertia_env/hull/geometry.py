@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config_io import ConfigError
+from ..config_io import ConfigError, check_keys
 
 SHAPES = ("wigley", "spheroid")
 SUBMERGENCE = ("floating", "deep")
@@ -247,11 +247,7 @@ def shape_from_mapping(block: Any, where: str) -> HullShape:
     ``where`` names the block in messages (file and key). Raises :class:`ConfigError`
     naming the field when the block is not a mapping, has unknown keys or bad values.
     """
-    if not isinstance(block, dict):
-        raise ConfigError(f"{where} = {block!r}: expected a mapping with keys {list(GEOMETRY_KEYS)}")
-    unknown = sorted(set(block) - set(GEOMETRY_KEYS))
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(GEOMETRY_KEYS)}")
+    check_keys(block, GEOMETRY_KEYS, where)
     try:
         return HullShape(**block)
     except (TypeError, ValueError) as e:

@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..config_io import ConfigError, read_yaml
+from ..config_io import ConfigError, check_keys, read_yaml
 
 from ..hull.geometry import shape_from_mapping
 from . import hydro
@@ -68,7 +68,7 @@ def _parse_preset(path: Path) -> dict[str, Any]:
     data = read_yaml(path, "rig preset")
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
-    _only_keys(data, set(TOP_KEYS), str(path))
+    check_keys(data, set(TOP_KEYS), str(path))
     missing = [key for key in REQUIRED_BLOCKS if not isinstance(data.get(key), dict)]
     if missing:
         raise ConfigError(f"{path}: missing block(s) {missing}; a rig file states its {', '.join(REQUIRED_BLOCKS)} "
@@ -91,9 +91,9 @@ def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
     an unknown key or an invalid value.
     """
     where = data.get("_path", "rig")
-    _only_keys(data, set(TOP_KEYS), where)
+    check_keys(data, set(TOP_KEYS), where)
     hull_block = data.get("hull") or {}
-    _only_keys(hull_block, set(HULL_KEYS), f"{where}: hull")
+    check_keys(hull_block, set(HULL_KEYS), f"{where}: hull")
     hull = _hull({"name": data.get("name", "custom"), **hull_block}, f"{where}: hull")
     spring = _build(SpringParams, data.get("spring") or {}, f"{where}: spring")
     motor = _build(MotorParams, data.get("motor") or {}, f"{where}: motor")
@@ -116,7 +116,7 @@ HULL_KEYS = ("J_hull", "added_inertia", "lambda66", "b1", "b2", "damping", "name
 
 
 def _hull(d: dict[str, Any], where: str) -> HullParams:
-    _only_keys(d, set(HULL_KEYS), where)
+    check_keys(d, set(HULL_KEYS), where)
     out: dict[str, Any] = {}
     if "geometry" in d:  # the analytic hull shape, for `addedinertia hull` (addedinertia_env/hull)
         shape_from_mapping(d["geometry"], f"{where}.geometry")
@@ -124,7 +124,7 @@ def _hull(d: dict[str, Any], where: str) -> HullParams:
         out["name"] = str(d["name"])
     J = d.get("J_hull", HullParams.J_hull)
     if isinstance(J, dict):
-        _only_keys(J, {"model", "length", "beam", "extra"}, f"{where}.J_hull")
+        check_keys(J, {"model", "length", "beam", "extra"}, f"{where}.J_hull")
         if J.get("model") != "floating-spheroid":
             raise ConfigError(f"{where}.J_hull.model = {J.get('model')!r}: expected 'floating-spheroid' or a number")
         a, b = 0.5 * _num(J, "length", f"{where}.J_hull"), 0.5 * _num(J, "beam", f"{where}.J_hull")
@@ -141,10 +141,10 @@ def _hull(d: dict[str, Any], where: str) -> HullParams:
             raise ConfigError(f"{where}.added_inertia = {ai!r}: expected a mapping with 'model'")
         model = ai.get("model")
         if model == "given":
-            _only_keys(ai, {"model", "value", "source"}, f"{where}.added_inertia")
+            check_keys(ai, {"model", "value", "source"}, f"{where}.added_inertia")
             out["lambda66"] = _num(ai, "value", f"{where}.added_inertia")
         elif model == "lamb-spheroid":
-            _only_keys(ai, {"model", "length", "beam", "immersion", "source"}, f"{where}.added_inertia")
+            check_keys(ai, {"model", "length", "beam", "immersion", "source"}, f"{where}.added_inertia")
             immersion = ai.get("immersion", "half")
             if immersion not in ("half", "full"):
                 raise ConfigError(f"{where}.added_inertia.immersion = {immersion!r}: expected 'half' or 'full'")
@@ -160,7 +160,7 @@ def _hull(d: dict[str, Any], where: str) -> HullParams:
         raise ConfigError(f"{where}: give either 'b2' or 'damping', not both")
     if "damping" in d:
         dm = d["damping"]
-        _only_keys(dm, {"model", "length", "draft", "drag_coefficient"}, f"{where}.damping")
+        check_keys(dm, {"model", "length", "draft", "drag_coefficient"}, f"{where}.damping")
         if dm.get("model") != "cross-flow":
             raise ConfigError(f"{where}.damping.model = {dm.get('model')!r}: expected 'cross-flow'")
         out["b2"] = hydro.quadratic_yaw_damping(_num(dm, "length", f"{where}.damping"),
@@ -175,7 +175,7 @@ def _build(cls, d: dict[str, Any], where: str):
     allowed = {f.name for f in dataclasses.fields(cls)}
     if not isinstance(d, dict):
         raise ConfigError(f"{where}: expected a mapping of {sorted(allowed)}")
-    _only_keys(d, allowed, where)
+    check_keys(d, allowed, where)
     for key, value in d.items():
         if key != "name" and (isinstance(value, bool) or not isinstance(value, (int, float))):
             raise ConfigError(f"{where}.{key} = {value!r}: expected a number (SI units)")
@@ -183,14 +183,6 @@ def _build(cls, d: dict[str, Any], where: str):
         return cls(**d)
     except (TypeError, ValueError) as e:
         raise ConfigError(f"{where}: {e}") from None
-
-
-def _only_keys(d: dict[str, Any], allowed: set[str], where: str) -> None:
-    if not isinstance(d, dict):
-        raise ConfigError(f"{where} = {d!r}: expected a mapping with keys from {sorted(allowed)}")
-    unknown = sorted(set(d) - allowed - {"_path"})
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(allowed)}")
 
 
 def _num(d: dict[str, Any], key: str, where: str) -> float:
