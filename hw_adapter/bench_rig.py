@@ -63,6 +63,8 @@ STOP_REASONS = {"angle": 1, "rate": 2, "flywheel_rate": 3, "current": 4, "voltag
 
 @dataclass
 class SentCommand:
+    """A command the host sent: when (host ``perf_counter`` s), drive ``mode`` and ``value`` (A or V), brake request."""
+
     host_s: float  # s, host perf_counter
     mode: str
     value: float
@@ -177,13 +179,16 @@ class BenchRig:
 
     @property
     def lockstep(self) -> bool:
+        """Whether the board steps once per command (the emulator's ``--fast``) instead of free-running."""
         return bool(self.caps and self.caps.flags & m.CAP_LOCKSTEP)
 
     @property
     def watchdog_s(self) -> float:
+        """The host watchdog's timeout, s (20 ms free-running, 1 s lock-step, unless given)."""
         return float(self._watchdog_s or REALTIME_WATCHDOG_S)
 
     def close(self) -> None:
+        """Stop the host watchdog and close the link (no safe command is sent: see :meth:`disarm`)."""
         if self.watchdog is not None:
             self.watchdog.close()
         self.link.close()
@@ -191,6 +196,7 @@ class BenchRig:
     # --- the rig protocol ---------------------------------------------------------------
     @property
     def dt(self) -> float:
+        """The board's sample (and control) period, s."""
         return self.caps.sample_period_us * 1e-6
 
     @property
@@ -199,9 +205,15 @@ class BenchRig:
         return self._known
 
     def truth(self) -> None:
+        """None: a bench has no truth (the emulator keeps its own in its process)."""
         return None  # a bench has no truth, the emulator's stays in its own process
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
+        """Place the hull at ``phi0`` (rad) with the motor counter at ``psi0`` (rad) and the flywheel at
+        ``omega0`` (rad/s, emulator), braked as given; waits (up to ``reset_timeout_s``) for the board's
+        RESET_DONE, re-arms if it was armed, and returns that sample as a :class:`Reading`.
+        Raises :class:`SafetyTrip` if no RESET_DONE comes or a check fails.
+        """
         self._raise_if_tripped()
         was_armed = self.armed
         self.armed = False
@@ -236,6 +248,7 @@ class BenchRig:
         return reading
 
     def set_brake(self, on: bool) -> None:
+        """Request the brake on or off; sent at once while armed (a new zero-order-hold segment in two-rate mode), else with the next command."""
         self.brake_request = bool(on)
         if self.two_rate:  # at once while zero-order-hold segments run; a planned segment has its own schedule
             if self.armed and self._zoh is not None:
@@ -246,6 +259,11 @@ class BenchRig:
             self._send_command(MotorCommand(last.mode, last.value))
 
     def step(self, cmd: MotorCommand | None) -> Reading:
+        """Send ``cmd`` (clamped to the safety envelope) and return the next sample as a :class:`Reading`.
+
+        Two-rate: a new zero-order-hold segment only when the command changes or a host period has
+        passed. Raises :class:`SafetyTrip` on a disarmed bench or a tripped check.
+        """
         self._raise_if_tripped()
         if not self.armed:
             raise self.stop("operator", "step() on a disarmed bench; call arm() after connect()")
@@ -268,9 +286,11 @@ class BenchRig:
     # --- two-rate (protocol version 2) ------------------------------------------------------
     @property
     def host_period_us(self) -> int:
+        """The host's period in two-rate mode, us."""
         return int(round(1e6 / self.host_rate_hz))
 
     def next_seg_id(self) -> int:
+        """The next segment id (u16, wraps)."""
         self._seg_id = (self._seg_id + 1) & 0xFFFF
         return self._seg_id
 
@@ -355,6 +375,7 @@ class BenchRig:
         raise self.stop("link", "the board did not answer QUERY")
 
     def arm(self) -> None:
+        """ARM the board and wait (1 s) for a sample that confirms it; raises :class:`SafetyTrip` if the board refuses or does not answer."""
         self.link.send(m.Empty(m.ARM))
         deadline = time.perf_counter() + 1.0
         while (left := deadline - time.perf_counter()) > 0:
@@ -376,6 +397,7 @@ class BenchRig:
         raise self.stop("link", "the board did not confirm ARM within 1 s")
 
     def disarm(self, reason: int = 0) -> None:
+        """Pause the watchdog, send the safe command (passive, braked) and DISARM with ``reason``; a dead link is ignored here."""
         self.watchdog.arm(False)
         self.armed = False
         try:

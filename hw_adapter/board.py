@@ -49,6 +49,8 @@ class BoardLimits:
 
 @dataclass(frozen=True)
 class ReceivedCommand:
+    """A command the emulated board received: when (s after RESET), drive ``mode`` and ``value`` (A or V), brake request, and whether it was armed."""
+
     board_t: float  # s after RESET
     mode: str
     value: float
@@ -108,6 +110,7 @@ class Board:
         return self.clock_base_us + int(round(self.rig.time * 1e6))
 
     def caps(self) -> m.Caps:
+        """The board's CAPS: sample period, encoder counts, the drive's limits (A, V), watchdog (ms); the version-2 fields for a two-rate board."""
         mo, lim = self.params.motor, self.limits
         flags = m.CAP_EMULATOR | m.CAP_TWIST_ACTUATOR | (m.CAP_LOCKSTEP if self.lockstep else 0)
         if self.version < 2:
@@ -137,7 +140,7 @@ class Board:
             return self._arm()
         if t == m.DISARM:
             self.go_safe(m.F_HOST_STOP if msg.reason else 0, float(msg.reason))
-            return self._flush() + self._flush_batch() + [self.sample(self.last_reading)]
+            return self.pending() + self._flush_batch() + [self.sample(self.last_reading)]
         if t == m.COMMAND:
             return self._command(msg, seq)
         return []  # CAPS, SAMPLE, FAULT from a host: ignored
@@ -179,7 +182,7 @@ class Board:
             self.cmd_seq = seq
             self.on_segments = False  # a COMMAND (the host's safe stop, a version-1 host) overrides the loop
         if self.lockstep:
-            return self._flush() + self._flush_batch() + [self.tick()] + self._flush()
+            return self.pending() + self._flush_batch() + [self.tick()] + self.pending()
         return []
 
     def _segment(self, msg: m.SegmentMsg) -> list:
@@ -194,10 +197,10 @@ class Board:
                 self.on_segments = True
         if not self.lockstep:
             return []
-        out = self._flush()
+        out = self.pending()
         ticks = max(1, -(-((seg.deadline_us - self.time_us + 2**31) % 2**32 - 2**31) // self.period_us))
         for _ in range(min(ticks, 1000)):
-            out += self.stream(self.tick()) + self._flush()
+            out += self.stream(self.tick()) + self.pending()
         return out + self._flush_batch()
 
     def present(self) -> Reading:
@@ -330,15 +333,17 @@ class Board:
         stuck = self.faults_plan.active("stuck_brake", self.board_t) > 0
         return not self.armed and self.cmd.mode == "passive" and self.brake_request and (self.rig.brake or stuck)
 
-    def _flush(self) -> list:
+    def pending(self) -> list:
+        """The messages queued for the host since the last call (FAULTs, unasked HEARTBEATs), emptying the queue."""
         out, self.outbox = self.outbox, []
         return out
 
-    def pending(self) -> list:
-        return self._flush()
-
     # --- encoding -----------------------------------------------------------------------
     def sample(self, r: Reading, extra_status: int = 0, phi_offset: float = 0.0) -> m.Sample:
+        """Encode reading ``r`` as a SAMPLE: angles (rad) to encoder counts (the motor's as a wrapping
+        i32 counter), current (A), voltage (V), the status and latched fault bits. ``phi_offset`` (rad)
+        is added to the hull angle (an encoder glitch); ``extra_status`` bits are or-ed in.
+        """
         status = extra_status
         status |= m.ST_ARMED if self.armed else 0
         status |= m.ST_BRAKE_REQUESTED if (self.brake_request or not self.armed) else 0

@@ -45,6 +45,12 @@ PASSIVE = MotorCommand("passive", 0.0)
 
 @dataclass(frozen=True)
 class DeployOptions:
+    """What ``addedinertia deploy`` was asked to do: the bench URL, the controller, the lab, where to write.
+
+    Times in s (``warmup_s``, ``watchdog_s``, ``hold_s``, ``reset_timeout_s``), ``alpha`` in rad,
+    ``host_rate_hz`` in Hz (two-rate mode); ``rtt_pings`` link echoes timed before arming (0: none).
+    """
+
     bench: str  # pyserial URL: /dev/ttyUSB0, socket://127.0.0.1:5555, loop://
     controller: str  # a registry name: feedforward-pd, pid, ..., onnx:PATH
     lab: LabConfig

@@ -27,6 +27,8 @@ import threading
 import time
 from pathlib import Path
 
+from addedinertia_env.atomic import atomic_write_text
+
 from . import messages as m
 from .board import Board
 from .framing import FrameParser, encode_frame
@@ -64,6 +66,7 @@ class EmulatorServer:
 
     @property
     def url(self) -> str:
+        """The pyserial URL a host connects to: ``socket://127.0.0.1:PORT``."""
         return f"socket://{self.host}:{self.port}"
 
     # --- life cycle ---------------------------------------------------------------------
@@ -78,6 +81,7 @@ class EmulatorServer:
         self._stop.set()
 
     def stop(self) -> None:
+        """Stop serving (waits up to 5 s for the thread), close the port and write the event log."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
@@ -105,8 +109,9 @@ class EmulatorServer:
                 break
 
     def write_events(self) -> None:
+        """Write the board's fault and safe-state events to ``events_path`` (JSON lines, atomically), if one was given."""
         if self.events_path is not None:
-            self.events_path.write_text("".join(json.dumps(e) + "\n" for e in self.board.log.events))
+            atomic_write_text(self.events_path, "".join(json.dumps(e) + "\n" for e in self.board.log.events))
 
     # --- one connection -----------------------------------------------------------------
     def _serve(self, conn: socket.socket) -> None:

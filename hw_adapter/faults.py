@@ -65,9 +65,11 @@ class FaultPlan:
 
     @property
     def empty(self) -> bool:
+        """Whether no fault is injected."""
         return not self.faults
 
     def to_dict(self) -> dict[str, dict[str, float]]:
+        """The plan as ``{fault: {value, start_s}}`` (value in the fault's unit, start in s after RESET)."""
         return {f.name: {"value": f.value, "start_s": f.start_s} for f in self.faults}
 
 
@@ -127,7 +129,9 @@ class FaultLog:
     events: list[dict] = field(default_factory=list)
 
     def add(self, name: str, wall: float, board_t: float, **extra) -> None:
+        """Log event ``name`` at wall-clock time ``wall`` (s, monotonic) and board time ``board_t`` (s after RESET), with ``extra`` fields."""
         self.events.append({"event": name, "wall": wall, "board_t": board_t, **extra})
 
     def first(self, name: str) -> dict | None:
+        """The first logged event called ``name``, or None."""
         return next((e for e in self.events if e["event"] == name), None)

@@ -77,6 +77,7 @@ class ParserStats:
 
     @property
     def errors(self) -> int:
+        """Frames rejected so far: bad CRC, unknown version or impossible length."""
         return self.bad_crc + self.bad_version + self.bad_length
 
 
@@ -95,9 +96,11 @@ class FrameParser:
 
     @property
     def buffered(self) -> int:
+        """Bytes held of the frame being assembled."""
         return len(self._buf)
 
     def wanted(self) -> int:
+        """How many more bytes could complete the frame being assembled (at least 1): what a reader should ask the port for."""
         buf = self._buf
         if len(buf) < HEADER.size:
             return HEADER.size - len(buf)
@@ -107,6 +110,7 @@ class FrameParser:
         return max(1, HEADER.size + length + CRC.size - len(buf))
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Frame]:
+        """The frames completed by ``data`` (any bytes; never raises: bad ones are counted in :attr:`stats` and skipped)."""
         frames: list[Frame] = []
         view = memoryview(data)
         # Take at most what fits, parse, repeat: the buffer stays under MAX_FRAME bytes.

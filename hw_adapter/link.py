@@ -29,6 +29,8 @@ class LinkError(RuntimeError):
 
 @dataclass
 class LinkStats:
+    """Counts of the link: frames sent and received, board frames missing (sequence gaps) and frames with a valid CRC but an invalid payload."""
+
     sent: int = 0
     received: int = 0
     seq_gaps: int = 0  # board frames missing, from the sequence numbers
@@ -134,6 +136,7 @@ class Link:
         return self.parser.stats.errors + self.stats.seq_gaps + self.stats.bad_messages
 
     def close(self) -> None:
+        """Close the port (once; later calls do nothing)."""
         with self._lock:
             if not self.closed:
                 self.closed = True

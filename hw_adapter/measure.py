@@ -60,10 +60,12 @@ class StallingController:
         self._t0: float | None = None
 
     def reset(self, context) -> None:
+        """Reset the wrapped controller and start the clock of the stall."""
         self.inner.reset(context)
         self._t0 = time.monotonic()
 
     def predict(self, obs, *args, **kwargs):
+        """The wrapped controller's action, after sleeping ``stall_s`` s once, ``after_s`` s into the run (a controller that hangs)."""
         if self.stalled_at is None and time.monotonic() - self._t0 >= self.after_s:
             self.stalled_at = time.monotonic()
             time.sleep(self.stall_s)
@@ -71,6 +73,10 @@ class StallingController:
 
 
 def one_run(name: str, faults: str, args, work: Path) -> dict:
+    """One deploy against a freshly spawned bench server with the fault spec ``faults`` (``stall``:
+    a hanging controller instead); returns its row for docs/BENCH.md: status, loop timing (ms),
+    samples lost, and the fault-to-safe time (ms) from the server's event log.
+    """
     events = work / f"{name}.events.jsonl"
     extra = ["--faults", faults] if faults and faults != "stall" else []
     proc, url = spawn_bench_server("--fast" if args.fast else "--realtime", "--rig", args.rig,
@@ -149,6 +155,7 @@ def simulated_reference(args) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Measure the docs/BENCH.md figures (nominal runs, then each fault) and write them as JSON to ``--out``; returns 0."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--rig", default="wigley-2m")
     p.add_argument("--hold", type=float, default=0.3, help="brake hold, s")

@@ -82,6 +82,7 @@ class MessageError(ValueError):
 
 
 def fault_names(bits: int) -> list[str]:
+    """Names of the latched fault bits in ``bits`` (u16), in bit order; unknown bits as ``unknown_0x....``."""
     return [name for bit, name in FAULT_NAMES.items() if bits & bit] + (
         [f"unknown_0x{bits & ~sum(FAULT_NAMES):04x}"] if bits & ~sum(FAULT_NAMES) & 0xFFFF else [])
 
@@ -92,15 +93,19 @@ def _finite(*values: float) -> bool:
 
 @dataclass(frozen=True)
 class Hello:
+    """Host -> board: open a session; the board answers with :class:`Caps`. Layout ``<HH``: host version, reserved."""
+
     type = HELLO
     layout = struct.Struct("<HH")  # host software version, reserved
     host_version: int = 1
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian): host version, 0."""
         return self.layout.pack(self.host_version, 0)
 
     @classmethod
     def unpack(cls, b: bytes) -> "Hello":
+        """The message from its payload bytes (the reserved field is ignored)."""
         v, _ = cls.layout.unpack(b)
         return cls(v)
 
@@ -130,6 +135,7 @@ class Caps:
     v2_layout = struct.Struct("<BBBxHH")
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian): the version-1 block, then the version-2 block only for a two-rate board (``batch_samples`` > 0)."""
         v1 = self.layout.pack(self.firmware_version, self.flags, self.sample_period_us, self.phi_counts,
                               self.psi_counts, self.i_max, self.u_max, self.watchdog_ms, self.brake_response_ms,
                               self.board_id.encode("ascii", "replace")[:16])
@@ -140,6 +146,11 @@ class Caps:
 
     @classmethod
     def unpack(cls, b: bytes) -> "Caps":
+        """The message from its payload bytes, version 1 or 2 (by length).
+
+        Raises :class:`MessageError` for a zero period or encoder count, a current or voltage limit
+        that is not finite and > 0, or version-2 batch and knot counts out of range.
+        """
         fw, flags, period, pc, sc, i_max, u_max, wd, br, bid = cls.layout.unpack(b[:cls.layout.size])
         if period == 0 or pc == 0 or sc == 0 or not (_finite(i_max, u_max) and i_max > 0 and u_max > 0):
             raise MessageError(f"CAPS with period {period} us, counts {pc}/{sc}, i_max {i_max}, u_max {u_max}: "
@@ -153,13 +164,16 @@ class Caps:
 
     @property
     def two_rate(self) -> bool:
+        """Whether the board runs the version-2 inner loop on segments (it batches samples)."""
         return bool(self.batch_samples)
 
     def supports(self, board_mode: str) -> bool:
+        """Whether the board runs ``board_mode`` (``zoh`` or ``pd``) between host actions."""
         return bool(self.board_modes & BOARD_MODE_BITS.get(board_mode, 0))
 
     @property
     def sample_rate(self) -> float:
+        """The board's sample (and control) rate, Hz."""
         return 1e6 / self.sample_period_us
 
 
@@ -175,10 +189,12 @@ class Reset:
     brake: bool = True
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian): ``phi0``, ``psi0`` (rad), ``omega0`` (rad/s) as f32, the brake flag, 3 bytes padding."""
         return self.layout.pack(self.phi0, self.psi0, self.omega0, 1 if self.brake else 0)
 
     @classmethod
     def unpack(cls, b: bytes) -> "Reset":
+        """The message from its payload bytes; :class:`MessageError` for a non-finite value or ``|phi0|`` above 2 pi rad."""
         phi0, psi0, omega0, brake = cls.layout.unpack(b)
         if not _finite(phi0, psi0, omega0) or abs(phi0) > 2 * math.pi:
             raise MessageError(f"RESET to phi0={phi0}, psi0={psi0}, omega0={omega0}: expected finite, |phi0| <= 2 pi")
@@ -194,16 +210,24 @@ class Empty:
     layout = struct.Struct("<H")
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian): the u16 reason code."""
         return self.layout.pack(self.reason)
 
     @classmethod
     def unpack_as(cls, msg_type: int, b: bytes) -> "Empty":
+        """The message from its payload bytes of type ``msg_type`` (ARM, DISARM, HEARTBEAT or QUERY)."""
         (reason,) = cls.layout.unpack(b)
         return cls(msg_type, reason)
 
 
 @dataclass(frozen=True)
 class Command:
+    """Host -> board (version 1): the drive command for the next sample, answering SAMPLE ``sample_seq``.
+
+    Layout ``<BBHf``: mode code (:data:`MODE_CODES`), flags (bit 0 brake), u16 sample seq,
+    f32 value (A in current mode, V in voltage mode, 0 passive).
+    """
+
     type = COMMAND
     layout = struct.Struct("<BBHf")
     mode: str  # passive | current | voltage
@@ -212,10 +236,12 @@ class Command:
     sample_seq: int = 0  # seq of the SAMPLE this command answers
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian): mode code, brake flag, sample seq (u16, wraps), value."""
         return self.layout.pack(MODE_CODES[self.mode], 1 if self.brake else 0, self.sample_seq & 0xFFFF, self.value)
 
     @classmethod
     def unpack(cls, b: bytes) -> "Command":
+        """The message from its payload bytes; :class:`MessageError` for an unknown mode or a value that is not finite."""
         mode, flags, seq, value = cls.layout.unpack(b)
         if mode not in MODE_NAMES:
             raise MessageError(f"COMMAND mode {mode}: expected one of {MODE_NAMES}")
@@ -226,6 +252,13 @@ class Command:
 
 @dataclass(frozen=True)
 class Sample:
+    """Board -> host (version 1): one sample of the instruments and the board's state.
+
+    Layout ``<iiffBBHHH``: hull and motor encoder counts (i32), current (A) and voltage (V)
+    as f32, brake sensed, status bits (:data:`ST_ARMED` ...), latched fault bits, the seq of
+    the COMMAND applied, the u16 step counter. ``i_cmd`` travels only in a :class:`SampleBatch`.
+    """
+
     type = SAMPLE
     layout = struct.Struct("<iiffBBHHH")
     phi_count: int  # hull encoder, signed counts from the encoder zero
@@ -240,17 +273,23 @@ class Sample:
     i_cmd: float = math.nan  # A, version 2 batches: the current applied over the period ending at this sample
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian) of the version-1 layout (``i_cmd`` is not sent; seq and step wrap at 16 bits)."""
         return self.layout.pack(self.phi_count, self.psi_count, self.current, self.voltage, 1 if self.brake else 0,
                                 self.status, self.faults, self.cmd_seq & 0xFFFF, self.step & 0xFFFF)
 
     @classmethod
     def unpack(cls, b: bytes) -> "Sample":
+        """The message from its payload bytes (version-1 layout; ``i_cmd`` stays NaN)."""
         phi, psi, i, u, brake, status, faults, cmd_seq, step = cls.layout.unpack(b)
         return cls(phi, psi, i, u, bool(brake & 1), status, faults, cmd_seq, step)
 
 
 @dataclass(frozen=True)
 class Fault:
+    """Board -> host: a fault latched. Layout ``<HHf``: the bit that latched, all latched bits,
+    the value that tripped it (A, V, rad or ms; NaN if none).
+    """
+
     type = FAULT
     layout = struct.Struct("<HHf")
     code: int  # the F_* bit that latched
@@ -258,10 +297,12 @@ class Fault:
     detail: float = 0.0  # the value that tripped (A, V, rad, ms), NaN if none
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian): code, latched bits, detail."""
         return self.layout.pack(self.code, self.faults, self.detail)
 
     @classmethod
     def unpack(cls, b: bytes) -> "Fault":
+        """The message from its payload bytes."""
         return cls(*cls.layout.unpack(b))
 
 
@@ -281,6 +322,7 @@ class SegmentMsg:
     segment: Segment
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian) of the class docstring's layout: the head, the current knots, then the reference knots in pd mode."""
         g = self.segment
         flags = ((1 if g.brake else 0) | (2 if g.brake_switch_us is not None else 0)
                  | (4 if g.phi_refs is not None else 0) | (8 if g.end_passive else 0) | (16 if g.passive else 0))
@@ -291,6 +333,9 @@ class SegmentMsg:
 
     @classmethod
     def unpack(cls, b: bytes) -> "SegmentMsg":
+        """The message from its payload bytes; :class:`MessageError` for a short payload, a knot count outside
+        1..:data:`MAX_KNOTS`, a length that does not match it, or a segment the board loop refuses.
+        """
         if len(b) < cls.head.size:
             raise MessageError(f"SEGMENT payload of {len(b)} bytes; expected at least {cls.head.size}")
         seg_id, flags, n, t0, duration, deadline, switch, knot_us, kp, kd = cls.head.unpack_from(b)
@@ -331,6 +376,7 @@ class SampleBatch:
     time_us: int = -1  # board time of the first sample (the frame's time_us; not in the payload)
 
     def pack(self) -> bytes:
+        """The payload bytes (little-endian): the head, then each sample (a NaN ``i_cmd`` is sent as 0)."""
         out = [self.head.pack(self.first_step & 0xFFFF, len(self.samples), self.late_segments & 0xFFFF,
                               self.seg_id & 0xFFFF)]
         for x in self.samples:
@@ -341,6 +387,9 @@ class SampleBatch:
 
     @classmethod
     def unpack(cls, b: bytes) -> "SampleBatch":
+        """The message from its payload bytes: the samples with their step numbers and the segment in force;
+        :class:`MessageError` for a count outside 1..:attr:`MAX` or a length that does not match it.
+        """
         if len(b) < cls.head.size:
             raise MessageError(f"SAMPLE_BATCH payload of {len(b)} bytes; expected at least {cls.head.size}")
         first, n, late, seg_id = cls.head.unpack_from(b)

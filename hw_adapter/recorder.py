@@ -42,6 +42,7 @@ class IncrementalRecord:
         self._last_flush = 0.0
 
     def start(self, meta: dict[str, Any]) -> None:
+        """Write the JSON metadata (status ``running``) and the CSV header; rows follow with :meth:`append`."""
         self.csv_path.parent.mkdir(parents=True, exist_ok=True)
         meta = {"format": FORMAT, "run_id": self.run_id, **meta}
         meta.setdefault("experiment", {})["status"] = "running"
@@ -51,6 +52,9 @@ class IncrementalRecord:
         self._file.flush()
 
     def append(self, r: Reading, cmd: MotorCommand | None) -> None:
+        """Append reading ``r`` with the command in force (its current in A or voltage in V); rows
+        out of time order are counted and dropped from the file, and the file is flushed every ``flush_s`` s.
+        """
         if self._file is None:
             return
         if not r.t > self.last_t:

@@ -31,6 +31,7 @@ class SafetyTrip(RuntimeError):
 
     @property
     def reason(self) -> str:
+        """``kind: message``, as the record's status and the summary give it."""
         return f"{self.kind}: {self}"
 
 

@@ -48,6 +48,7 @@ class RadiationSS:
         return np.array([self.c @ expm(self.A * tt) @ self.b for tt in np.atleast_1d(t)])
 
     def as_dict(self) -> dict:
+        """The fitted state-space system as a JSON-ready dict: matrices ``A``, ``b``, ``c``, its order and the fit error."""
         return {"A": self.A.tolist(), "b": self.b.tolist(), "c": self.c.tolist(), "order": self.order,
                 "fit_error": self.fit_error}
 

@@ -56,6 +56,7 @@ def read_cache(path: Path, shape: HullShape | None = None) -> dict[str, Any]:
 
 
 def write_cache(path: Path, data: dict[str, Any]) -> Path:
+    """Write a study ``data`` (strict JSON) to the cache file ``path`` atomically; returns the path."""
     atomic_write_text(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
     return Path(path)
 

@@ -111,10 +111,12 @@ class Segment:
 
     @property
     def mode(self) -> str:
+        """``pd`` when the segment carries reference knots (the board closes a PD loop), else ``zoh`` (held current)."""
         return "pd" if self.phi_refs is not None else "zoh"
 
     @property
     def end_us(self) -> int:
+        """Board time (u32, us, wraps) at which the segment runs out."""
         return (self.t0_us + self.duration_us) % 2**32
 
 
@@ -273,17 +275,21 @@ class TwoRateSimRig:
     # rig protocol ---------------------------------------------------------------------
     @property
     def dt(self) -> float:
+        """The sample period of the simulated rig, s."""
         return self.rig.dt
 
     @property
     def known(self):
+        """The simulated rig's known constants (its ``rig`` block, typed)."""
         return self.rig.known
 
     def truth(self):
+        """The simulated rig's ``truth`` block (scoring only)."""
         return self.rig.truth()
 
     @property
     def now_us(self) -> int:
+        """Board time of the newest sample, us (0 before the first)."""
         return int(round(self.last.t * 1e6)) if self.last is not None else 0
 
     def board_time_us(self, t: float) -> int:
@@ -292,9 +298,11 @@ class TwoRateSimRig:
 
     @property
     def host_rate_hz(self) -> float:
+        """The host's rate, Hz (one zero-order-hold segment per host period)."""
         return 1e6 / self.host_period_us
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
+        """Reset the simulated rig (angles in rad, ``omega0`` in rad/s) and restart the board loop with no segment; returns the first reading."""
         self.last = self.rig.reset(phi0=phi0, psi0=psi0, omega0=omega0, brake=brake)
         self.brake_request = brake
         self.loop.restart()
@@ -308,6 +316,12 @@ class TwoRateSimRig:
             self._send_zoh(self._zoh[0])
 
     def step(self, cmd: MotorCommand | None) -> Reading:
+        """Run one sample under the board loop and return its reading.
+
+        ``cmd`` (uncontrolled phases) is sent as a zero-order-hold segment when it changes or a
+        host period has passed; segments in flight arrive after ``latency_samples``; the loop's
+        command (and brake) drive the rig; a starved loop sets :attr:`starved`.
+        """
         if cmd is not None and (self._zoh != (cmd, self.brake_request)
                                 or elapsed_us(self.now_us, self._zoh_t0) >= self.host_period_us):
             self._send_zoh(cmd)
@@ -325,10 +339,12 @@ class TwoRateSimRig:
 
     # two-rate ---------------------------------------------------------------------------
     def next_seg_id(self) -> int:
+        """The next segment id (u16, wraps)."""
         self._seg_id = (self._seg_id + 1) & 0xFFFF
         return self._seg_id
 
     def send_segment(self, seg: Segment) -> None:
+        """Hand ``seg`` to the board loop (after ``latency_samples`` if set); a held zero-order-hold command is forgotten."""
         self._zoh = None
         self._deliver(seg)
 

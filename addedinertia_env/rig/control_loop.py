@@ -54,6 +54,7 @@ class ControlLoop:
 
     @property
     def ideal(self) -> bool:
+        """Whether the loop changes nothing: no observation delay, command every sample, no current quantisation."""
         return self.obs_delay_s == 0 and self.command_period_s == 0 and self.current_step_A == 0
 
     def delay_samples(self, dt: float) -> int:
@@ -65,6 +66,7 @@ class ControlLoop:
         return max(1, int(round(self.command_period_s / dt)))
 
     def to_dict(self) -> dict[str, float]:
+        """The loop as ``{obs_delay_s, command_period_s (s), current_step_A (A)}`` for the ``truth`` block."""
         return {"obs_delay_s": self.obs_delay_s, "command_period_s": self.command_period_s,
                 "current_step_A": self.current_step_A}
 
@@ -182,25 +184,31 @@ class LoopRig:
 
     @property
     def dt(self) -> float:
+        """The wrapped rig's sample period, s."""
         return self.rig.dt
 
     @property
     def known(self) -> Any:
+        """The wrapped rig's known constants."""
         return self.rig.known
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
+        """Reset the wrapped rig (angles in rad, ``omega0`` rad/s) and fill the delay line with its first reading; returns it."""
         r = self.rig.reset(phi0=phi0, psi0=psi0, omega0=omega0, brake=brake)
         self.state.reset([0], [np.array([getattr(r, f)]) for f in LoopState.FIELDS])
         self._held = None
         return r
 
     def set_brake(self, on: bool) -> None:
+        """Set the wrapped rig's brake at once (the brake does not go through the loop)."""
         self.rig.set_brake(on)
 
     def step(self, cmd: MotorCommand) -> Reading:
+        """Apply ``cmd`` as the loop does (held at the command rate, quantised) for one sample; returns the reading ``obs_delay_s`` old, stamped now."""
         return self._arrive(self.rig.step(self._applied(cmd)))
 
     def truth(self) -> Any:
+        """The wrapped rig's ``truth`` block with the loop's settings added (``control_loop``); None on a bench."""
         truth = self.rig.truth()
         if truth is not None:
             truth = {**truth, "control_loop": self.loop.to_dict()}

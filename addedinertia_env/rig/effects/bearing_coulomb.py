@@ -12,6 +12,8 @@ from .registry import EffectSpec, FitRange, Param, register
 
 @dataclass(frozen=True)
 class BearingCoulomb:
+    """Parameters of ``bearing_coulomb``: ``torque`` (N m), the dry friction opposing the hull's rotation."""
+
     torque: float  # N m, dry friction in the hull's shaft bearing
 
 

@@ -13,6 +13,8 @@ from .registry import EffectSpec, FitRange, Param, register
 
 @dataclass(frozen=True)
 class FluidMemory:
+    """Parameters of ``fluid_memory``: ``tau`` (s), the water's time constant, and ``beta`` (dimensionless), the fraction of the hull's rate the water takes up."""
+
     tau: float  # s, time constant of the water's rotation
     beta: float  # -, fraction of the hull rate the water takes up
 

@@ -9,6 +9,8 @@ from .registry import EffectSpec, FitRange, Param, register
 
 @dataclass(frozen=True)
 class NeutralOffset:
+    """Parameters of ``neutral_offset``: ``offset`` (rad), the rod's true neutral minus the calibrated one."""
+
     offset: float  # rad, true neutral minus calibrated neutral
 
 

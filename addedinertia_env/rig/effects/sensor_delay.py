@@ -10,6 +10,8 @@ from .registry import EffectSpec, FitRange, Param, register
 
 @dataclass(frozen=True)
 class SensorDelay:
+    """Parameters of ``sensor_delay``: ``delay`` (s), the lag of the current and voltage channel behind the encoders."""
+
     delay: float  # s, lag of the current and voltage channel behind the encoders
 
 

@@ -9,6 +9,8 @@ from .registry import EffectSpec, FitRange, Param, register
 
 @dataclass(frozen=True)
 class SpringStiffening:
+    """Parameters of ``spring_stiffening``: ``k3`` (1/rad^2) in the rod torque ``-c (d + k3 d^3)``, ``d = phi - phi_neutral``."""
+
     k3: float  # 1/rad^2, torque = -c (d + k3 d^3), d = phi - phi_neutral
 
 

@@ -9,6 +9,8 @@ from .registry import EffectSpec, FitRange, Param, register
 
 @dataclass(frozen=True)
 class TorqueConstant:
+    """Parameters of ``torque_constant``: ``ratio`` (dimensionless), the true ``k_t`` over the data sheet's."""
+
     ratio: float  # -, true k_t / data-sheet k_t
 
 
