@@ -110,10 +110,12 @@ class BatchedParams:
 
     @classmethod
     def stack(cls, rigs: Sequence[RigParams], dtype=np.float64) -> "BatchedParams":
+        """The parameters of ``rigs``, one environment each, as arrays (SI units)."""
         return cls(rigs, dtype=dtype)
 
     @classmethod
     def repeat(cls, rig: RigParams, n: int, dtype=np.float64) -> "BatchedParams":
+        """``n`` environments with the parameters of ``rig``; ValueError for ``n`` < 1."""
         if n < 1:
             raise ValueError(f"BatchedParams.repeat: n = {n}; expected at least 1 environment")
         return cls([rig] * n, dtype=dtype)
@@ -169,6 +171,7 @@ class BatchedParams:
 
     @property
     def sample_dt(self) -> float:
+        """Sample period, s."""
         return 1.0 / self.sample_rate
 
     def nbytes(self) -> int:

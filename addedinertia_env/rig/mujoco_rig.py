@@ -116,6 +116,7 @@ class MujocoRig(SimulatedRigBase):
     # --- protocol -------------------------------------------------------------------
     @property
     def time(self) -> float:
+        """Simulation time, s."""
         return float(self.data.time)
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
@@ -137,6 +138,7 @@ class MujocoRig(SimulatedRigBase):
         return self._read()
 
     def set_brake(self, on: bool) -> None:
+        """Engage the brake (the hull held where it stands, by an equality constraint) or release it."""
         self.brake = bool(on)
         if on:  # hold the hull where it stands: phi = polycoef[0]
             self.model.eq_data[self._brake, :5] = 0.0

@@ -175,6 +175,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
 
     # --- Gymnasium vector API ------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
+        """Reset every environment (Gymnasium ``VectorEnv.reset``): ``seed`` an int (slot ``e`` gets ``seed + e``) or a list of one per slot; returns ``(obs, info)``."""
         with _BLAS.limit(limits=1, user_api="blas"):
             return self._reset(seed, options)
 
@@ -221,6 +222,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
                 "sensor_quality": quality, "_sensor_quality": mask.copy()}
 
     def step(self, actions):
+        """Step every environment with ``actions`` (one normalised current per slot); returns ``(obs, rewards, terminated, truncated, info)``, ended slots reset automatically."""
         with _BLAS.limit(limits=1, user_api="blas"):
             return self._step(actions)
 
@@ -345,4 +347,5 @@ class ReverseStrokeVectorEnv(VectorEnv):
         return self.pool.record(int(self.env_slot[env]), run_id)
 
     def close_extras(self, **kwargs: Any) -> None:
+        """Drop the experiment pool (its arrays are freed with it)."""
         self.pool = None

@@ -73,6 +73,7 @@ class SlotRig(SimulatedRigBase):
         self.loop = loop  # the scenario's ControlLoop (None: ideal)
 
     def truth(self) -> dict:
+        """The slot's ``truth`` block as :meth:`MujocoRig.truth` writes it (lambda66 kg m^2, effects, damping, true k_t N m/A, neutral rad; the control loop if not ideal). Scoring only."""
         h = self.params.hull
         truth = {"lambda66": h.lambda66, "effects": self.params.effects.to_dict(),
                  "damping": {"b1": h.b1, "b2": h.b2}, "k_t": float(forces.true_torque_constant(self.params)),
@@ -154,6 +155,7 @@ class ExperimentPool:
 
     # --- slots ----------------------------------------------------------------------------
     def n_log(self, k: int) -> int:
+        """Samples logged so far in slot ``k``'s current episode."""
         return int(self._flushed[k] + self._stage_cnt[k])
 
     def times(self, n: int) -> np.ndarray:
@@ -497,8 +499,10 @@ class ExperimentPool:
         return make_record(samples, self.views[k], experiment, run_id)
 
     def stage_of(self, k: int) -> str:
+        """The protocol stage slot ``k`` is in (:data:`STAGE_NAMES`: ``empty``, ``settle``, ``free``, ``ready``, ``hold``, ``reverse``, ``ended``), by name."""
         return STAGE_NAMES[int(self.stage[k])]
 
     def info(self, k: int) -> dict[str, Any]:
+        """What identifies slot ``k``'s episode: scenario name and seed, sensor quality."""
         s = self.scenarios[k]
         return {"scenario": s.name, "scenario_seed": s.seed, "sensor_quality": s.sensor_quality}

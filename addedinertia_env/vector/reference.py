@@ -44,6 +44,7 @@ class MirroredReferences:
         self.duration = np.ones(n)
 
     def set(self, k: int, law: StrokeLaw, t_begin: float) -> None:
+        """Store slot ``k``'s stroke law and the time its mirrored reverse stroke begins, ``t_begin`` (s); ValueError for a law of another degree than the batch's."""
         if len(law.coef) != len(self.coef):
             raise ValueError(f"stroke law of degree {len(law.coef) - 1}; this batch holds degree {len(self.coef) - 1}")
         self.coef[:, k] = law.coef

@@ -33,6 +33,7 @@ class BatchedVecEnv(VecEnv):
 
     # --- VecEnv API -----------------------------------------------------------------------
     def reset(self) -> np.ndarray:
+        """Reset every environment (with the seed and options set for the next reset, if any); returns the observations."""
         seed = self._seeds[0] if self._seeds[0] is not None else self._seed
         obs, _ = self.venv.reset(seed=seed, options=self._options[0] or None)
         self._seed = None  # later resets go on with the same streams
@@ -42,9 +43,15 @@ class BatchedVecEnv(VecEnv):
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
+        """Keep ``actions`` (one row per environment) for :meth:`step_wait`."""
         self._actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
 
     def step_wait(self):
+        """Step every environment; returns ``(obs, rewards, dones, infos)`` in SB3's form.
+
+        An ended episode's info carries ``terminal_observation``, ``TimeLimit.truncated``, its summed
+        reward terms and, for scored episodes, its metrics (rel_error, energy J, ...).
+        """
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
         terms = info["reward_terms"]
@@ -67,20 +74,26 @@ class BatchedVecEnv(VecEnv):
         return obs, rewards.astype(np.float32), dones, infos
 
     def close(self) -> None:
+        """Close the batched environment."""
         self.venv.close()
 
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        """The batched environment's attribute ``attr_name``, once per requested index (all share it)."""
         return [getattr(self.venv, attr_name)] * len(self._get_indices(indices))
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        """Set ``attr_name`` on the batched environment (shared by every index)."""
         setattr(self.venv, attr_name, value)
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        """Call ``method_name`` once on the batched environment; its result repeated per requested index."""
         return [getattr(self.venv, method_name)(*method_args, **method_kwargs)] * len(self._get_indices(indices))
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        """False for every index: the slots are not Gymnasium environments and carry no wrapper."""
         return [False] * len(self._get_indices(indices))
 
     def get_images(self) -> Sequence[np.ndarray | None]:
+        """No images (None per environment): the batched engine does not render."""
         return [None] * self.num_envs
