@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard demo test test-slow test-all bench leaderboard policy accuracy-table perf clean detection-table
+.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -38,7 +38,7 @@ BENCH_JOBS ?= 2
 LEADERBOARD_DOC ?= docs/LEADERBOARD.md
 LEADERBOARD_HTML ?= out/bench/leaderboard-$(BENCH_SUITE).html
 # Learned policies (docs/LEARNING.md), run as onnx:PATH on the same suite, split and seeds.
-LEARNED_POLICIES ?= agents/policies/reverse_stroke.onnx
+LEARNED_POLICIES ?= agents/policies/reverse_stroke.onnx agents/policies/reverse_stroke_100hz.onnx
 BENCH_ROWS = $(foreach c,$(BENCH_CONTROLLERS),out/bench/$(BENCH_SUITE)-$(c).jsonl) \
 	$(foreach p,$(LEARNED_POLICIES),out/bench/$(BENCH_SUITE)-onnx-$(basename $(notdir $(p))).jsonl)
 
@@ -63,6 +63,11 @@ leaderboard: $(STAMP)
 policy: $(STAMP)
 	$(BIN)/addedinertia train --algo ppo --config configs/algos/ppo_residual.yaml --residual --timesteps 40000 --seed 1 --out out/train/ppo-residual
 	$(BIN)/addedinertia export out/train/ppo-residual --onnx agents/policies/reverse_stroke.onnx
+
+# The 100 Hz policy for the two-rate bench (residual on lqr, base at the policy rate; docs/LEARNING.md, docs/BENCH.md).
+policy-100hz: $(STAMP)
+	$(BIN)/addedinertia train --algo ppo --config configs/algos/ppo_residual_100hz.yaml --timesteps 50000 --seed 1 --out out/train/ppo-residual-100hz
+	$(BIN)/addedinertia export out/train/ppo-residual-100hz --onnx agents/policies/reverse_stroke_100hz.onnx
 
 accuracy-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md

@@ -20,7 +20,8 @@ truth (the preset's, for scoring only), and a ``stall`` run: the host stops send
 segments 0.1 s into the hold (its controller blocks for 0.5 s); the time from the stall's
 start (host) to the board's own SEGMENTS fault (emulator), both on the system's
 monotonic clock. ``--load N`` keeps N busy processes running during every run (the
-"loaded" rows); ``--repeat K`` repeats the nominal run; ``--rt-priority P`` runs the host
+"loaded" rows); ``--policy FILE`` runs an exported policy (``onnx:FILE``) instead of
+``--controller``; ``--repeat K`` repeats the nominal run; ``--rt-priority P`` runs the host
 at SCHED_FIFO priority P and the emulator (the board) at P + 5, as a bench PC would.
 """
 
@@ -167,12 +168,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", nargs="*", default=None, help="runs to do (nominal and fault names)")
     p.add_argument("--out", default="out/bench-figures.json")
     p.add_argument("--controller", default="feedforward-pd")
+    p.add_argument("--policy", default=None, metavar="ONNX",
+                   help="an exported policy instead of --controller (same as --controller onnx:ONNX)")
     p.add_argument("--host-rate-hz", type=float, default=None, help="two-rate mode at this host rate")
     p.add_argument("--repeat", type=int, default=1, help="nominal runs")
     p.add_argument("--load", type=int, default=0, help="busy processes kept running during the runs")
     p.add_argument("--rt-priority", type=int, default=0,
                    help="run the host at SCHED_FIFO this priority and the emulator 5 above (root; 0: normal)")
     args = p.parse_args(argv)
+    if args.policy is not None:
+        args.controller = f"onnx:{args.policy}"
     if args.rt_priority:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.rt_priority))
     runs = {f"nominal{k + 1 if args.repeat > 1 else ''}": "" for k in range(args.repeat)}

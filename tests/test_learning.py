@@ -47,6 +47,17 @@ def test_config_refuses_unknown_keys_by_name(tmp_path):
     bad.write_text(f"{DEFAULT_ENV_ID}:\n  residual: {{scale: -1}}\n")
     with pytest.raises(ConfigError, match="residual.scale"):
         load_config("ppo", bad)
+    bad.write_text(f"{DEFAULT_ENV_ID}:\n  residual: {{base_rate: host}}\n")
+    with pytest.raises(ConfigError, match="residual.base_rate = 'host'"):
+        load_config("ppo", bad)
+
+
+def test_the_100hz_residual_config_loads_with_its_base_at_the_policy_rate():
+    from addedinertia_env.rig.presets import CONFIG_DIR
+
+    cfg = load_config("ppo", CONFIG_DIR / "algos" / "ppo_residual_100hz.yaml")
+    assert cfg.residual["enabled"] and cfg.residual["base_rate"] == "policy"
+    assert cfg.env_kwargs["action_repeat"] == 10
 
 
 def test_cli_train_bad_config_exits_2(tmp_path, capsys):
@@ -104,6 +115,34 @@ def test_residual_wrapper_with_zero_correction_is_the_base_controller():
     assert samples > agent_steps * 9  # the wrapper holds one correction for 10 samples
     assert info_wrapped["lambda66_est"] == info_plain["lambda66_est"]
     assert info_wrapped["energy_J"] == info_plain["energy_J"]
+
+
+def test_residual_base_at_the_policy_rate_with_zero_correction_is_the_two_rate_board():
+    """base_rate "policy", zero correction: the training wrapper drives the rig exactly as the
+    two-rate board (rig/board_loop.py, zoh) does under lqr at 100 Hz, sample for sample: the
+    base decides once per 10 samples with a 10 ms context, and the drive holds it."""
+    from addedinertia_env.envs.reverse_stroke import simulated_rig
+    from addedinertia_env.experiment.runner import run_experiment
+    from addedinertia_env.learning.envs import make_env
+    from agents import make_controller
+
+    residual = {"enabled": True, "base": "lqr", "scale": 0.1, "base_rate": "policy"}
+    wrapped = make_env(DEFAULT_ENV_ID, {"action_repeat": 10, "randomize": False, "hold_s": 0.3,
+                                        "scenario_seed": 3}, residual)
+    wrapped.reset(seed=0)
+    assert wrapped.base.ctx.dt == pytest.approx(0.01) and wrapped.base.ctx.policy_rate_hz == pytest.approx(100.0)
+    done = False
+    while not done:
+        _, _, term, trunc, _ = wrapped.step(np.zeros(1, np.float32))
+        done = term or trunc
+    env_rec = wrapped.unwrapped.experiment.record("env")
+    scenario = wrapped.unwrapped.scenario
+    board_rec = run_experiment(simulated_rig(scenario), make_controller("lqr", tuned=False, **wrapped.base_params),
+                               scenario.plan, policy_rate_hz=100.0, board_mode="zoh")
+    for col in ("t", "phi", "i", "i_cmd", "brake"):
+        assert np.array_equal(env_rec.samples[col], board_rec.samples[col]), col
+    i_cmd = env_rec.samples["i_cmd"][np.isin(env_rec.samples["phase"], ["reverse"])]
+    assert np.count_nonzero(np.diff(i_cmd)) <= len(i_cmd) // 10 + 2  # held for 10 samples
 
 
 @pytest.mark.slow

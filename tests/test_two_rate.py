@@ -23,6 +23,7 @@ from hw_adapter.loopback import start_emulator
 RIG = "wigley-2m"
 HOLD_S = 0.3
 POLICY = Path(__file__).resolve().parents[1] / "agents" / "policies" / "reverse_stroke.onnx"
+POLICY_100HZ = POLICY.with_name("reverse_stroke_100hz.onnx")  # residual on lqr, the whole policy at 100 Hz
 
 
 def test_lockstep_two_rate_deploy_matches_the_simulated_two_rate_board(tmp_path):
@@ -124,3 +125,72 @@ def test_the_host_link_to_the_emulator_sends_small_frames_at_once():
         link.close()
     finally:
         server.stop()
+
+
+@pytest.mark.skipif(not POLICY_100HZ.exists(), reason="no exported 100 Hz policy")
+def test_the_100hz_policy_on_the_two_rate_board_equals_its_training_loop():
+    """reverse_stroke_100hz.onnx acts at 100 Hz (its base, lqr, decides with the network and
+    the drive holds the sum): through the two-rate board loop, as deploy --host-rate-hz 100
+    runs it, it drives the simulated rig exactly as the training wrapper did, sample for
+    sample (same scenario, same sensor noise); so does the benchmark's single-rate loop, which
+    calls it every sample and lets it hold its own action."""
+    import numpy as np
+
+    from addedinertia_env.envs.reverse_stroke import simulated_rig
+    from addedinertia_env.experiment.runner import run_experiment
+    from addedinertia_env.learning.envs import make_env
+    from agents.onnx_policy import OnnxPolicy
+
+    policy = OnnxPolicy(POLICY_100HZ)
+    assert policy.policy_rate_hz == pytest.approx(100.0) and policy.board_mode == "zoh"
+    assert policy.residual_base_rate == "policy" and policy.action_repeat == 10
+    residual = {"enabled": True, "base": policy.residual_base, "scale": policy.residual_scale,
+                "base_params": policy.residual_base_params, "base_rate": "policy"}
+    wrapped = make_env("AddedInertia/ReverseStroke-v0", {"action_repeat": 10, "randomize": False, "hold_s": HOLD_S,
+                                                         "scenario_seed": 7}, residual)
+    obs, _ = wrapped.reset(seed=0)
+    done = False
+    while not done:
+        obs, _, term, trunc, info_train = wrapped.step(policy.network(obs).reshape(1))
+        done = term or trunc
+    train_rec = wrapped.unwrapped.experiment.record("train")
+    scenario = wrapped.unwrapped.scenario
+    board_rec = run_experiment(simulated_rig(scenario), policy, scenario.plan, policy_rate_hz=100.0)
+    every_sample_rec = run_experiment(simulated_rig(scenario), policy, scenario.plan)  # as `bench run` calls it
+    for col in ("t", "phi", "i", "i_cmd", "brake"):
+        assert np.array_equal(train_rec.samples[col], board_rec.samples[col]), col
+        assert np.array_equal(train_rec.samples[col], every_sample_rec.samples[col]), col
+    assert identify([board_rec], "energy").lambda66 == pytest.approx(info_train["lambda66_est"], rel=1e-9)
+
+
+@pytest.mark.skipif(not POLICY_100HZ.exists(), reason="no exported 100 Hz policy")
+def test_the_100hz_policy_completes_a_two_rate_deploy_and_is_refused_at_another_host_rate(tmp_path, capsys):
+    """deploy --policy reverse_stroke_100hz.onnx --host-rate-hz 100 (lock-step emulator):
+    complete, identified, 0 samples lost, and equal to the same policy through the simulated
+    two-rate board; at --host-rate-hz 1000 it is refused before anything is armed (exit 2)."""
+    params = rig_from_mapping(load_preset(RIG))
+    truth = params.hull.lambda66  # scoring only
+    server = start_emulator(RIG, fast=True)
+    try:
+        status = main(["deploy", "--bench", server.url, "--policy", str(POLICY_100HZ), "--host-rate-hz", "1000",
+                       "--json"])
+        captured = capsys.readouterr()
+        assert not server.board.commands and not server.board.armed
+        assert status == EXIT_BAD_INPUT
+        refused = json.loads(captured.out)
+        assert refused["status"].startswith("refused:") and "acts at 100 Hz" in refused["refused"]
+        assert "--host-rate-hz 100" in captured.err
+        opts = DeployOptions(bench=server.url, controller=f"onnx:{POLICY_100HZ}", lab=load_lab(RIG), out=tmp_path,
+                             hold_s=HOLD_S, host_rate_hz=100.0)
+        summary, status = deploy(opts, make_controller(f"onnx:{POLICY_100HZ}"))
+    finally:
+        server.stop()
+    assert status == 0 and summary["status"] == "complete", summary["status"]
+    assert summary["samples_lost"] == 0 and summary["late_segments"] == 0 and summary["host_rate_hz"] == 100.0
+    rig = TwoRateSimRig(MujocoRig(params, seed=0), 100.0)
+    exp = Experiment(rig, load_lab(RIG).plan(hold_s=HOLD_S))
+    exp.start()
+    drive_two_rate(exp, make_controller(f"onnx:{POLICY_100HZ}"), 100.0)
+    sim = identify([exp.record("sim")], "energy").lambda66
+    assert abs(summary["lambda66"] / truth - 1) < 0.01 and abs(sim / truth - 1) < 0.01
+    assert abs(summary["lambda66"] / sim - 1) < 0.005, (summary["lambda66"], sim)

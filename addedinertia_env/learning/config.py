@@ -10,7 +10,7 @@ Each file maps a Gymnasium id to one block::
                                    # residual runs fall back to dummy) | dummy (one process) | subproc
       normalize: {norm_obs: true, norm_reward: false, clip_obs: 10.0}   # VecNormalize
       env_kwargs: {action_repeat: 10, randomize: true}
-      residual: {enabled: false, base: feedforward-pd, scale: 0.2}
+      residual: {enabled: false, base: feedforward-pd, scale: 0.2}   # + base_rate: sample | policy
       eval: {seed: 10000, n_episodes: 5, freq: 20000}   # freq in agent steps, all envs together
       checkpoint_freq: 50000       # agent steps, all envs together
       hyperparams: {...}           # keyword arguments of the stable-baselines3 class
@@ -44,7 +44,7 @@ VEC_ENVS = ("batched", "dummy", "subproc")
 BLOCK_KEYS = {"policy", "n_timesteps", "n_envs", "vec_env", "normalize", "env_kwargs", "residual", "eval",
               "checkpoint_freq", "hyperparams"}
 NORMALIZE_KEYS = {"norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma"}
-RESIDUAL_KEYS = {"enabled", "base", "scale", "base_params"}
+RESIDUAL_KEYS = {"enabled", "base", "scale", "base_params", "base_rate"}
 EVAL_KEYS = {"seed", "n_episodes", "freq"}
 ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU"}
 
@@ -144,6 +144,10 @@ def load_config(algo: str, path: str | Path | None = None, env_id: str = DEFAULT
     scale = cfg.residual["scale"]
     if not (isinstance(scale, (int, float)) and 0 < scale <= 2):
         raise ConfigError(f"{where}: residual.scale = {scale!r}; expected a number in (0, 2] (fraction of i_max)")
+    base_rate = cfg.residual.get("base_rate", "sample")
+    if base_rate not in ("sample", "policy"):
+        raise ConfigError(f"{where}: residual.base_rate = {base_rate!r}; expected 'sample' (the base at every rig "
+                          "sample) or 'policy' (once per action, held with it: a policy for a two-rate bench)")
     for key in ("n_episodes", "freq", "seed"):
         cfg.eval[key] = _positive_int(cfg.eval[key], f"{where}: eval.{key}", allow_zero=key == "seed")
     hyper = block.get("hyperparams") or {}

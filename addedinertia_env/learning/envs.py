@@ -11,6 +11,14 @@ that runs at every sample of the rig (1 kHz) from the same observation::
 deployment see one controller. The base controller gets ``reset(context)`` with the
 environment's :class:`~agents.base.ControllerContext` (sensor data only) every episode.
 
+``base_rate`` says where the base runs: ``"sample"`` (default) at every rig sample, as
+above, so the whole controller acts at the sample rate (a single-rate 1 kHz host);
+``"policy"`` once per policy action, with a context whose ``dt`` is the policy period
+(``action_repeat`` samples), and the sum ``clip(base + scale * r, -1, 1)`` is held for
+``action_repeat`` samples. Then the whole controller acts at the policy rate
+(``sample rate / action_repeat``, e.g. 100 Hz) with the board holding its current in
+between: what a two-rate bench runs (``deploy --host-rate-hz 100``, board mode ``zoh``).
+
 The base controller's parameters are pinned when the wrapper is built (``base_params``,
 default: its tuned values at that moment, ``configs/controllers/tuned.yaml``) and go
 into the training card and the ONNX metadata: a later re-tune of the classical
@@ -27,7 +35,7 @@ import numpy as np
 from gymnasium import spaces
 
 from agents import make_controller
-from agents.residual import residual_action
+from agents.residual import BASE_RATES, policy_rate_context, residual_action
 
 from .toy import TOY_ENV_ID, register_toy
 
@@ -40,11 +48,14 @@ class ResidualWrapper(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, base: str = "feedforward-pd", scale: float = 0.2, action_repeat: int = 10,
-                 base_params: dict[str, Any] | None = None):
+                 base_params: dict[str, Any] | None = None, base_rate: str = "sample"):
         super().__init__(env)
         if action_repeat < 1:
             raise ValueError(f"action_repeat = {action_repeat!r}; expected an integer >= 1 (samples per action)")
+        if base_rate not in BASE_RATES:
+            raise ValueError(f"residual base_rate = {base_rate!r}; expected one of {BASE_RATES}")
         self.base_name, self.scale, self.action_repeat = base, float(scale), int(action_repeat)
+        self.base_rate = base_rate
         self.base_params = dict(base_params) if base_params is not None else pinned_base_params(base)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self._obs: np.ndarray | None = None
@@ -52,15 +63,21 @@ class ResidualWrapper(gym.Wrapper):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
         self.base = make_base(self.base_name, self.base_params)
-        self.base.reset(self.env.unwrapped.controller_context())
+        context = self.env.unwrapped.controller_context()
+        if self.base_rate == "policy":
+            context = policy_rate_context(context, self.action_repeat)
+        self.base.reset(context)
         self._obs = obs
         return obs, info
 
     def step(self, action):
         total = 0.0
+        held = None
         for _ in range(self.action_repeat):
-            base_action, _ = self.base.predict(self._obs, deterministic=True)
-            obs, reward, terminated, truncated, info = self.env.step(residual_action(base_action, action, self.scale))
+            if held is None or self.base_rate == "sample":
+                base_action, _ = self.base.predict(self._obs, deterministic=True)
+                held = residual_action(base_action, action, self.scale)
+            obs, reward, terminated, truncated, info = self.env.step(held)
             total += float(reward)
             self._obs = obs
             if terminated or truncated:
@@ -94,7 +111,8 @@ def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None, residual: di
         repeat = int(kwargs.pop("action_repeat", 1))
         env = gym.make(env_id, action_repeat=1, **kwargs)
         return ResidualWrapper(env, base=residual["base"], scale=residual["scale"], action_repeat=repeat,
-                               base_params=residual.get("base_params"))
+                               base_params=residual.get("base_params"),
+                               base_rate=residual.get("base_rate", "sample"))
     return gym.make(env_id, **kwargs)
 
 

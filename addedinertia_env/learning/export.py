@@ -146,8 +146,10 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
     cost = train_card.get("cost") or {}
     repeat = int(train_card.get("action_repeat", 1))
     sample_rate = float(train_card.get("sample_rate_hz") or 1000.0)
-    # A residual policy's base controller runs at every sample: the policy acts at the sample rate.
-    policy_rate = sample_rate if residual else sample_rate / repeat
+    # A residual policy whose base runs at every sample acts at the sample rate; one whose base
+    # runs once per action (base_rate "policy") acts, like a plain policy, every `repeat` samples.
+    base_rate = str(residual.get("base_rate") or "sample") if residual else ""
+    policy_rate = sample_rate if base_rate == "sample" else sample_rate / repeat
     meta = {
         "version": __version__,
         "algo": train_card.get("algo", ""),
@@ -159,6 +161,7 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
         "residual_base": residual.get("base", "") if residual else "",
         "residual_scale": str(float(residual.get("scale", 0.0))) if residual else "0",
         "residual_base_params": json.dumps(residual.get("base_params") or {}) if residual else "{}",
+        "residual_base_rate": base_rate,
         "obs_fields": json.dumps(train_card.get("observation_fields") or list(OBSERVATION_FIELDS)),
         "train_env_steps": str(cost.get("env_steps", "")),
         "train_cpu_minutes": str(cost.get("cpu_minutes", "")),
