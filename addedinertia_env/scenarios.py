@@ -76,8 +76,11 @@ def load_ranges(path: str | Path | None = None) -> dict[str, Any]:
 
 def make_scenario(seed: int, preset: str = "wigley-2m", ranges: dict[str, Any] | None = None,
                   fixed: dict[str, Any] | None = None, effects: Effects | None = None,
-                  name: str | None = None) -> Scenario:
-    """Scenario number ``seed``: draws each key of ``ranges`` unless ``fixed`` pins it."""
+                  name: str | None = None, hydrodynamics: str | dict | None = None) -> Scenario:
+    """Scenario number ``seed``: draws each key of ``ranges`` unless ``fixed`` pins it.
+
+    ``hydrodynamics``: overrides the preset's hydrodynamic model (``"cummins"``: radiation
+    memory from the hull's BEM cache; presets.hydrodynamics_from)."""
     ranges = load_ranges() if ranges is None else ranges
     fixed = dict(fixed or {})
     hull_ss, sensor_ss, ctrl_ss = np.random.SeedSequence(seed).spawn(3)
@@ -92,7 +95,7 @@ def make_scenario(seed: int, preset: str = "wigley-2m", ranges: dict[str, Any] |
             pick = float(rng.uniform(lo, hi)) if math.isfinite(lo) else None
         draw[key] = fixed.get(key, pick)
     preset_data = load_preset(preset)
-    base = rig_from_mapping(preset_data)
+    base = rig_from_mapping(preset_data, hydrodynamics=hydrodynamics)
     hull, motor, spring = base.hull, base.motor, base.spring
     if draw["lambda_ratio"] is not None:
         hull = dataclasses.replace(hull, lambda66=draw["lambda_ratio"] * hull.J_hull)
@@ -111,7 +114,7 @@ def make_scenario(seed: int, preset: str = "wigley-2m", ranges: dict[str, Any] |
     quality = draw["sensor_quality"] or "realistic"
     rig = RigParams(hull=hull, spring=spring, motor=motor, sensors=sensors_for_quality(quality, base.sensors),
                     effects=effects if effects is not None else base.effects, brake_torque=base.brake_torque,
-                    physics_substeps=base.physics_substeps)
+                    physics_substeps=base.physics_substeps, hydrodynamics=base.hydrodynamics)
     plan = plan_from_preset(preset_data, alpha=draw["alpha"], hold_s=draw["hold_s"])
     return Scenario(name=name or f"{preset}/{seed}", seed=seed, rig=rig, plan=plan, sensor_seed=sensor_ss,
                     controller_seed=ctrl_ss, sensor_quality=quality)

@@ -41,6 +41,9 @@ def register(sub) -> None:
     p.add_argument("--from-record", metavar="RUN.csv", nargs="+", default=None,
                    help="take lambda66 and its 95 %% interval from run record(s) (implies --stability; overrides --lambda66-range)")
     p.add_argument("--method", default="energy", help="identification method for --from-record (default energy)")
+    p.add_argument("--fit-memory", action="store_true",
+                   help="only fit the simulator's radiation-memory model (passive state space, docs/RADIATION_MEMORY.md) "
+                        "to a preset's cached sweep and store it in the cache as 'memory_model', and stop (no BEM solve)")
     p.add_argument("--export-mesh", metavar="FILE.gdf", default=None,
                    help="only write a preset's generated quarter mesh (fine resolution, or --panels FINE) in WAMIT GDF "
                         "format, and stop (nothing is solved)")
@@ -123,6 +126,11 @@ def run(args) -> int:
         if args.json:
             emit_json(written)
         return 0
+    if args.fit_memory:  # fit the memory model to the cached sweep and stop
+        fitted = _fit_memory(args)
+        if args.json:
+            emit_json(fitted)
+        return 0
 
     data, facts = _study_for(args)
     if data.get("hull") is None:
@@ -145,6 +153,34 @@ def run(args) -> int:
     else:
         print("\n".join(_lines(out)))
     return 0
+
+
+def _fit_memory(args) -> dict:
+    """Fit the simulator's memory model to a preset's cached sweep and store it in the cache."""
+    from ..hull import study as st  # noqa: PLC0415
+    from ..hull.memory_fit import memory_model_from_cache  # noqa: PLC0415
+    from ..hull.presets import preset_hull  # noqa: PLC0415
+
+    if args.solve or args.deep or args.panels:
+        raise BadInput("--fit-memory fits the cached floating-hull sweep: drop --solve/--deep/--panels "
+                       "(re-solve first with --solve --write-cache if the cache is stale)")
+    shape, facts = preset_hull(args.hull)
+    path = st.cache_path(facts["preset"])
+    if not path.exists():
+        raise BadInput(f"{path}: no BEM cache to fit; expected one written by "
+                       f"'addedinertia hull {facts['preset']} --solve --write-cache'")
+    data = st.read_cache(path, shape)
+    try:
+        block = memory_model_from_cache(data)
+    except ValueError as e:
+        raise BadInput(f"{path}: {e}") from None
+    block["command"] = f"addedinertia hull {facts['preset']} --fit-memory"
+    data["memory_model"] = block
+    st.write_cache(path, data)
+    info(f"{path}: memory model of order {block['order']} (fit error {100 * block['fit_error']:.1f} %, "
+         f"A66(inf)/A66(0) {block['a_inf_ratio']:.4f}, A66(swing)/A66(0) {block['a_swing_ratio']:.4f}) stored")
+    return {"cache": str(path), **{k: block[k] for k in ("order", "fit_error", "a_inf_ratio", "a_swing_ratio",
+                                                            "swing_omega", "poles", "min_B_on_grid")}}
 
 
 def _export(args) -> dict:

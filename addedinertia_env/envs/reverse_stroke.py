@@ -309,7 +309,9 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         """The simulated hull's lambda66 (kg m^2): from this env's own parameters; nan on a bench."""
         if self.scenario is None or getattr(self.rig, "source", "sim") != "sim":
             return math.nan
-        return float(self.scenario.rig.hull.lambda66)
+        from ..rig.forces import true_lambda66  # noqa: PLC0415
+
+        return true_lambda66(self.scenario.rig)  # A66 at the swing frequency with radiation memory
 
     # --- internals --------------------------------------------------------------------
     def _score(self) -> dict[str, Any]:

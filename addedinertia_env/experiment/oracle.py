@@ -39,9 +39,9 @@ class OracleController:
         t = s.t + 0.5 * ctx.dt  # the torque acts over the coming sample
         if t < ref.t_begin:
             return np.zeros(1, dtype=np.float32), state
-        J = p.hull.J_hull + p.hull.lambda66
+        J = p.hull.J_hull + forces.hull_armature(p)  # A66(inf) with radiation memory
         acc = float(ref.accel(t)) + self.kp * (float(ref.phi(t)) - s.phi) + self.kd * (float(ref.rate(t)) - s.w)
         hull_torque = J * acc + p.spring.c * (s.phi - forces.true_neutral(p)) \
-            - float(forces.hull_extra_torque(s.phi, s.w, s.water_rate, p))
+            - float(forces.hull_extra_torque(s.phi, s.w, s.water_rate, p)) - s.radiation_torque
         i = -hull_torque / self.rig.k_t  # reaction of the motor torque on the hull
         return np.array([np.clip(i / p.motor.i_max, -1, 1)], dtype=np.float32), state

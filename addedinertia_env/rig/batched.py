@@ -191,6 +191,8 @@ class BatchedRig:
         self._X = np.zeros((len(STATE), n), dtype=dtype)  # the state block (rows: STATE)
         self._Xn = np.zeros_like(self._X)  # the next one (double buffer)
         self.water_rate = np.zeros(n, dtype=dtype)
+        # radiation-memory state (rad), one column per environment (no rows without memory)
+        self.radiation_x = np.zeros((forces.radiation_state_size(params), n), dtype=dtype)
         self._w_prev = np.zeros(n, dtype=dtype)  # hull rate one physics step ago (forces.centred_rate)
         self.t = np.zeros(n)  # s, float64 always (phase timing)
         self.brake = np.zeros(n, dtype=bool)
@@ -222,7 +224,7 @@ class BatchedRig:
         """(c, J, J_f, k_t, R, L) for :func:`substep_matrix`, of environments ``idx`` (all: None)."""
         m = p.motor
         sel = slice(None) if idx is None else idx
-        J = np.asarray(p.hull.J_hull, float) + np.asarray(p.hull.lambda66, float)
+        J = np.asarray(p.hull.J_hull, float) + np.asarray(forces.hull_armature(p), float)
         values = (p.spring.c, J, m.J_flywheel, forces.true_torque_constant(p), m.R, m.L)
         out = []
         for v in values:
@@ -270,6 +272,7 @@ class BatchedRig:
         its noise stream and delay line included."""
         self._X[:, k] = source._X[:, j]
         self.water_rate[k] = source.water_rate[j]
+        self.radiation_x[:, k] = source.radiation_x[:, j]
         self._w_prev[k] = source._w_prev[j]
         self.t[k] = source.t[j]
         self.brake[k] = source.brake[j]
@@ -311,6 +314,7 @@ class BatchedRig:
         X[I, sel] = 0.0
         X[U, sel] = self._k_t_env[sel] * X[OMEGA, sel]  # open circuit shows the back-EMF
         self.water_rate[sel] = 0.0
+        self.radiation_x[:, sel] = 0.0
         self._w_prev[sel] = 0.0
         self.t[sel] = 0.0
         self.sensors.reset(idx)
@@ -376,6 +380,7 @@ class BatchedRig:
             self._select_maps(np.broadcast_to(kind, (self.n,)))
         paused = None if active is None or np.all(active) else ~np.asarray(active, dtype=bool)
         h = self.physics_dt
+        memory = forces.has_radiation_memory(p)
         for _ in range(p.physics_substeps):
             X = self._X
             if not np.all(driven):  # open circuit: the terminals show the back-EMF
@@ -389,6 +394,12 @@ class BatchedRig:
             else:
                 np.copyto(self._w_prev, X[W], where=~paused)
             q_hull = forces.hull_extra_torque(X[PHI], w_mid, self.water_rate, p)
+            if memory:  # radiation memory: the hull feels -mu over the step
+                x_new, mu = forces.radiation_memory_step(self.radiation_x, w_mid, p)
+                q_hull = q_hull - mu
+                if paused is not None:
+                    x_new = np.where(paused, self.radiation_x, x_new)
+                self.radiation_x[...] = x_new
             np.add(q_hull, self._spring_offset, out=X[F1])
             X[F2] = forces.flywheel_friction_torque(X[OMEGA], p)
             if forces.has_water_memory(p):
@@ -440,7 +451,7 @@ class BatchedRig:
     # --- bookkeeping ----------------------------------------------------------------------
     def state_nbytes(self) -> int:
         """Bytes of the per-environment state and work arrays (maps included)."""
-        arrays = [self._X, self._Xn, self.water_rate, self._w_prev, self.t, self.brake, self._tmp, self._k_t_env]
+        arrays = [self._X, self._Xn, self.water_rate, self.radiation_x, self._w_prev, self.t, self.brake, self._tmp, self._k_t_env]
         total = sum(a.nbytes for a in arrays) + self._G_table.nbytes
         if self._G_env is not None:
             total += self._G_env.nbytes + self._kind_env.nbytes
@@ -460,4 +471,5 @@ class BatchedRig:
         energy = float(forces.kinetic_energy(w, omega, rig) + forces.potential_energy(phi, rig))
         return {"t": float(self.t[k]), "phi": phi, "w": w, "psi": float(X[PSI, k]), "omega": omega,
                 "i": float(X[I, k]), "u": float(X[U, k]), "water_rate": float(self.water_rate[k]),
-                "energy": energy}
+                "energy": energy, "radiation_state": tuple(float(v) for v in self.radiation_x[:, k]),
+                "radiation_energy": float(forces.radiation_energy(self.radiation_x[:, k].astype(float), rig))}

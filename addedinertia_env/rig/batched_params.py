@@ -36,6 +36,20 @@ _GROUPS = ("hull", "spring", "motor", "sensors")
 _COMMON = ("sample_rate",)
 
 
+def _shared_hydrodynamics(rigs: Sequence[RigParams]):
+    """The batch's one hydrodynamic model (None: constant added inertia); a ValueError if rigs differ.
+
+    The radiation-memory state has the model's order in every environment, so a batch shares
+    the model (the hull's lambda66, which scales it, may differ per environment).
+    """
+    models = {r.hydrodynamics for r in rigs}
+    if len(models) > 1:
+        names = sorted("constant" if m is None else f"cummins ({m.source or 'unnamed'})" for m in models)
+        raise ValueError(f"BatchedParams: the hydrodynamic model differs across the batch ({', '.join(names)}); "
+                         "one batch shares one model (batch rigs of one hull together)")
+    return next(iter(models))
+
+
 def _numeric_fields(obj) -> list[str]:
     return [f.name for f in dataclasses.fields(obj) if isinstance(getattr(obj, f.name), (int, float))
             and not isinstance(getattr(obj, f.name), bool)]
@@ -95,6 +109,7 @@ class BatchedParams:
                                     for k, v in spec.neutral_values().items()})
             setattr(self.effects, spec.name, ns)
         self.effects._hooked = registry.hook_table(self.effects)  # read every physics step
+        self.hydrodynamics = _shared_hydrodynamics(rigs)
 
     def _column(self, values: list, shared_ok: bool = True):
         """A dtype scalar if all values are equal (and sharing is allowed), else an array."""
@@ -133,6 +148,8 @@ class BatchedParams:
         all_rigs = list(self.rigs)
         for k, r in zip(envs, rigs):
             all_rigs[int(k)] = r
+        if _shared_hydrodynamics(all_rigs) != self.hydrodynamics:  # the memory state's size is the batch's
+            raise ValueError("BatchedParams.set_envs: new rigs with another hydrodynamic model than the batch's")
         self.rigs = tuple(all_rigs)
         self.uniform = False
         for group in _GROUPS:

@@ -54,10 +54,7 @@ class BatchedSingleRig(SimulatedRigBase):
 
     def truth(self) -> dict:
         """The run record's ``truth`` block (scoring only); same content as MujocoRig.truth()."""
-        h = self.params.hull
-        return {"lambda66": h.lambda66, "effects": self.params.effects.to_dict(),
-                "damping": {"b1": h.b1, "b2": h.b2}, "k_t": self.k_t,
-                "phi_neutral": forces.true_neutral(self.params)}
+        return forces.truth(self.params, self.k_t)
 
     def true_state(self) -> dict:
         """Simulator truth (t, phi, w, psi, omega, i, u, water_rate, energy): scoring and tests only."""

@@ -13,6 +13,12 @@ Split of the equations of motion (physics.md section 2)::
 * everything else (hydrodynamic damping with optional fluid memory, motor friction, and
   each hidden effect's terms, read from the effect registry ``effects/``) is computed here
   and held over one physics step.
+
+Radiation memory (the optional ``cummins`` hydrodynamic model, :mod:`.radiation`; not a
+hidden effect) is a vector state ``x`` per rig: the armature becomes ``A66(inf)``
+(:func:`hull_armature`) and the hull feels ``-mu`` with ``mu`` the step's mean memory
+moment from :func:`radiation_memory_step` (exact for the hull rate held at the step's
+centred value), held over the step like the other torques.
 """
 
 from __future__ import annotations
@@ -22,9 +28,11 @@ import numpy as np
 from .effects.registry import active_params
 from .friction import DRY_FRICTION_RATE_SCALE
 from .params import RigParams
+from .radiation import step_maps, truth_block
 
 __all__ = ["DRY_FRICTION_RATE_SCALE", "channel_delay", "flywheel_friction_torque", "has_channel_delay",
-           "has_water_memory", "hull_extra_torque", "hydrodynamic_torque", "kinetic_energy", "potential_energy",
+           "has_radiation_memory", "has_water_memory", "hull_armature", "hull_extra_torque", "radiation_energy",
+           "radiation_memory_step", "radiation_state_size", "true_lambda66", "truth", "hydrodynamic_torque", "kinetic_energy", "potential_energy",
            "torque_constant_ratio", "true_neutral", "true_torque_constant", "water_rate_after_rest", "water_rate_derivative"]
 
 
@@ -125,6 +133,52 @@ def water_rate_after_rest(water_rate, seconds, p: RigParams):
     return water_rate
 
 
+def has_radiation_memory(p: RigParams) -> bool:
+    """Whether the rig's water has Cummins radiation memory (the ``cummins`` hydrodynamic model)."""
+    return getattr(p, "hydrodynamics", None) is not None
+
+
+def hull_armature(p: RigParams):
+    """The added inertia in the hull joint's mass matrix, kg m^2: lambda66 with the constant model,
+    ``A66(inf) = lambda66 A66(inf)/A66(0)`` with radiation memory (lambda66 being A66(0))."""
+    model = getattr(p, "hydrodynamics", None)
+    return p.hull.lambda66 if model is None else p.hull.lambda66 * model.a_inf_ratio
+
+
+def radiation_state_size(p: RigParams) -> int:
+    """Length of the radiation-memory state per rig (0 without memory)."""
+    model = getattr(p, "hydrodynamics", None)
+    return 0 if model is None else model.order
+
+
+def radiation_memory_step(x, w, p: RigParams):
+    """One physics step of the radiation memory: ``(x_new, mu)``.
+
+    ``x``: state (rad), shape ``(n,)`` or ``(n, envs)``; ``w``: hull rate held over the step
+    (rad/s; the centred rate), scalar or ``(envs,)``. ``mu`` (N m) is the memory moment's
+    mean over the step (the hull feels ``-mu``); ``x_new`` the state at the step's end.
+    Exact for ``w`` held (the maps of :func:`.radiation.step_maps`).
+    """
+    Phi, Gam, cbar, dbar = step_maps(p.hydrodynamics, float(p.physics_dt))
+    if np.ndim(x) == 2:
+        x_new = Phi @ x + Gam[:, None] * w
+    else:
+        x_new = Phi @ x + Gam * w
+    mu = p.hull.lambda66 * (cbar @ x + dbar * w)
+    return x_new, mu
+
+
+def radiation_energy(x, p: RigParams):
+    """Energy stored in the radiation memory, J: ``lambda66 x'Px / 2`` (the fit's storage
+    function, :func:`addedinertia_env.hull.memory_fit.storage_matrix`); 0 without memory."""
+    model = getattr(p, "hydrodynamics", None)
+    if model is None:
+        return 0.0
+    P = np.asarray(model.P)
+    x = np.asarray(x, dtype=float)
+    return 0.5 * p.hull.lambda66 * np.einsum("i...,ij,j...->...", x, P, x)
+
+
 def potential_energy(phi, p: RigParams):
     """Torsion rod energy, J (including hidden stiffening)."""
     d = phi - true_neutral(p)
@@ -135,5 +189,30 @@ def potential_energy(phi, p: RigParams):
 
 
 def kinetic_energy(w, omega, p: RigParams):
-    """Hull (with added inertia) + flywheel kinetic energy, J."""
-    return 0.5 * (p.hull.J_hull + p.hull.lambda66) * w**2 + 0.5 * p.motor.J_flywheel * (w + omega) ** 2
+    """Hull (with its armature, :func:`hull_armature`) + flywheel kinetic energy, J; with radiation
+    memory the water's share beyond A66(inf) is :func:`radiation_energy`."""
+    return 0.5 * (p.hull.J_hull + hull_armature(p)) * w**2 + 0.5 * p.motor.J_flywheel * (w + omega) ** 2
+
+
+def truth(p: RigParams, k_t: float) -> dict:
+    """A simulated rig's run-record ``truth`` block (scoring only; every engine gives the same).
+
+    With radiation memory, ``lambda66`` is A66 at the natural swing frequency and a
+    ``hydrodynamics`` block gives A66(0), A66(swing), A66(inf) (:func:`.radiation.truth_block`).
+    """
+    h = p.hull
+    out = {"lambda66": h.lambda66, "effects": p.effects.to_dict(), "damping": {"b1": h.b1, "b2": h.b2},
+           "k_t": k_t, "phi_neutral": true_neutral(p)}
+    model = getattr(p, "hydrodynamics", None)
+    if model is not None:
+        out.update(truth_block(h.J_hull, h.lambda66, p.spring.c, model))
+    return out
+
+
+def true_lambda66(p: RigParams) -> float:
+    """The lambda66 a run on this rig is scored against, kg m^2: the hull's lambda66, or with
+    radiation memory A66 at the natural swing frequency (:func:`.radiation.truth_block`)."""
+    model = getattr(p, "hydrodynamics", None)
+    if model is None:
+        return float(p.hull.lambda66)
+    return float(truth_block(p.hull.J_hull, p.hull.lambda66, p.spring.c, model)["lambda66"])

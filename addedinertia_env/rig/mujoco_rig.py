@@ -2,7 +2,8 @@
 
 Model (physics.md section 2): a ``hull`` body on a vertical ``hull_yaw`` hinge carrying the
 torsion spring (``stiffness``, ``springref``), with the hull's yaw inertia as its body
-inertia and ``lambda66`` as the joint's armature (exact for a constant added inertia);
+inertia and ``lambda66`` as the joint's armature (exact for a constant added inertia;
+``A66(inf)`` with radiation memory, :func:`.forces.hull_armature`);
 a ``flywheel`` child body on a coaxial ``flywheel_spin`` hinge (angle ``psi`` relative to
 the hull) driven by a ``motor`` actuator. Because the flywheel is the hull's child, the
 motor's reaction on the hull comes out of the mass matrix; it is never added by hand.
@@ -50,7 +51,7 @@ def build_mjcf(p: RigParams) -> str:
     <body name="hull">
       <joint name="{HULL_JOINT}" type="hinge" axis="0 0 1"
              stiffness="{p.spring.c!r}" springref="{forces.true_neutral(p)!r}"
-             armature="{p.hull.lambda66!r}"/>
+             armature="{float(forces.hull_armature(p))!r}"/>
       <inertial pos="0 0 0" mass="1" diaginertia="{J_h!r} {J_h!r} {J_h!r}"/>
       <geom type="ellipsoid" size="1.0 0.1 0.125" mass="0" rgba="0.85 0.85 0.8 1"/>
       <body name="flywheel" pos="0 0 0.2">
@@ -92,6 +93,10 @@ class TrueState:
     ohmic_loss: float  # J, cumulative integral of R i^2 dt
     reaction_work_hull: float = 0.0  # J, cumulative work of the motor's reaction -(k_t i - M_f) on the hull
     current_angle: float = 0.0  # A rad, cumulative integral of i dphi (the current's share of that work)
+    radiation_state: tuple = ()  # rad, the radiation-memory state x (empty without memory)
+    radiation_work: float = 0.0  # J, cumulative work of the hull on the water through the memory, integral mu dphi
+    radiation_energy: float = 0.0  # J, energy the memory holds now (its storage function)
+    radiation_torque: float = 0.0  # N m, the memory moment -mu on the hull over the last physics step
 
 
 class MujocoRig(SimulatedRigBase):
@@ -132,6 +137,8 @@ class MujocoRig(SimulatedRigBase):
         self.motor_work = self.dissipated_hull = self.dissipated_flywheel = 0.0
         self.electric_energy = self.ohmic_loss = 0.0
         self.reaction_work_hull = self.current_angle = 0.0
+        self.radiation_x = np.zeros(forces.radiation_state_size(self.params))  # rad, memory state
+        self.radiation_work = self.radiation_torque = 0.0
         self._w_prev = 0.0  # hull rate one physics step ago (forces.centred_rate)
         self.sensors.reset()
         self.set_brake(brake)
@@ -152,6 +159,7 @@ class MujocoRig(SimulatedRigBase):
         h = p.physics_dt
         omega = d.qvel[self._fly_dof]
         passive = cmd.mode == "passive"
+        memory = forces.has_radiation_memory(p)
         u = terminal_voltage(cmd, self.i, omega, R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max,
                              i_max=m.i_max, sample_dt=p.sensors.dt)
         for _ in range(p.physics_substeps):
@@ -161,7 +169,11 @@ class MujocoRig(SimulatedRigBase):
             self._w_prev = float(w)
             q_hull = float(forces.hull_extra_torque(phi, w_mid, self.water_rate, p))
             q_fly = float(forces.flywheel_friction_torque(omega, p))
-            d.qfrc_applied[self._hull_dof] = q_hull
+            q_rad = 0.0
+            if memory:
+                self.radiation_x, mu = forces.radiation_memory_step(self.radiation_x, w_mid, p)
+                q_rad = -float(mu)
+            d.qfrc_applied[self._hull_dof] = q_hull + q_rad
             d.qfrc_applied[self._fly_dof] = q_fly
             if passive:
                 i1 = i_mean = 0.0
@@ -178,6 +190,8 @@ class MujocoRig(SimulatedRigBase):
             dpsi = d.qpos[self._fly_qpos] - psi0
             self.motor_work += torque * dpsi
             self.dissipated_hull += q_hull * dphi
+            self.radiation_work -= q_rad * dphi
+            self.radiation_torque = q_rad
             self.dissipated_flywheel += q_fly * dpsi
             self.reaction_work_hull -= (torque + q_fly) * dphi
             self.current_angle += i_mean * dphi
@@ -192,10 +206,7 @@ class MujocoRig(SimulatedRigBase):
 
     def truth(self) -> dict:
         """The run record's ``truth`` block (scoring only)."""
-        h = self.params.hull
-        return {"lambda66": h.lambda66, "effects": self.params.effects.to_dict(),
-                "damping": {"b1": h.b1, "b2": h.b2}, "k_t": self.k_t,
-                "phi_neutral": forces.true_neutral(self.params)}
+        return forces.truth(self.params, self.k_t)
 
     def true_state(self) -> TrueState:
         """Simulator truth: for scoring and tests, never for estimators or controllers."""
@@ -208,7 +219,11 @@ class MujocoRig(SimulatedRigBase):
                          motor_work=self.motor_work, dissipated_hull=self.dissipated_hull,
                          dissipated_flywheel=self.dissipated_flywheel,
                          electric_energy=self.electric_energy, ohmic_loss=self.ohmic_loss,
-                         reaction_work_hull=self.reaction_work_hull, current_angle=self.current_angle)
+                         reaction_work_hull=self.reaction_work_hull, current_angle=self.current_angle,
+                         radiation_state=tuple(float(v) for v in self.radiation_x),
+                         radiation_work=self.radiation_work,
+                         radiation_energy=float(forces.radiation_energy(self.radiation_x, p)),
+                         radiation_torque=self.radiation_torque)
 
     # --- internals ------------------------------------------------------------------
     def _mean_flywheel_rate(self, omega0: float, i_guess: float, h: float) -> float:

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, replace
 
 from .effects import Effects
 from .known import KnownRig
+from .radiation import CumminsModel
 
 
 @dataclass(frozen=True)
@@ -121,6 +122,9 @@ class RigParams:
     effects: Effects = field(default_factory=Effects)
     brake_torque: float = 60.0  # N m, holding torque of the hull brake
     physics_substeps: int = 2  # integrator steps per sample
+    # Radiation memory (rig/radiation.py): None = constant added inertia lambda66 (the default);
+    # a CumminsModel = Cummins' convolution, lambda66 then being A66(0). Not a hidden effect.
+    hydrodynamics: CumminsModel | None = None
 
     def __post_init__(self) -> None:
         _positive(self, "brake_torque", "physics_substeps")
@@ -130,6 +134,9 @@ class RigParams:
         if isinstance(self.physics_substeps, bool) or int(self.physics_substeps) != self.physics_substeps:
             raise ValueError(f"RigParams.physics_substeps = {self.physics_substeps!r}: expected a whole number >= 1")
         object.__setattr__(self, "physics_substeps", int(self.physics_substeps))
+        if self.hydrodynamics is not None and not isinstance(self.hydrodynamics, CumminsModel):
+            raise ValueError(f"RigParams.hydrodynamics = {self.hydrodynamics!r}: expected None (constant added "
+                             "inertia) or a CumminsModel (rig/radiation.py)")
 
     @property
     def J_total(self) -> float:

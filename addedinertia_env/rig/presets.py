@@ -17,7 +17,7 @@ from typing import Any
 from ..config_io import ConfigError, check_keys, read_yaml
 
 from ..hull.geometry import shape_from_mapping
-from . import hydro
+from . import hydro, radiation
 from .effects import Effects
 from .params import HullParams, MotorParams, RigParams, SensorParams, SpringParams
 
@@ -48,7 +48,9 @@ def rig_path(name: str) -> Path:
 
 
 REQUIRED_BLOCKS = ("hull", "spring", "motor")  # what a rig file must state; sensors and the rest have defaults
-TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps", "effects", "experiment")
+TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps", "effects", "experiment",
+            "hydrodynamics")
+HYDRO_KEYS = ("model", "source", "cache")
 
 
 _PRESET_CACHE: dict[tuple[str, int], dict[str, Any]] = {}
@@ -77,16 +79,19 @@ def _parse_preset(path: Path) -> dict[str, Any]:
     return data
 
 
-def load_rig(name: str, effects: Effects | None = None, sensors: SensorParams | None = None) -> RigParams:
-    """A :class:`RigParams` from preset ``name`` (or a YAML path)."""
-    return rig_from_mapping(load_preset(name), effects=effects, sensors=sensors)
+def load_rig(name: str, effects: Effects | None = None, sensors: SensorParams | None = None,
+             hydrodynamics: str | dict | None = None) -> RigParams:
+    """A :class:`RigParams` from preset ``name`` (or a YAML path); ``hydrodynamics`` overrides
+    the preset's hydrodynamic model (``"constant"``, ``"cummins"`` or a mapping, :func:`hydrodynamics_from`)."""
+    return rig_from_mapping(load_preset(name), effects=effects, sensors=sensors, hydrodynamics=hydrodynamics)
 
 
 def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
-                     sensors: SensorParams | None = None) -> RigParams:
+                     sensors: SensorParams | None = None, hydrodynamics: str | dict | None = None) -> RigParams:
     """:class:`RigParams` from a preset's parsed mapping (blocks ``hull``, ``spring``, ``motor``, ...).
 
-    ``effects`` and ``sensors``, when given, replace the mapping's own blocks. Every value
+    ``effects`` and ``sensors``, when given, replace the mapping's own blocks; ``hydrodynamics``
+    replaces its hydrodynamic model (:func:`hydrodynamics_from`). Every value
     is in SI units. Raises ConfigError naming the file (``data['_path']``) and the field for
     an unknown key or an invalid value.
     """
@@ -103,12 +108,56 @@ def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
     except ValueError as e:
         raise ConfigError(str(e)) from None
     kwargs: dict[str, Any] = {}
+    hydro_block = data.get("hydrodynamics") if hydrodynamics is None else hydrodynamics
+    kwargs["hydrodynamics"] = hydrodynamics_from(hydro_block, data.get("_path"), data.get("name"),
+                                                 f"{where}: hydrodynamics")
     for key in ("brake_torque", "physics_substeps"):
         if key in data:
             kwargs[key] = data[key]
     try:
         return RigParams(hull=hull, spring=spring, motor=motor, sensors=sens, effects=eff, **kwargs)
     except (TypeError, ValueError) as e:
+        raise ConfigError(f"{where}: {e}") from None
+
+
+def hydrodynamics_from(block: str | dict | None, preset_path: str | None, preset_name: str | None, where: str):
+    """The hydrodynamic model of a rig: None (``constant``: added inertia lambda66, the default) or a
+    :class:`~.radiation.CumminsModel` (``cummins``: radiation memory from the hull's BEM cache).
+
+    ``block``: ``None``, a model name, or ``{model: constant|cummins, source: bem-cache, cache: PATH}``;
+    the cache defaults to ``<preset>.bem.json`` beside the preset file. A ConfigError names the
+    field, the value and what was expected (or the cache and the command that writes its fit).
+    """
+    if block is None:
+        return None
+    if isinstance(block, str):
+        block = {"model": block}
+    if not isinstance(block, dict):
+        raise ConfigError(f"{where} = {block!r}: expected a model name or a mapping with keys {list(HYDRO_KEYS)}")
+    check_keys(block, set(HYDRO_KEYS), where)
+    model = block.get("model", "constant")
+    if model not in radiation.MODELS:
+        raise ConfigError(f"{where}.model = {model!r}: expected one of {', '.join(radiation.MODELS)}")
+    if model == "constant":
+        if set(block) - {"model"}:
+            raise ConfigError(f"{where}: 'source' and 'cache' apply to model 'cummins' only")
+        return None
+    source = block.get("source", "bem-cache")
+    if source not in radiation.SOURCES:
+        raise ConfigError(f"{where}.source = {source!r}: expected one of {', '.join(radiation.SOURCES)}")
+    if "cache" in block:
+        cache = Path(str(block["cache"]))
+        if not cache.is_absolute() and preset_path:
+            cache = Path(preset_path).parent / cache
+    elif preset_path:
+        cache = Path(preset_path).with_name(Path(preset_path).stem + ".bem.json")
+    elif preset_name:
+        cache = RIG_DIR / f"{preset_name}.bem.json"
+    else:
+        raise ConfigError(f"{where}: model 'cummins' needs the hull's BEM cache: give 'cache: PATH.bem.json'")
+    try:
+        return radiation.model_from_cache(cache)
+    except radiation.HydrodynamicsError as e:
         raise ConfigError(f"{where}: {e}") from None
 
 

@@ -48,6 +48,7 @@ from gymnasium.vector.utils import batch_space
 from ..envs.config import EnvConfig
 from ..identify import IdentificationError, identify
 from ..metrics import episode_metrics
+from ..rig import forces
 from ..scenarios import load_ranges
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
 from .observe import observe
@@ -324,7 +325,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
                 est, ci = math.nan, [math.nan, math.nan]
                 failed = True
                 out["failure"][e] = str(err)
-            true = float(pool.scenarios[k].rig.hull.lambda66)
+            true = forces.true_lambda66(pool.scenarios[k].rig)
             rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
             m = episode_metrics(record)  # the one computation of the episode's numbers (metrics.py)
             values = {"lambda66_est": est, "lambda66_true": true, "rel_error": rel, "energy_J": m.energy_J,

@@ -73,11 +73,8 @@ class SlotRig(SimulatedRigBase):
         self.loop = loop  # the scenario's ControlLoop (None: ideal)
 
     def truth(self) -> dict:
-        """The slot's ``truth`` block as :meth:`MujocoRig.truth` writes it (lambda66 kg m^2, effects, damping, true k_t N m/A, neutral rad; the control loop if not ideal). Scoring only."""
-        h = self.params.hull
-        truth = {"lambda66": h.lambda66, "effects": self.params.effects.to_dict(),
-                 "damping": {"b1": h.b1, "b2": h.b2}, "k_t": float(forces.true_torque_constant(self.params)),
-                 "phi_neutral": forces.true_neutral(self.params)}
+        """The slot's ``truth`` block as :meth:`MujocoRig.truth` writes it (:func:`forces.truth`: lambda66 kg m^2, effects, damping, true k_t N m/A, neutral rad, the hydrodynamic model if not constant; the control loop if not ideal). Scoring only."""
+        truth = forces.truth(self.params, float(forces.true_torque_constant(self.params)))
         if self.loop is not None and not self.loop.ideal:  # as LoopRig.truth
             truth["control_loop"] = self.loop.to_dict()
         return truth
