@@ -37,6 +37,7 @@ class DatasetSpec:
     holds: tuple[float, ...] = STANDARD_HOLDS
     rig: str = "wigley-2m"
     controller: str = "feedforward-pd"
+    hydrodynamics: str | None = None  # None: the preset's model; "cummins": radiation memory (rig/radiation.py)
 
     @property
     def runs(self) -> list[tuple[float, float]]:
@@ -60,7 +61,8 @@ def simulate_dataset(effect: str, seed: int, spec: DatasetSpec | None = None,
 
     spec = spec or DatasetSpec()
     data = load_preset(spec.rig)
-    rig = rig_from_mapping(data, effects=effects if effects is not None else hidden_effect(effect, seed))
+    rig = rig_from_mapping(data, effects=effects if effects is not None else hidden_effect(effect, seed),
+                           hydrodynamics=spec.hydrodynamics)
     records = []
     noise_seeds = np.random.SeedSequence([seed, 4, 1]).spawn(len(spec.runs))
     for (alpha, hold), ss in zip(spec.runs, noise_seeds):

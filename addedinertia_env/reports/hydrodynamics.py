@@ -158,8 +158,10 @@ def build(root: Path, solve: bool = False, progress=print, solve_lamb: bool = Fa
           "- **Retardation function** (Cummins): `K(t) = (2/pi) integral B66(omega) cos(omega t) d omega` over the "
           "sweep with an `omega^-3` tail; checked by rebuilding A66(omega) from K and A66(inf) (Ogilvie). "
           "Its transform `B66 + j omega (A66 - A66(inf))` is also fitted by a small stable state-space system "
-          "(`hull/radiation_ss.py`, order chosen as the smallest with a relative fit error under 5 %), the form a "
-          "simulator can integrate.", ""]
+          "(`hull/radiation_ss.py`, order chosen as the smallest with a relative fit error under 5 %). The simulator "
+          "integrates a stricter fit: passive and exact at zero and at the swing frequency (`hull/memory_fit.py`, "
+          "stored in the cache by `addedinertia hull PRESET --fit-memory`), the optional `cummins` hydrodynamic "
+          "model of a rig; what it does to the measurement is in [RADIATION_MEMORY.md](RADIATION_MEMORY.md).", ""]
     # Lamb table
     L += ["## BEM against Lamb: deeply submerged prolate spheroid", "",
           "Length 2 m, unbounded fluid; error = BEM / Lamb - 1. The *direct* formulation is the one used "
@@ -236,7 +238,9 @@ def build(root: Path, solve: bool = False, progress=print, solve_lamb: bool = Fa
         L += ["", f"![{name}: A66, B66 and K(t)](figures/hull_{name}.png)"]
     L += ["", "Wave radiation damping at the swing frequency is nil to the BEM's precision (|B66| below 1e-3 N m s, "
           "sometimes slightly negative: noise, clipped to 0 for K(t)); the wave memory dies within about a second. "
-          "The slow fluid memory the rig sees (vortices, `fluid_memory`) is viscous and outside potential flow.", ""]
+          "The slow fluid memory the rig sees (vortices, `fluid_memory`) is viscous and outside potential flow. "
+          "The simulator's radiation memory (`hydrodynamics: {model: cummins}`) and its effect on the energy "
+          "method and on discovery: [RADIATION_MEMORY.md](RADIATION_MEMORY.md).", ""]
     # Stability
     s, facts, data = summaries["wigley-2m"]
     shape = HullShape(**data["hull"])
