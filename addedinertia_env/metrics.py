@@ -47,17 +47,21 @@ class EpisodeMetrics:
     saturated_frac: float  # -, controlled samples at a limit; 0 without controlled samples
 
 
-def episode_metrics(rec: RunRecord) -> EpisodeMetrics:
-    """:class:`EpisodeMetrics` of a reverse-symmetric run record."""
-    return cycles_metrics([rec])
+def episode_metrics(rec: RunRecord, reference: MirroredReference | None = None) -> EpisodeMetrics:
+    """:class:`EpisodeMetrics` of a reverse-symmetric run record. ``reference``: the mirrored
+    reference the experiment drove, when the caller holds it (else it is refitted from the
+    record, :func:`stroke_reference`, which gives the same law)."""
+    return cycles_metrics([rec], None if reference is None else [reference])
 
 
-def cycles_metrics(records: list[RunRecord]) -> EpisodeMetrics:
+def cycles_metrics(records: list[RunRecord], references: list[MirroredReference] | None = None) -> EpisodeMetrics:
     """:class:`EpisodeMetrics` of an episode of several cycles (one record each): the mean
-    energy and saturated fraction per cycle, the tracking RMS over all their samples."""
+    energy and saturated fraction per cycle, the tracking RMS over all their samples
+    (``references``: each record's reference, as for :func:`episode_metrics`)."""
     if not records:
         raise ValueError("episode metrics of no record")
-    errors = np.concatenate([tracking_errors(r) for r in records])
+    refs = references if references is not None else [None] * len(records)
+    errors = np.concatenate([tracking_errors(r, ref) for r, ref in zip(records, refs)])
     return EpisodeMetrics(energy_J=float(np.mean([electric_energy(r) for r in records])),
                           tracking_rms_rad=float(np.sqrt(np.mean(np.square(errors)))) if errors.size else math.nan,
                           saturated_frac=float(np.mean([saturated_fraction(r) for r in records])))

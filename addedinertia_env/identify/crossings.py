@@ -6,7 +6,7 @@ The energy method evaluates its balance at a few dozen boundary angles per recor
 sample, solved for the instant it equals the angle (:func:`crossing_fits`). Both are
 written on arrays of angles, so one record costs a few dozen numpy calls instead of a
 few thousand; every angle's numbers are those of the one-angle computation (the same
-operations element by element; where the fits' design matrices agree to 1e-10, as on an
+operations element by element; where the fits' scaled abscissae agree to 1e-11, as on an
 evenly sampled record, one pseudo-inverse serves them all, which changes the rates by
 float rounding only).
 """
@@ -17,7 +17,7 @@ import numpy as np
 
 from .common import IdentificationError
 
-SHARED_DESIGN_TOLERANCE = 1e-10  # design matrices (entries in [-1, 1]) this close share one pseudo-inverse
+SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
 
 
 def first_crossings(phi: np.ndarray, a: int, b: int, levels: np.ndarray, direction: float) -> np.ndarray:
@@ -35,11 +35,13 @@ def _windows(t: np.ndarray, tc: np.ndarray, half_width: float) -> tuple[np.ndarr
     n = len(t)
     lo = np.clip(np.searchsorted(t, tc - half_width, side="left") - 2, 0, n)
     hi = np.clip(np.searchsorted(t, tc + half_width, side="right") + 2, 0, n)
-    first, stop = np.empty_like(lo), np.empty_like(hi)
-    for j, (a, b) in enumerate(zip(lo.tolist(), hi.tolist())):  # the exact test on a handful of samples at each end
-        inside = np.nonzero(np.abs(t[a:b] - tc[j]) <= half_width)[0]
-        first[j], stop[j] = (a + inside[0], a + inside[-1] + 1) if len(inside) else (a, a)
-    return first, stop
+    # the exact test on the candidates (a couple of samples past each end)
+    idx = lo[:, None] + np.arange(int(np.max(hi - lo, initial=0)))[None, :]
+    inside = (idx < hi[:, None]) & (np.abs(t[np.minimum(idx, n - 1)] - tc[:, None]) <= half_width)
+    any_inside = inside.any(axis=1)
+    first = lo + np.argmax(inside, axis=1)
+    stop = lo + inside.shape[1] - np.argmax(inside[:, ::-1], axis=1)
+    return np.where(any_inside, first, lo), np.where(any_inside, stop, lo)
 
 
 def _polyval(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -86,17 +88,23 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         g = np.nonzero(size == m)[0]
         idx = first[g][:, None] + np.arange(m)[None, :]  # (fits, m) sample indices
         sv = t[idx] - tc[g][:, None]
-        X = np.empty((len(g), m, degree + 1))  # np.vander(sv / half_width, degree + 1, increasing=True)
-        X[:, :, 0] = 1.0
-        if degree:
-            X[:, :, 1:] = (sv / half_width)[:, :, None]
-            np.multiply.accumulate(X[:, :, 1:], out=X[:, :, 1:], axis=2)
-        if np.max(np.abs(X - X[:1])) <= SHARED_DESIGN_TOLERANCE:
-            P = np.broadcast_to(np.linalg.pinv(X[0]), (len(g), degree + 1, m))
-        else:
-            P = np.linalg.pinv(X)
         y = phi[idx]
-        coef = np.matmul(P, y[:, :, None])[:, :, 0]  # (fits, degree + 1)
+        x_scaled = sv / half_width
+        P = None
+        if np.max(np.abs(x_scaled - x_scaled[:1])) <= SHARED_DESIGN_TOLERANCE:  # one design for the group
+            X0 = np.vander(x_scaled[0], degree + 1, increasing=True)
+            P0 = np.linalg.pinv(X0)  # (degree + 1, m)
+            coef = y @ P0.T
+            fitted = coef @ X0.T
+        else:
+            X = np.empty((len(g), m, degree + 1))  # np.vander(sv / half_width, degree + 1, increasing=True)
+            X[:, :, 0] = 1.0
+            if degree:
+                X[:, :, 1:] = x_scaled[:, :, None]
+                np.multiply.accumulate(X[:, :, 1:], out=X[:, :, 1:], axis=2)
+            P = np.linalg.pinv(X)
+            coef = np.matmul(P, y[:, :, None])[:, :, 0]  # (fits, degree + 1)
+            fitted = np.matmul(X, coef[:, :, None])[:, :, 0]
         dcoef = coef[:, 1:] * powers[1:]
         lev = levels[g]
         x = np.zeros(len(g))
@@ -105,8 +113,8 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         rate[g] = _polyval(dcoef, x) / half_width
         out_t[g] = tc[g] + x * half_width
         grad = np.where(powers > 0, powers * x[:, None] ** np.maximum(powers - 1, 0), 0.0) / half_width
-        kernel = np.matmul(grad[:, None, :], P)[:, 0, :]  # (fits, m)
-        resid = y - np.matmul(X, coef[:, :, None])[:, :, 0]
+        kernel = grad @ P0 if P is None else np.matmul(grad[:, None, :], P)[:, 0, :]  # (fits, m)
+        resid = y - fitted
         var = np.maximum(np.einsum("ij,ij->i", resid, resid) / max(m - degree - 1, 1), 1e-24)
         sigma[g] = np.sqrt(var) * np.linalg.norm(kernel, axis=1)
         for row, j in enumerate(g.tolist()):

@@ -699,17 +699,23 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
 
     dtt = np.diff(tt)
 
-    def twice(x):  # along the last axis
-        zero = np.zeros(x.shape[:-1] + (1,))
-        c1 = np.concatenate([zero, np.cumsum(0.5 * (x[..., 1:] + x[..., :-1]) * dtt, axis=-1)], axis=-1)
-        return np.concatenate([zero, np.cumsum(0.5 * (c1[..., 1:] + c1[..., :-1]) * dtt, axis=-1)], axis=-1)
+    def twice(x):  # trapezoid integral of the integral, from 0, along the last axis
+        out = x
+        for _ in range(2):
+            step = out[..., 1:] + out[..., :-1]
+            step *= 0.5
+            step *= dtt
+            out = np.empty(x.shape)
+            out[..., 0] = 0.0
+            np.cumsum(step, axis=-1, out=out[..., 1:])
+        return out
 
     y = th + twice(friction) / J_f
     lags = np.arange(-2e-3, MAX_LAG_S + 1e-9, 2.5e-4)
     # Least squares on (1, t - t_a, the lagged current's column), every lag at once: the first two
     # columns are shared, so they are projected out (twice, for orthogonality to rounding) and
     # each lag's column is then a one-column fit; the residuals are formed explicitly.
-    Z = k_t * twice(np.interp(tt[None, :] + lags[:, None], t, i)) / J_f  # (lags, samples)
+    Z = twice(np.interp(tt[None, :] + lags[:, None], t, i))  # (lags, samples); k_t / J_f leaves the residuals
     Q, _ = np.linalg.qr(np.column_stack([np.ones_like(tt), tt - tt[0]]))
     for _ in range(2):
         y = y - Q @ (Q.T @ y)

@@ -93,11 +93,8 @@ class ReverseStrokeVectorEnv(VectorEnv):
             if key in env_kwargs:
                 raise ValueError(f"ReverseStrokeVectorEnv option {key}: not available on the batched engine "
                                  "(it simulates its own rigs); use gym.make_vec(..., vectorization_mode='sync')")
-        names = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
-        mode = names.get(autoreset_mode, autoreset_mode) if isinstance(autoreset_mode, str) else autoreset_mode
-        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-            raise ValueError(f"ReverseStrokeVectorEnv option autoreset_mode={autoreset_mode!r}: expected "
-                             "'next_step' or 'same_step'")
+        (self.single_observation_space, self.single_action_space, self.observation_space, self.action_space,
+         self.metadata) = self.spaces(num_envs, autoreset_mode)
         if not (isinstance(spare_fraction, (int, float)) and 0.1 <= spare_fraction <= 4):
             raise ValueError(f"ReverseStrokeVectorEnv option spare_fraction={spare_fraction!r}: expected a number "
                              "in [0.1, 4] (spare slots per environment)")
@@ -110,15 +107,9 @@ class ReverseStrokeVectorEnv(VectorEnv):
             raise ValueError("ReverseStrokeVectorEnv option score_episodes=False: the accuracy reward needs each "
                              "episode identified; set reward_weights={'accuracy': 0} too, or keep score_episodes=True")
         self.score_episodes = score_episodes
-        self.metadata = {"autoreset_mode": mode, "render_modes": []}
         self.num_envs = num_envs
         self.n_spare = max(2, int(math.ceil(spare_fraction * num_envs)))
         self.n_slots = num_envs + self.n_spare
-        n_obs = ReverseStrokeTask.layout.size
-        self.single_observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (n_obs,), np.float32)
-        self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self.action_space = batch_space(self.single_action_space, num_envs)
         self._default_ranges = load_ranges()
         self.pool: ExperimentPool | None = None
         self._env_rngs: list[np.random.Generator | None] = [None] * num_envs
@@ -130,6 +121,21 @@ class ReverseStrokeVectorEnv(VectorEnv):
         self.episode_config = self.config
         self._task: ReverseStrokeTask | None = None
         self.episodes_ended = 0
+
+    @staticmethod
+    def spaces(num_envs: int, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, **_ignored: Any):
+        """(single observation space, single action space, batched observation and action spaces,
+        metadata) of ``num_envs`` environments."""
+        names = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
+        mode = names.get(autoreset_mode, autoreset_mode) if isinstance(autoreset_mode, str) else autoreset_mode
+        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"ReverseStrokeVectorEnv option autoreset_mode={autoreset_mode!r}: expected "
+                             "'next_step' or 'same_step'")
+        n_obs = ReverseStrokeTask.layout.size
+        single_obs = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (n_obs,), np.float32)
+        single_action = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        return (single_obs, single_action, batch_space(single_obs, num_envs), batch_space(single_action, num_envs),
+                {"autoreset_mode": mode, "render_modes": []})
 
     # --- scenarios and slots ---------------------------------------------------------------
     def _scenario(self, seed: int):
@@ -327,7 +333,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
                 out["failure"][e] = str(err)
             true = forces.true_lambda66(pool.scenarios[k].rig)
             rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
-            m = episode_metrics(record)  # the one computation of the episode's numbers (metrics.py)
+            m = episode_metrics(record, pool.reference(k))  # the one computation of the episode's numbers (metrics.py)
             values = {"lambda66_est": est, "lambda66_true": true, "rel_error": rel, "energy_J": m.energy_J,
                       "tracking_rms_rad": m.tracking_rms_rad, "saturated_frac": m.saturated_frac}
             for key, v in values.items():
@@ -350,3 +356,14 @@ class ReverseStrokeVectorEnv(VectorEnv):
     def close_extras(self, **kwargs: Any) -> None:
         """Drop the experiment pool (its arrays are freed with it)."""
         self.pool = None
+
+
+def make_vector_env(num_envs: int = 1, workers: int = 1, **kwargs: Any) -> VectorEnv:
+    """The registered vector entry point: :class:`ReverseStrokeVectorEnv` in this process
+    (``workers`` 1, the default), or ``workers`` processes of it (:class:`~.shards.ShardedVectorEnv`)."""
+    if workers == 1:
+        return ReverseStrokeVectorEnv(num_envs, **kwargs)
+    from .shards import ShardedVectorEnv  # noqa: PLC0415
+
+    ReverseStrokeVectorEnv.spaces(num_envs, **kwargs)  # the option errors here, not in a worker
+    return ShardedVectorEnv(num_envs, workers=workers, **kwargs)

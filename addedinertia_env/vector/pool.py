@@ -44,7 +44,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..experiment.filters import endpoint_slope_weights
-from ..experiment.reference import fit_stroke
+from ..experiment.reference import MirroredReference, fit_stroke
 from ..experiment.sample_log import make_record
 from ..metrics import current_at_limit, voltage_at_limit
 from ..rig import forces
@@ -106,6 +106,7 @@ class ExperimentPool:
         self.scenarios: list[Scenario | None] = [None] * n
         self.views: list[SlotRig | None] = [None] * n
         self.refs = MirroredReferences(n)
+        self.laws: list = [None] * n  # each slot's fitted stroke law (experiment.reference.StrokeLaw)
         self._ref_table = np.zeros((n, 1024))  # phi_ref at the reverse stroke's samples, per slot
         self._ref_first = np.zeros(n, dtype=np.int64)  # log index of its first entry
         self._ref_len = np.zeros(n, dtype=np.int64)
@@ -337,7 +338,7 @@ class ExperimentPool:
             k = int(k)
             n = int(self._flushed[k])
             t, phi = self.times(n), self._logs[k][0, :n]
-            law = fit_stroke(t, phi, float(self.t_cross[k] - self.lead_s[k]), float(self.t_brake[k]))
+            law = self.laws[k] = fit_stroke(t, phi, float(self.t_cross[k] - self.lead_s[k]), float(self.t_brake[k]))
             self.fit_rms[k] = law.fit_rms
             self.inertia_prior[k] = law.inertia_prior(float(self.c_known[k]), float(self.phi_n[k]))
             self.refs.set(k, law, float(self.t_brake[k] + self.hold_s[k]))
@@ -494,6 +495,10 @@ class ExperimentPool:
             experiment["stroke_fit_rms_rad"] = float(self.fit_rms[k])
         experiment["scenario"] = s.name
         return make_record(samples, self.views[k], experiment, run_id)
+
+    def reference(self, k: int) -> MirroredReference:
+        """The mirrored reference slot ``k``'s episode drives (its free stroke must be fitted)."""
+        return MirroredReference(self.laws[k], t_begin=float(self.t_brake[k] + self.hold_s[k]))
 
     def stage_of(self, k: int) -> str:
         """The protocol stage slot ``k`` is in (:data:`STAGE_NAMES`: ``empty``, ``settle``, ``free``, ``ready``, ``hold``, ``reverse``, ``ended``), by name."""

@@ -1,0 +1,183 @@
+"""The batched task over several processes: ``num_envs`` split into shards, one per CPU core.
+
+``gym.make_vec("AddedInertia/ReverseStroke-v0", num_envs=N, workers=W)`` with ``W`` > 1
+gives :class:`ShardedVectorEnv`: ``W`` worker processes, each running a
+:class:`~addedinertia_env.vector.env.ReverseStrokeVectorEnv` of about ``N / W``
+environments, stepped at the same time (the actions go out to every shard, then every
+shard's results come back and are joined in environment order). Each shard is the
+one-process vector env, so its episodes, rewards and records are exactly that env's; the
+shard holding environments ``a..b`` is reset with ``seed + a``, so environment ``e``'s first
+episode after ``reset(seed=s)`` is still the single environment's ``reset(seed=s + e)``.
+What differs from one process: the spare episodes (those after an autoreset) are drawn
+per shard, so they are other scenarios than one process would draw (each reports its
+``scenario_seed``, as always).
+
+Use it when the machine has idle cores: on one busy core it only adds the transfers.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import time
+import traceback
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import VectorEnv
+
+
+def _worker(conn, num_envs: int, kwargs: dict) -> None:
+    from .env import ReverseStrokeVectorEnv  # noqa: PLC0415 - built in the worker
+
+    env = None
+    try:
+        env = ReverseStrokeVectorEnv(num_envs, **kwargs)
+        conn.send(("ok", None))
+        while True:
+            command, args = conn.recv()
+            if command == "close":
+                break
+            if command == "step":
+                out = env.step(args)
+            elif command == "reset":
+                out = env.reset(**args)
+            elif command == "get":
+                out = getattr(env, args)
+            elif command == "set":
+                setattr(env, *args)
+                out = None
+            elif command == "cpu":
+                out = time.process_time()
+            elif command == "record":
+                out = env.record(*args)
+            else:
+                raise ValueError(f"unknown command {command!r}")
+            conn.send(("ok", out))
+    except Exception as e:  # noqa: BLE001 - sent to the parent, which raises it
+        conn.send(("error", (type(e).__name__, str(e), traceback.format_exc())))
+    finally:
+        if env is not None:
+            env.close()
+        conn.close()
+
+
+def _join(parts: list, sizes: list[int]) -> Any:
+    """Shards' info values joined in environment order; a key that a shard lacks is filled
+    (zeros, None or False) with its mask False, as Gymnasium's vector infos do."""
+    present = [p for p in parts if p is not None]
+    if isinstance(present[0], dict):
+        keys = list(dict.fromkeys(k for p in present for k in p))
+        return {k: _join([None if p is None else p.get(k) for p in parts], sizes) for k in keys}
+    ref = np.asarray(present[0])
+    filled = []
+    for p, n in zip(parts, sizes):
+        if p is None:
+            fill = None if ref.dtype == object else 0
+            p = np.full((n,) + ref.shape[1:], fill, dtype=ref.dtype)
+        filled.append(np.asarray(p))
+    return np.concatenate(filled, axis=0)
+
+
+class ShardedVectorEnv(VectorEnv):
+    """``num_envs`` reverse-stroke environments in ``workers`` processes (module docstring);
+    the other keyword arguments are those of :class:`~addedinertia_env.vector.env.ReverseStrokeVectorEnv`."""
+
+    def __init__(self, num_envs: int, workers: int = 2, **kwargs: Any):
+        if not (isinstance(workers, int) and 2 <= workers <= num_envs):
+            raise ValueError(f"ShardedVectorEnv option workers={workers!r}: expected an integer in 2..num_envs "
+                             f"({num_envs})")
+        base, extra = divmod(num_envs, workers)
+        self.sizes = [base + (k < extra) for k in range(workers)]
+        self.offsets = np.concatenate([[0], np.cumsum(self.sizes)])
+        self.num_envs = num_envs
+        ctx = mp.get_context()
+        self._conns, self._procs = [], []
+        for n in self.sizes:
+            parent, child = ctx.Pipe()
+            proc = ctx.Process(target=_worker, args=(child, n, kwargs), daemon=True)
+            proc.start()
+            child.close()
+            self._conns.append(parent)
+            self._procs.append(proc)
+        self._closed = False
+        self._gather()
+        from .env import ReverseStrokeVectorEnv  # noqa: PLC0415
+
+        (self.single_observation_space, self.single_action_space, self.observation_space, self.action_space,
+         self.metadata) = ReverseStrokeVectorEnv.spaces(num_envs, **kwargs)
+
+    def _gather(self) -> list:
+        out = []
+        error = None
+        for conn in self._conns:
+            status, value = conn.recv()
+            if status == "error" and error is None:
+                error = value
+            out.append(value)
+        if error is not None:
+            name, message, trace = error
+            raise RuntimeError(f"a shard of the vector env failed: {name}: {message}\n{trace}")
+        return out
+
+    def _all(self, command: str, args_per_shard: list) -> list:
+        for conn, args in zip(self._conns, args_per_shard):
+            conn.send((command, args))
+        return self._gather()
+
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        if seed is None or isinstance(seed, (int, np.integer)):
+            seeds = [None if seed is None else int(seed) + int(a) for a in self.offsets[:-1]]
+        else:
+            seeds = [list(seed)[a:b] for a, b in zip(self.offsets[:-1], self.offsets[1:])]
+        out = self._all("reset", [{"seed": s, "options": options} for s in seeds])
+        return np.concatenate([o for o, _ in out]), _join([i for _, i in out], self.sizes)
+
+    def step(self, actions):
+        a = np.asarray(actions).reshape(self.num_envs, -1)
+        out = self._all("step", [a[lo:hi] for lo, hi in zip(self.offsets[:-1], self.offsets[1:])])
+        obs, rew, term, trunc, infos = zip(*out)
+        return (np.concatenate(obs), np.concatenate(rew), np.concatenate(term), np.concatenate(trunc),
+                _join(list(infos), self.sizes))
+
+    def record(self, env: int = 0, run_id: str = "run"):
+        """Environment ``env``'s current (or just finished) episode as a run record (no tail)."""
+        k = int(np.searchsorted(self.offsets, env, side="right") - 1)
+        self._conns[k].send(("record", (env - int(self.offsets[k]), run_id)))
+        return self._gather_one(k)
+
+    def _gather_one(self, k: int):
+        status, value = self._conns[k].recv()
+        if status == "error":
+            raise RuntimeError(f"a shard of the vector env failed: {value[0]}: {value[1]}\n{value[2]}")
+        return value
+
+    def worker_cpu_s(self) -> float:
+        """CPU time used so far by the worker processes together, s (``time.process_time`` in each)."""
+        return float(sum(self._all("cpu", [None] * len(self._conns))))
+
+    @property
+    def episodes_ended(self) -> int:
+        return int(sum(self._all("get", ["episodes_ended"] * len(self._conns))))
+
+    @property
+    def score_episodes(self) -> bool:
+        return bool(self._all("get", ["score_episodes"] * len(self._conns))[0])
+
+    @score_episodes.setter
+    def score_episodes(self, value: bool) -> None:
+        if hasattr(self, "_conns"):
+            self._all("set", [("score_episodes", value)] * len(self._conns))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        for conn in self._conns:
+            try:
+                conn.send(("close", None))
+            except (BrokenPipeError, OSError):
+                pass
+        for proc in self._procs:
+            proc.join(timeout=10)
+            if proc.is_alive():
+                proc.terminate()
