@@ -17,8 +17,13 @@ def test_perf_json_has_the_contract_fields(capsys, tmp_path):
                  "--vector-steps", "3", "--vector-warmup", "2", "--vector-seconds", "0.2", "--json", "--out", str(out)]) == 0
     result = json.loads(capsys.readouterr().out)
     for key in ("single_env_steps_per_s", "batched_physics_steps_per_s", "n_envs", "vector_env_samples_per_s",
-                "vector_env_agent_steps_per_s", "sync_vector_env_samples_per_s", "vector_n_envs"):
+                "vector_env_agent_steps_per_s", "sync_vector_env_samples_per_s", "vector_n_envs",
+                "vector_env_samples_per_cpu_s", "vector_env_samples_per_s_identification_off",
+                "vector_env_samples_per_cpu_s_identification_off", "vector_env_samples_per_s_one_process"):
         assert key in result
+    kinds = [row["kind"] for row in result["vector_task"]["rows"]]
+    assert kinds[0].startswith("single env") and kinds[1].startswith("gym.make_vec sync") and len(kinds) >= 4
+    assert all(row["samples_per_cpu_s"] > 0 for row in result["vector_task"]["rows"])
     assert result["vector_n_envs"] == 4 and result["vector_env_samples_per_s"] > 0
     assert result["vector_env_samples_per_s"] == pytest.approx(10 * result["vector_env_agent_steps_per_s"])  # repeat 10
     assert result["n_envs"] == 16

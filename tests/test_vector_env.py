@@ -240,3 +240,41 @@ def test_hard_suite_episodes_equal_the_single_envs_control_loop_included():
         if not any(live):
             break
     assert not any(live), "every episode should end within 3000 agent steps"
+
+
+def test_sharded_env_runs_the_same_first_episodes_in_two_processes():
+    """workers=2: each shard is the one-process env of its environments (same seeds, same
+    episodes to rounding); infos join in environment order, missing keys masked off."""
+    one = gym.make_vec(ENV_ID, num_envs=3, **SHORT)
+    two = gym.make_vec(ENV_ID, num_envs=3, workers=2, **SHORT)
+    try:
+        assert two.unwrapped.sizes == [2, 1]
+        o1, i1 = one.reset(seed=8)
+        o2, i2 = two.reset(seed=8)
+        assert_obs_equal(o2, o1)
+        assert np.array_equal(i1["scenario_seed"], i2["scenario_seed"])
+        rng = np.random.default_rng(1)
+        live = np.ones(3, dtype=bool)
+        for _ in range(400):
+            a = rng.uniform(-0.4, 0.4, size=(3, 1)).astype(np.float32)
+            r1, r2 = one.step(a), two.step(a)
+            assert_obs_equal(r2[0][live], r1[0][live])
+            np.testing.assert_allclose(r2[1][live], r1[1][live], rtol=1e-9, atol=1e-12)
+            assert np.array_equal(r2[2][live], r1[2][live])
+            for k in np.nonzero(r1[2] & live)[0]:
+                assert r2[4]["_lambda66_est"][k] and r2[4]["lambda66_est"][k] == pytest.approx(
+                    r1[4]["lambda66_est"][k], rel=1e-9)
+                np.testing.assert_allclose(two.unwrapped.record(int(k))["phi"], one.unwrapped.record(int(k))["phi"],
+                                           rtol=1e-9)
+            if r1[2].any():
+                ended = r1[2] & live
+                assert np.array_equal(r2[4]["_rel_error"], r1[4]["_rel_error"])
+                assert not r2[4]["_rel_error"][~ended].any()
+            live &= ~r1[2]
+            if not live.any():
+                break
+        assert not live.any()
+        assert two.unwrapped.episodes_ended == 3 and two.unwrapped.worker_cpu_s() > 0
+    finally:
+        one.close()
+        two.close()
