@@ -12,6 +12,6 @@ from gymnasium.envs.registration import register as _register
 _register(
     id="AddedInertia/ReverseStroke-v0",
     entry_point="addedinertia_env.envs.reverse_stroke:ReverseStrokeEnv",
-    vector_entry_point="addedinertia_env.vector.env:make_vector_env",
+    vector_entry_point="addedinertia_env.vector.entry:make_vector_env",
     max_episode_steps=20000,
 )

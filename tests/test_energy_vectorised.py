@@ -166,3 +166,10 @@ def test_identify_on_each_record_is_finite_and_repeatable(records):
     for name, rec in list(records.items())[:3]:
         a, b = identify([rec], "energy"), identify([rec], "energy")
         assert np.isfinite(a.lambda66) and a.lambda66 == b.lambda66, name
+
+
+def test_no_angles_give_no_fits():
+    t = np.arange(100) * 1e-3
+    got = crossing_fits(t, np.sin(t), np.zeros(0, dtype=int), np.zeros(0), 0.01, 3)
+    assert got["t"].shape == (0,) and got["kernel"] == []
+    assert np.array_equal(first_crossings(np.sin(t), 0, 50, np.array([2.0]), 1.0), [-1])  # never reached

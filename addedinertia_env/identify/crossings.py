@@ -66,6 +66,8 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     ks = np.asarray(ks, dtype=np.int64)
     levels = np.asarray(levels, dtype=float)
     n_fit = len(ks)
+    if not n_fit:
+        return {"t": np.zeros(0), "rate": np.zeros(0), "sigma_rate": np.zeros(0), "kernel": []}
     tc = t[ks]
     ascending = bool(np.all(np.diff(t) >= 0))
     if ascending:

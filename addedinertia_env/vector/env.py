@@ -357,13 +357,3 @@ class ReverseStrokeVectorEnv(VectorEnv):
         """Drop the experiment pool (its arrays are freed with it)."""
         self.pool = None
 
-
-def make_vector_env(num_envs: int = 1, workers: int = 1, **kwargs: Any) -> VectorEnv:
-    """The registered vector entry point: :class:`ReverseStrokeVectorEnv` in this process
-    (``workers`` 1, the default), or ``workers`` processes of it (:class:`~.shards.ShardedVectorEnv`)."""
-    if workers == 1:
-        return ReverseStrokeVectorEnv(num_envs, **kwargs)
-    from .shards import ShardedVectorEnv  # noqa: PLC0415
-
-    ReverseStrokeVectorEnv.spaces(num_envs, **kwargs)  # the option errors here, not in a worker
-    return ShardedVectorEnv(num_envs, workers=workers, **kwargs)

@@ -25,10 +25,10 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import VectorEnv
 
+from .env import ReverseStrokeVectorEnv
+
 
 def _worker(conn, num_envs: int, kwargs: dict) -> None:
-    from .env import ReverseStrokeVectorEnv  # noqa: PLC0415 - built in the worker
-
     env = None
     try:
         env = ReverseStrokeVectorEnv(num_envs, **kwargs)
@@ -101,8 +101,6 @@ class ShardedVectorEnv(VectorEnv):
             self._procs.append(proc)
         self._closed = False
         self._gather()
-        from .env import ReverseStrokeVectorEnv  # noqa: PLC0415
-
         (self.single_observation_space, self.single_action_space, self.observation_space, self.action_space,
          self.metadata) = ReverseStrokeVectorEnv.spaces(num_envs, **kwargs)
 
