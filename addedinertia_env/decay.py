@@ -67,12 +67,7 @@ class Amplitudes:
 def read_amplitudes(path: str | Path) -> Amplitudes:
     """Read and check an amplitude series; raises :class:`DecayInputError` on anything doubtful."""
     path = Path(path)
-    if not path.exists():
-        raise DecayInputError(f"{path}: no such file")
-    try:
-        rows = list(csv.reader(path.read_text().splitlines()))
-    except UnicodeDecodeError:
-        raise DecayInputError(f"{path}: not UTF-8 text") from None
+    rows = list(csv.reader(_read_text(path, "an amplitude CSV with columns 'swing' and 'theta_deg'").splitlines()))
     if not rows:
         raise DecayInputError(f"{path}: empty file; expected a header with columns 'swing' and 'theta_deg'")
     header = [h.strip() for h in rows[0]]
@@ -92,7 +87,7 @@ def read_amplitudes(path: str | Path) -> Amplitudes:
             try:
                 v = float(text)
             except ValueError:
-                raise DecayInputError(f"{path}: line {n}, column '{col}': {text!r} is not a number") from None
+                raise DecayInputError(f"{path}: line {n}, column '{col}': {text!r} is not a number; expected a finite number") from None
             if not math.isfinite(v):
                 raise DecayInputError(f"{path}: line {n}, column '{col}': {text!r}; expected a finite number")
             out.append(v)
@@ -125,10 +120,22 @@ def nu_logarithmic(dln_theta):
     return 2.0 / math.pi * np.asarray(dln_theta)
 
 
+def _read_text(path: Path, what: str) -> str:
+    """The text of ``path``; DecayInputError naming the file and ``what`` was expected otherwise."""
+    if not path.exists():
+        raise DecayInputError(f"{path}: no such file; expected {what}")
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise DecayInputError(f"{path}: not UTF-8 text; expected {what}") from None
+    except OSError as e:
+        raise DecayInputError(f"{path}: cannot read ({e.strerror}); expected {what}") from None
+
+
 def _read_processing(path: Path) -> dict[str, np.ndarray]:
-    rows = list(csv.DictReader(path.read_text().splitlines()))
+    rows = list(csv.DictReader(_read_text(path, "the textbook's processing table (CSV)").splitlines()))
     if not rows:
-        raise DecayInputError(f"{path}: no rows")
+        raise DecayInputError(f"{path}: no rows; expected the textbook's processing table with a header line")
     need = ("swing", "dtheta_raw_deg", "dtheta_smoothed_deg", "theta_mean_deg", "nu_formula_6_17", "ln_theta",
             "dln_raw", "dln_smoothed", "nu_formula_6_18")
     missing = [c for c in need if c not in rows[0]]
@@ -142,7 +149,7 @@ def _read_processing(path: Path) -> dict[str, np.ndarray]:
             try:
                 vals.append(float(text) if text else math.nan)
             except ValueError:
-                raise DecayInputError(f"{path}: line {n}, column '{c}': {text!r} is not a number") from None
+                raise DecayInputError(f"{path}: line {n}, column '{c}': {text!r} is not a number; expected a finite number") from None
         out[c] = np.array(vals)
     return out
 

@@ -94,3 +94,17 @@ def test_bad_input_exit_2(tmp_path, capsys, text, expected):
 def test_missing_file_exit_2(tmp_path, capsys):
     assert main(["decay", str(tmp_path / "nope.csv")]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("content, expected", [
+    (b"\xff\xfe\x00binary", "not UTF-8 text; expected the textbook's processing table"),
+    (b"", "no rows; expected the textbook's processing table"),
+])
+def test_an_unreadable_processing_table_exit_2(tmp_path, capsys, content, expected):
+    """The processing table is read as carefully as the amplitudes: one line naming the file, exit 2."""
+    amplitudes = _write(tmp_path, _series("linear", 20.0, {"a": 0.02}, n=10))
+    table = tmp_path / "table.csv"
+    table.write_bytes(content)
+    assert main(["decay", str(amplitudes), "--processing", str(table)]) == 2
+    err = capsys.readouterr().err
+    assert expected in err and str(table) in err and len(err.strip().splitlines()) == 1

@@ -101,7 +101,7 @@ def non_negative_float(text: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number; expected a finite number >= 0") from None
     if not math.isfinite(v) or v < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: expected a finite number >= 0")
     return v
@@ -112,7 +112,7 @@ def non_negative_int(text: str) -> int:
     try:
         v = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; expected a whole number >= 0") from None
     if v < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: expected an integer >= 0")
     return v
@@ -123,7 +123,7 @@ def positive_int(text: str) -> int:
     try:
         v = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; expected a whole number > 0") from None
     if v <= 0:
         raise argparse.ArgumentTypeError(f"{text!r}: expected an integer > 0")
     return v

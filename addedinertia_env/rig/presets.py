@@ -236,7 +236,7 @@ def _build(cls, d: dict[str, Any], where: str):
 
 def _num(d: dict[str, Any], key: str, where: str) -> float:
     if key not in d:
-        raise ConfigError(f"{where}: missing key {key!r}")
+        raise ConfigError(f"{where}: missing key {key!r}; expected a number > 0 (SI units)")
     v = d[key]
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
         raise ConfigError(f"{where}.{key} = {v!r}: expected a finite number > 0")
