@@ -14,7 +14,9 @@ import pytest
 from addedinertia_env.cli import main
 from addedinertia_env.decay import READING_RESOLUTION_DEG, analyse, envelope, law_nu
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+# ../shared beside the project root (as CI lays it out), else this workplace's copy.
+DATA = next((p for p in (Path(__file__).resolve().parents[2] / "shared" / "data", Path("/work/shared/data"))
+             if (p / "textbook_roll_decay.csv").exists()), Path("../shared/data"))
 TEXTBOOK = DATA / "textbook_roll_decay.csv"
 
 
