@@ -43,6 +43,7 @@ class HeldController:
 
     def predict(self, observation, state: Any = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
+        """The action for ``observation`` (Stable-Baselines3 ``predict`` signature): the inner controller's, decided on every ``every``-th call and held in between."""
         if self._calls % self._repeat == 0:
             action, _ = self.inner.predict(observation, deterministic=True)
             self._held = np.asarray(action, dtype=np.float32).reshape(1)

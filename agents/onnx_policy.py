@@ -202,6 +202,13 @@ class OnnxPolicy:
 
     def predict(self, observation: np.ndarray, state: Any = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
+        """The action for ``observation`` (Stable-Baselines3 ``predict`` signature), a fraction of ``i_max``.
+
+        The network is evaluated every ``action_repeat`` calls and its output held; a residual
+        policy adds it to its base controller's action, the base deciding every call or, with
+        ``residual_base_rate='policy'``, once per action with the sum held. Raises
+        :class:`OnnxPolicyError` for an observation of the wrong size.
+        """
         obs = np.asarray(observation, dtype=np.float32).reshape(-1)
         if obs.size != len(OBSERVATION_FIELDS):
             raise OnnxPolicyError(f"observation of size {obs.size}; expected {len(OBSERVATION_FIELDS)} "

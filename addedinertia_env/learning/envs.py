@@ -61,6 +61,7 @@ class ResidualWrapper(gym.Wrapper):
         self._obs: np.ndarray | None = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Reset the environment and a fresh base controller with the episode's controller context (at the policy's period for ``base_rate='policy'``); returns ``(obs, info)``."""
         obs, info = self.env.reset(seed=seed, options=options)
         self.base = make_base(self.base_name, self.base_params)
         context = self.env.unwrapped.controller_context()
@@ -71,6 +72,12 @@ class ResidualWrapper(gym.Wrapper):
         return obs, info
 
     def step(self, action):
+        """Apply ``action`` as a correction to the base controller's for ``action_repeat`` samples.
+
+        The base decides every sample (``base_rate='sample'``) or once, the sum then held
+        (``'policy'``). Returns ``(obs, reward, terminated, truncated, info)`` with the rewards
+        summed over the samples; stops early when the episode ends.
+        """
         total = 0.0
         held = None
         for _ in range(self.action_repeat):
