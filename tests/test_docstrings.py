@@ -28,10 +28,11 @@ def _public(name: str) -> bool:
 
 
 def _overload_or_override_only(node: ast.AST) -> bool:
-    """``@typing.overload`` stubs carry no docstring of their own."""
+    """``@typing.overload`` stubs and a property's setter or deleter (the getter's docstring is the
+    property's) carry no docstring of their own."""
     for dec in getattr(node, "decorator_list", []):
         name = dec.attr if isinstance(dec, ast.Attribute) else getattr(dec, "id", "")
-        if name == "overload":
+        if name in ("overload", "setter", "deleter"):
             return True
     return False
 

@@ -123,6 +123,7 @@ class ShardedVectorEnv(VectorEnv):
         return self._gather()
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        """Reset every shard (``seed`` an int: the shard holding environments ``a..b`` gets ``seed + a``; or a list, one per environment); returns the joined ``(obs, info)``."""
         if seed is None or isinstance(seed, (int, np.integer)):
             seeds = [None if seed is None else int(seed) + int(a) for a in self.offsets[:-1]]
         else:
@@ -131,6 +132,7 @@ class ShardedVectorEnv(VectorEnv):
         return np.concatenate([o for o, _ in out]), _join([i for _, i in out], self.sizes)
 
     def step(self, actions):
+        """Step every shard with its rows of ``actions`` at the same time; returns ``(obs, rewards, terminated, truncated, info)`` joined in environment order."""
         a = np.asarray(actions).reshape(self.num_envs, -1)
         out = self._all("step", [a[lo:hi] for lo, hi in zip(self.offsets[:-1], self.offsets[1:])])
         obs, rew, term, trunc, infos = zip(*out)
@@ -155,10 +157,12 @@ class ShardedVectorEnv(VectorEnv):
 
     @property
     def episodes_ended(self) -> int:
+        """Episodes ended so far, summed over the shards."""
         return int(sum(self._all("get", ["episodes_ended"] * len(self._conns))))
 
     @property
     def score_episodes(self) -> bool:
+        """Whether ended episodes are identified and scored (set on every shard at once)."""
         return bool(self._all("get", ["score_episodes"] * len(self._conns))[0])
 
     @score_episodes.setter
@@ -167,6 +171,7 @@ class ShardedVectorEnv(VectorEnv):
             self._all("set", [("score_episodes", value)] * len(self._conns))
 
     def close_extras(self, **kwargs: Any) -> None:
+        """Tell every worker to stop and wait for it (10 s, then terminate); safe to call twice."""
         if self._closed:
             return
         self._closed = True
