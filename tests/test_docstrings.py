@@ -101,6 +101,7 @@ def test_a_missing_docstring_is_caught(tmp_path):
         "class C:\n    def method(self):\n        pass\n"
         "    def __init__(self):\n        pass\n"
         "    @property\n    def documented(self):\n        '''The documented value, m.'''\n"
+        "    @documented.setter\n    def documented(self, value):\n        pass\n"
         "class _Private:\n    def method(self):\n        pass\n")
     found = [line.split(" ", 1)[1] for line in missing_docstrings(tmp_path, ("toy",))]
     assert found == ["toy.m.f", "toy.m.C", "toy.m.C.method"]
