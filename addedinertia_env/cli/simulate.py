@@ -33,6 +33,9 @@ def register(sub) -> None:
     p.add_argument("--force", action="store_true",
                    help="overwrite records in --out (by default records of this same simulation are kept and "
                         "others are refused)")
+    p.add_argument("--hydrodynamics", choices=["constant", "cummins"], default=None,
+                   help="the water's model (default: the preset's): constant added inertia, or cummins radiation "
+                        "memory from the hull's BEM cache (docs/RADIATION_MEMORY.md)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
@@ -43,7 +46,8 @@ def run(args) -> int:
         raise BadInput(f"--cycles {args.cycles}: expected at most {MAX_CYCLES} records per call (docs/RELIABILITY.md)")
     data = load_preset(args.rig)
     sensors = sensors_for_quality(args.sensors) if args.sensors else None
-    rig = rig_from_mapping(data, effects=effects_from_name(args.effect, args.seed), sensors=sensors)
+    rig = rig_from_mapping(data, effects=effects_from_name(args.effect, args.seed), sensors=sensors,
+                           hydrodynamics=args.hydrodynamics)
     plan = plan_from_preset(data, hold_s=args.hold, alpha=args.alpha)
     if args.kind == "reverse-symmetric":
         from agents.registry import CLASSICAL, make_controller  # noqa: PLC0415
@@ -59,6 +63,8 @@ def run(args) -> int:
         info(f"removed {stale}, a temporary file of a killed earlier run")
     signature = {"rig": args.rig, "controller": args.controller, "seed": args.seed, "hold": args.hold,
                  "alpha": args.alpha, "kind": args.kind, "sensors": args.sensors, "effect": args.effect}
+    if args.hydrodynamics is not None:  # (absent otherwise: earlier records' signatures stay valid)
+        signature["hydrodynamics"] = args.hydrodynamics
     kept: list[Path] = []
     try:
         paths = simulate_to_dir(rig, Path(args.out), controller=args.controller, plan=plan, seed=args.seed,
