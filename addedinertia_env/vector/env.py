@@ -55,7 +55,8 @@ from .observe import observe
 from .pool import ENDED, READY, SETTLE, FREE, EMPTY, ExperimentPool
 
 _BLAS = ThreadpoolController()  # the small least-squares fits run on one BLAS thread (16x faster on a busy 2-core machine)
-SPARE_FRACTION = 0.5  # spare slots per environment (free strokes running ahead)
+SPARE_FRACTION = 0.6  # spare slots per environment (free strokes running ahead; 0.5 leaves resets waiting)
+SPARE_BATCH_DIVISOR = 32  # spares start in batches of n_spare / this (fewer, larger begin() calls)
 METRIC_KEYS = ("lambda66_est", "lambda66_true", "rel_error", "energy_J", "tracking_rms_rad", "saturated_frac")
 
 
@@ -110,6 +111,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
         self.num_envs = num_envs
         self.n_spare = max(2, int(math.ceil(spare_fraction * num_envs)))
         self.n_slots = num_envs + self.n_spare
+        self.spare_batch = max(1, self.n_spare // SPARE_BATCH_DIVISOR)  # empty slots that start free strokes together
         self._default_ranges = load_ranges()
         self.pool: ExperimentPool | None = None
         self._env_rngs: list[np.random.Generator | None] = [None] * num_envs
@@ -267,7 +269,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
                     ended.append(out["ended"])
             if not controlled.any():
                 break
-        self._start_spares(minimum=max(1, self.n_spare // 8))
+        self._start_spares(minimum=self.spare_batch)
         env_of_slot = np.full(pool.n, -1)
         env_of_slot[self.env_slot] = np.arange(n)
         terms = self._task.terms(tracking_sq=tracking[self.env_slot], energy=energy[self.env_slot],

@@ -450,20 +450,28 @@ class ExperimentPool:
             self._ring[j][np.ix_(rows + RING, slots)] = values
 
     def _flush(self, slots) -> None:
-        for k in slots:
-            k = int(k)
-            cnt = int(self._stage_cnt[k])
-            if not cnt:
-                continue
-            start, n0 = int(self._stage_from[k]), int(self._flushed[k])
+        """Copy the staged samples of ``slots`` to their own logs."""
+        slots = np.asarray(slots, dtype=np.int64).reshape(-1)
+        slots = slots[self._stage_cnt[slots] > 0]
+        if not len(slots):
+            return
+        if len(slots) > 64:  # many slots: one transposing gather, then contiguous copies
+            staged = np.ascontiguousarray(self._stage_block[:, :, slots].transpose(2, 1, 0))  # slot x column x row
+        else:
+            staged = None
+        counts, starts, n0s = (a[slots].tolist() for a in (self._stage_cnt, self._stage_from, self._flushed))
+        for j, (k, cnt, start, n0) in enumerate(zip(slots.tolist(), counts, starts, n0s)):
             log = self._logs[k]
             if n0 + cnt > log.shape[1]:
                 grown = np.zeros((len(COLUMNS), max(2 * log.shape[1], n0 + cnt)))
                 grown[:, :n0] = log[:, :n0]
                 log = self._logs[k] = grown
-            log[:, n0:n0 + cnt] = self._stage_block[start:start + cnt, :, k].T
-            self._flushed[k] = n0 + cnt
-            self._stage_cnt[k] = 0
+            if staged is not None:
+                log[:, n0:n0 + cnt] = staged[j, :, start:start + cnt]
+            else:
+                log[:, n0:n0 + cnt] = self._stage_block[start:start + cnt, :, k].T
+        self._flushed[slots] += self._stage_cnt[slots]
+        self._stage_cnt[slots] = 0
 
     # --- records --------------------------------------------------------------------------
     def record(self, k: int, run_id: str = "run"):
