@@ -133,13 +133,16 @@ def smooth_angle(t: np.ndarray, angle: np.ndarray, window_s: float = 0.04, degre
     percent of the reverse work for a 17-bit encoder. Smoothing over ~40 samples spreads
     each sample's error over the window and removes that correlation.
     """
+    return smooth_angles(t, [angle], window_s, degree)[0]
+
+
+def smooth_angles(t: np.ndarray, angles, window_s: float = 0.04, degree: int = 3) -> list[np.ndarray]:
+    """:func:`smooth_angle` of several angle series sampled at the same instants ``t``."""
     if len(t) < 2:  # a block of one sample (a bench's sensed brake a sample off the phase change)
-        return np.asarray(angle, dtype=float)
+        return [np.asarray(a, dtype=float) for a in angles]
     dt = float(np.median(np.diff(t)))
     n = max(degree + 2, int(round(window_s / dt)) | 1)
-    if len(angle) <= n:
-        return angle.astype(float)
-    return savgol(angle, n, degree)
+    return [a.astype(float) if len(a) <= n else savgol(a, n, degree) for a in angles]
 
 
 @lru_cache(maxsize=64)

@@ -61,7 +61,7 @@ from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
 from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol, segment,
-                     smooth_angle)
+                     smooth_angle, smooth_angles)
 from .crossings import crossing_fits, first_crossings
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
@@ -308,13 +308,14 @@ class RunBalance:
         self.direction = float(np.sign(self.phi2 - self.phi_n))
         # Smoothed angles for the work increments, smoothed phase by phase: a window across the
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
-        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi), _smooth_by_phase(rec, psi)
+        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi, psi)
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         if work == "reaction" and FLYWHEEL_CALIBRATION:
-            start = max(self.k3 - _n_samples(t, 1.0), hold.start if hold is not None else self.k3) + 1
+            dt_median = float(np.median(np.diff(t)))
+            start = max(self.k3 - _n_samples(dt_median, 1.0), hold.start if hold is not None else self.k3) + 1
             # The fit stays inside the reverse stroke with its lag grid (the record may end there).
-            end = rev.stop - 1 - _n_samples(t, MAX_LAG_S) - 2
+            end = rev.stop - 1 - _n_samples(dt_median, MAX_LAG_S) - 2
             calib = _flywheel_calibration(t, phi + psi, self.psi_s, self.i, start, end, self.J_f, self.k_t,
                                           self.f_visc, self.f_coul)
             if calib is not None:
@@ -644,8 +645,8 @@ def interval_mean_current(t: np.ndarray, i: np.ndarray, R: float, L: float,
     return i_ss + (i0 - i1) * tau / h
 
 
-def _smooth_by_phase(rec: RunRecord, angle: np.ndarray) -> np.ndarray:
-    """Encoder angle smoothed within each contiguous block of one phase and brake state.
+def _smooth_by_phase(rec: RunRecord, *angles: np.ndarray) -> list[np.ndarray]:
+    """Encoder angles smoothed within each contiguous block of one phase and brake state.
 
     The work sum ``sum(torque_k * dphi_k)`` is biased where the torque reacts to the same
     quantisation errors as the increments (a controller's feedback does): the smoothing
@@ -654,9 +655,11 @@ def _smooth_by_phase(rec: RunRecord, angle: np.ndarray) -> np.ndarray:
     0.03 % of lambda66), while following the stroke itself (period 3-6 s) exactly.
     """
     cuts = phase_blocks(rec)
-    out = np.empty(len(angle), dtype=float)
+    out = [np.empty(len(angle), dtype=float) for angle in angles]
     for a, b in zip(cuts[:-1], cuts[1:]):
-        out[a:b] = smooth_angle(rec.t[a:b], angle[a:b], window_s=WORK_SMOOTHING_S, degree=5)
+        smoothed = smooth_angles(rec.t[a:b], [angle[a:b] for angle in angles], window_s=WORK_SMOOTHING_S, degree=5)
+        for o, x in zip(out, smoothed):
+            o[a:b] = x
     return out
 
 
@@ -671,8 +674,9 @@ def phase_blocks(rec: RunRecord) -> np.ndarray:
     return np.concatenate([[0], np.nonzero(change)[0] + 1, [len(phase)]])
 
 
-def _n_samples(t: np.ndarray, span_s: float) -> int:
-    return int(round(span_s / float(np.median(np.diff(t)))))
+def _n_samples(dt_median: float, span_s: float) -> int:
+    """Samples in ``span_s`` seconds at the record's median sample interval ``dt_median`` (s)."""
+    return int(round(span_s / dt_median))
 
 
 def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: float, f_visc: float,
@@ -697,14 +701,13 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     om = np.gradient(psi[a:b + 1], tt)  # psi already smoothed phase by phase
     friction = f_visc * om + f_coul * np.sign(om)
 
-    dtt = np.diff(tt)
+    half_dtt = 0.5 * np.diff(tt)
 
     def twice(x):  # trapezoid integral of the integral, from 0, along the last axis
         out = x
         for _ in range(2):
             step = out[..., 1:] + out[..., :-1]
-            step *= 0.5
-            step *= dtt
+            step *= half_dtt  # 0.5 (exact) times the interval: the trapezoid
             out = np.empty(x.shape)
             out[..., 0] = 0.0
             np.cumsum(step, axis=-1, out=out[..., 1:])
