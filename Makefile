@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
+.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -68,6 +68,19 @@ policy: $(STAMP)
 policy-100hz: $(STAMP)
 	$(BIN)/addedinertia train --algo ppo --config configs/algos/ppo_residual_100hz.yaml --timesteps 50000 --seed 1 --out out/train/ppo-residual-100hz
 	$(BIN)/addedinertia export out/train/ppo-residual-100hz --onnx agents/policies/reverse_stroke_100hz.onnx
+
+# The learned residual controller for hard-v0 (docs/LEARNING.md, issue 13): three seeds of random
+# search on the paired score, 6 CPU-minutes each, on hard-v0's training split; then the curves,
+# the choice of seed on held-aside training scenarios and the export (about 15 min on 2 idle cores).
+HARD_SEEDS ?= 0 1 2
+hard-policy: $(STAMP)
+	for s in $(HARD_SEEDS); do \
+	  nice -n 10 $(BIN)/python -m addedinertia_env.learning.ars_residual --seed $$s --generations 200 \
+	    --cpu-minutes 6 --out out/train/ars-hard-s$$s || exit 1; \
+	done
+	$(BIN)/python -m addedinertia_env.reports.ars_curves --runs $(foreach s,$(HARD_SEEDS),out/train/ars-hard-s$(s)) \
+	  --validate 24 --onnx agents/policies/hard_residual.onnx --figure docs/figures/learning_hard_ars.png \
+	  --summary docs/figures/learning_hard_ars.json
 
 accuracy-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md

@@ -240,7 +240,8 @@ class BatchedRig:
         p = self.params
         p.set_envs(idx, rigs)
         if self._shared or self._G_table.shape[-1] != self.n:  # from now on one map per environment
-            self._G_table = np.ascontiguousarray(np.broadcast_to(self._G_table, self._G_table.shape[:3] + (self.n,)))
+            # a copy (writeable) even for one environment, where broadcast_to changes no shape
+            self._G_table = np.broadcast_to(self._G_table, self._G_table.shape[:3] + (self.n,)).copy()
             self._shared = False
         h = self.physics_dt
         args = self._map_args(p, idx)

@@ -1,0 +1,169 @@
+"""Whole benchmark episodes of a suite, many at once on the batched engine, scored as the benchmark scores them.
+
+:func:`run_batch` runs one episode per scenario seed of a suite's split (``train`` for
+learning; never ``test``) in one :class:`~addedinertia_env.vector.pool.ExperimentPool`
+(the suite's control loop included: reading delay, 100 Hz hold, quantised set-points),
+each slot driven by
+
+* ``"oracle"``: :class:`~addedinertia_env.experiment.oracle.OracleController`, the
+  benchmark's truth-based reference row, on the slot's simulator truth, or
+* a classical base controller (``base``, e.g. ``pd``) plus, where a ``policy`` is given,
+  its residual correction (:func:`agents.residual.residual_action`, as
+  :class:`agents.onnx_policy.OnnxPolicy` applies it on the benchmark).
+
+Both act once per drive set-point period (``action_repeat`` samples: 100 Hz on hard-v0),
+with the :class:`~addedinertia_env.task.ControllerContext` that
+``experiment.runner.controller_context`` gives on the benchmark. Each episode is scored
+by the benchmark's ranked method (``identify(..., "energy", asymmetry_correction=False)``,
+``e = lambda66_est / lambda66_true - 1``). The scenario's truth (lambda66, the oracle's
+state) is used here for scoring and the oracle only: this is a trainer, not an estimator.
+
+One difference from the benchmark, by design of the batched pool: the record has no
+passive tail after the reverse stroke (tests/test_vector_env.py bounds its effect on
+lambda66 at ~1e-5 relative).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from threadpoolctl import ThreadpoolController
+
+from agents.residual import residual_action
+
+from ..bench.runner import cycle_seed
+from ..experiment.oracle import OracleController
+from ..identify import identify
+from ..task import ControllerContext, ReverseStrokeTask
+from ..vector.observe import observe
+from ..vector.pool import READY, ExperimentPool
+
+_BLAS = ThreadpoolController()
+# (observations (m, n_obs) float32, their slots (m,)) -> corrections (m,) in [-1, 1]
+Policy = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass
+class BatchResult:
+    """Per-episode outcome of :func:`run_batch` (arrays in the order of the seeds)."""
+
+    seeds: list[int]
+    rel_error: np.ndarray  # e of the ranked method (nan: identification failed)
+    energy_J: np.ndarray  # J, integral of |u i| over hold and reverse
+    agent_steps: int  # controller calls summed over the episodes
+    samples: int  # rig samples stepped, all slots (free strokes included)
+    observations: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.float32))  # (steps, n_obs), if kept
+
+
+class _SlotTruth:
+    """What :class:`OracleController` reads of its rig, for one slot of the pool (simulator truth)."""
+
+    def __init__(self, pool: ExperimentPool, k: int):
+        self.pool, self.k = pool, k
+        self.params = pool.scenarios[k].rig
+        self.k_t = float(pool.rig._k_t_env[k]) if np.ndim(pool.rig._k_t_env) else float(pool.rig._k_t_env)
+
+    def true_state(self):
+        s = self.pool.rig.true_state(self.k)
+        return _State(**{key: s[key] for key in ("t", "phi", "w", "water_rate")})
+
+
+@dataclass
+class _State:
+    t: float
+    phi: float
+    w: float
+    water_rate: float
+
+
+def slot_context(pool: ExperimentPool, k: int, action_repeat: int) -> ControllerContext:
+    """Slot ``k``'s controller context, as ``experiment.runner.controller_context`` builds it
+    for a drive taking a set-point every ``action_repeat`` samples."""
+    sc = pool.scenarios[k]
+    dt = pool.dt * action_repeat
+    slow = {"policy_rate_hz": 1.0 / dt, "sample_dt": pool.dt} if action_repeat > 1 else {}
+    reference = pool.reference(k)
+    return ControllerContext(rig=sc.rig.known(), layout=ReverseStrokeTask.layout, reference=reference,
+                             inertia_prior=float(pool.inertia_prior[k]), dt=dt, hold_s=sc.plan.hold_s, **slow)
+
+
+def run_batch(suite, seeds: Sequence[int], make_base: Callable[[], Any] | None, *, split: str = "train",
+              oracle: Sequence[bool] | None = None, policy: Policy | None = None, residual_scale: float = 0.0,
+              action_repeat: int = 10, keep_observations: bool = False) -> BatchResult:
+    """One episode per seed (``suite.split_seed(split, seed)``), all in one batch; see module doc.
+
+    ``oracle[j]``: slot ``j`` runs the oracle instead of the base. ``policy`` maps the
+    observations of the non-oracle slots still running (and their slot numbers) to
+    corrections in [-1, 1], applied as ``clip(base + residual_scale * correction, -1, 1)``.
+    """
+    if split == "test":
+        raise ValueError("run_batch(split='test'): the test split is held out; train on 'train' (or 'tuning')")
+    with _BLAS.limit(limits=1, user_api="blas"):
+        return _run(suite, list(seeds), make_base, split, oracle, policy, residual_scale, action_repeat,
+                    keep_observations)
+
+
+def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep) -> BatchResult:
+    n = len(seeds)
+    # the sensor noise of the benchmark's scored cycle 0 (bench/runner.py), so that a scenario here
+    # is the benchmark's episode on the same scenario
+    scenarios = [dataclasses.replace(sc, sensor_seed=cycle_seed(sc, 0))
+                 for sc in (suite.scenario(suite.split_seed(split, s)) for s in seeds)]
+    pool = ExperimentPool(n, scenarios[0], "current")
+    slots = np.arange(n)
+    pool.begin(slots, scenarios)
+    zeros, idle = np.zeros(n), np.zeros(n, dtype=bool)
+    samples = 0
+    while np.any(pool.stage != READY):  # settle and free strokes
+        pool.sample(zeros, idle)
+        samples += n
+    pool.take(slots)
+    is_oracle = np.zeros(n, dtype=bool) if oracle is None else np.asarray(oracle, dtype=bool)
+    controllers = []
+    for k in range(n):
+        ctx = slot_context(pool, k, repeat)
+        c = OracleController(_SlotTruth(pool, k)) if is_oracle[k] else make_base()
+        c.reset(ctx)
+        controllers.append(c)
+    controlled = np.ones(n, dtype=bool)
+    obs = observe(pool, slots)
+    kept: list[np.ndarray] = []
+    steps = 0
+    while controlled.any():
+        live = np.nonzero(controlled)[0]
+        action = np.zeros(n)
+        for k in live:
+            action[k] = float(controllers[k].predict(obs[k], deterministic=True)[0][0])
+        if policy is not None:
+            learned = live[~is_oracle[live]]
+            if len(learned):
+                corr = np.asarray(policy(obs[learned], learned), dtype=np.float32).reshape(-1)
+                for j, k in enumerate(learned):
+                    action[k] = float(residual_action(np.float32(action[k]), corr[j], scale)[0])
+        if keep:
+            kept.append(obs[live])
+        steps += len(live)
+        value = np.clip(action, -1.0, 1.0) * pool.i_max
+        for _ in range(repeat):
+            out = pool.sample(value, controlled)
+            samples += int(controlled.sum())
+            if out and len(out["ended"]):
+                controlled[out["ended"]] = False
+            if not controlled.any():
+                break
+        obs = observe(pool, slots)
+    rel = np.full(n, math.nan)
+    for k in range(n):
+        try:
+            result = identify([pool.record(k)], "energy", asymmetry_correction=False)
+            est = float(result.lambda66)
+            rel[k] = est / scenarios[k].rig.hull.lambda66 - 1.0 if math.isfinite(est) else math.nan
+        except Exception:  # noqa: BLE001 - any failure of one episode is that episode's result (bench/runner.py)
+            rel[k] = math.nan
+    observations = np.concatenate(kept) if kept else np.zeros((0, 0), np.float32)
+    return BatchResult(seeds=list(seeds), rel_error=rel, energy_J=pool.energy.copy(), agent_steps=steps,
+                       samples=samples, observations=observations)
