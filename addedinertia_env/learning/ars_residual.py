@@ -64,9 +64,11 @@ class LinearPolicy:
         self.theta = np.zeros(n + 1) if theta is None else np.asarray(theta, dtype=np.float64).copy()
 
     def features(self, obs: np.ndarray) -> np.ndarray:
+        """Observations (n, n_obs) normalised with the frozen statistics and clipped to +-5."""
         return np.clip((np.asarray(obs, dtype=np.float64) - self.mean) / self.std, -CLIP_X, CLIP_X)
 
     def __call__(self, obs: np.ndarray, theta: np.ndarray | None = None) -> np.ndarray:
+        """Corrections (n,) float32 in [-1, 1] for observations (n, n_obs) (``theta``: other parameters)."""
         th = self.theta if theta is None else theta
         x = self.features(np.atleast_2d(obs))
         return np.clip(x @ th[:-1] + th[-1], -1.0, 1.0).astype(np.float32)
@@ -302,6 +304,7 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Command line: train one seed (and optionally export it); returns the exit status."""
     parser = argparse.ArgumentParser(prog="python -m addedinertia_env.learning.ars_residual",
                                      description="Train (and export) a linear residual controller on a suite's "
                                                  "training split by random search on the paired benchmark score.")

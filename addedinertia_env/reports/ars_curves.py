@@ -30,6 +30,7 @@ VALIDATION_FIRST = 900_000_000  # training-split scenario numbers kept for valid
 
 
 def load_curve(run: Path) -> list[dict[str, Any]]:
+    """The per-generation rows of a training run's ``curve.jsonl``."""
     return [json.loads(line) for line in (run / "curve.jsonl").read_text().splitlines() if line.strip()]
 
 
@@ -71,6 +72,7 @@ def validate(runs: list[Path], n: int, cap: float = 0.005) -> dict[str, Any]:
 
 
 def figure(runs: list[Path], path: Path, title: str) -> None:
+    """Write the learning-curve figure of ``runs`` (paired cost vs agent steps and CPU time; medians) to ``path``."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -108,6 +110,7 @@ def figure(runs: list[Path], path: Path, title: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Command line (module doc); prints the JSON summary, returns the exit status."""
     parser = argparse.ArgumentParser(prog="python -m addedinertia_env.reports.ars_curves", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=Path, nargs="+", required=True)
