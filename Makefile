@@ -103,7 +103,8 @@ leaderboard-realistic:
 # docs/LEADERBOARD_hard.md: hard-v0, the suite where control matters (configs/suites/hard-v0.yaml).
 leaderboard-hard:
 	$(MAKE) leaderboard BENCH_SUITE=hard-v0 LEADERBOARD_DOC=docs/LEADERBOARD_hard.md \
-	  LEADERBOARD_HTML=docs/leaderboard_hard.html
+	  LEADERBOARD_HTML=docs/leaderboard_hard.html \
+	  LEARNED_POLICIES="agents/policies/reverse_stroke.onnx agents/policies/hard_residual.onnx"
 
 # Re-tune every classical controller on hard-v0's tuning split with one budget
 # (configs/controllers/tuned-hard-v0.yaml; about 25 min on 2 shared cores).

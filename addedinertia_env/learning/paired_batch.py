@@ -38,6 +38,7 @@ from agents.residual import residual_action
 from ..bench.runner import cycle_seed
 from ..experiment.oracle import OracleController
 from ..identify import identify
+from ..rig import forces
 from ..task import ControllerContext, ReverseStrokeTask
 from ..vector.observe import observe
 from ..vector.pool import READY, ExperimentPool
@@ -68,8 +69,13 @@ class _SlotTruth:
         self.k_t = float(pool.rig._k_t_env[k]) if np.ndim(pool.rig._k_t_env) else float(pool.rig._k_t_env)
 
     def true_state(self):
+        """The slot's true hull state now (the fields the oracle reads)."""
         s = self.pool.rig.true_state(self.k)
-        return _State(**{key: s[key] for key in ("t", "phi", "w", "water_rate")})
+        if forces.has_radiation_memory(self.params) and "radiation_torque" not in s:
+            raise ValueError(f"scenario {self.pool.scenarios[self.k].name}: radiation memory, whose torque the "
+                             "batched rig's true_state does not report; the oracle cannot run here")
+        return _State(**{key: s[key] for key in ("t", "phi", "w", "water_rate")},
+                      radiation_torque=float(s.get("radiation_torque", 0.0)))
 
 
 @dataclass
@@ -78,6 +84,7 @@ class _State:
     phi: float
     w: float
     water_rate: float
+    radiation_torque: float = 0.0  # N m, 0 without radiation memory
 
 
 def slot_context(pool: ExperimentPool, k: int, action_repeat: int) -> ControllerContext:

@@ -102,7 +102,9 @@ def figure(runs: list[Path], path: Path, title: str) -> None:
     axes[2].set_xlabel("generation")
     axes[2].set_ylabel("median |e - e_oracle| on the generation's scenarios, %")
     axes[2].legend(fontsize=7)
-    fig.suptitle(title, fontsize=9)
+    import textwrap  # noqa: PLC0415
+
+    fig.suptitle("\n".join(textwrap.wrap(title, 180)), fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
