@@ -13,6 +13,7 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 
 def _default_mode() -> int:
@@ -109,3 +110,17 @@ def atomic_target(path: str | os.PathLike, suffix: str = ".tmp") -> Iterator[Pat
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def save_figure(fig: Any, path: str | os.PathLike, dpi: int = 110) -> Path:
+    """Write the matplotlib figure ``fig`` to ``path`` atomically (its folder made; the format from
+    the suffix, PNG by default) at ``dpi`` dots per inch, then close it; returns the path."""
+    path = Path(path)
+    try:
+        with atomic_target(path, suffix=path.suffix or ".png") as tmp:
+            fig.savefig(tmp, dpi=dpi)
+    finally:
+        import matplotlib.pyplot as plt  # noqa: PLC0415 - only those who draw need matplotlib
+
+        plt.close(fig)
+    return path

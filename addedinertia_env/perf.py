@@ -11,6 +11,7 @@ best of a few repeats (as :mod:`timeit` advises: the minimum is the least distur
 
 from __future__ import annotations
 
+from .atomic import save_figure
 from .machine import cpu_model
 
 import datetime as _dt
@@ -164,10 +165,7 @@ def plot_time_vs_n(result: dict[str, Any], path: str) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    tmp = f"{path}.tmp.png"
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path, dpi=110)
 
 
 def render_markdown(result: dict[str, Any], command: str, figure: str | None) -> str:

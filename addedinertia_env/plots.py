@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_target
+from .atomic import save_figure
 from .record import RunRecord
 
 PHASE_COLOURS = {"idle": "0.85", "free": "#cfe8ff", "hold": "#ffe7b3", "reverse": "#d6f5d6"}
@@ -15,16 +15,7 @@ PHASE_COLOURS = {"idle": "0.85", "free": "#cfe8ff", "hold": "#ffe7b3", "reverse"
 
 def plot_run(record: RunRecord, path: str | os.PathLike, title: str = "") -> Path:
     """Three stacked panels over time with the phases shaded; written atomically as PNG."""
-    fig = run_figure(record, title)  # selects the Agg backend before pyplot is imported
-    import matplotlib.pyplot as plt  # noqa: PLC0415
-
-    path = Path(path)
-    try:
-        with atomic_target(path, suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=110)
-    finally:
-        plt.close(fig)
-    return path
+    return save_figure(run_figure(record, title), path, dpi=110)
 
 
 def run_figure(record: RunRecord, title: str = ""):

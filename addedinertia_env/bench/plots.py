@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import save_figure
 from .leaderboard import abs_errors
 
 
@@ -39,9 +40,7 @@ def plot_error_vs_energy(rows: list[dict], order: list[str], path: Path) -> Path
     ax.legend(fontsize=8)
     ax.set_title("error against energy, one point per episode")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_per_scenario(rows: list[dict], order: list[str], path: Path) -> Path:
@@ -69,9 +68,7 @@ def plot_per_scenario(rows: list[dict], order: list[str], path: Path) -> Path:
     ax.legend(fontsize=7, ncol=3)
     ax.set_title("per-scenario error")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:
@@ -126,6 +123,4 @@ def plot_pareto(entries: list[dict], path: Path, score_label: str) -> Path:
     ax.set_title("entries: median and paired 95 % interval", fontsize=10)
     fig.suptitle("accuracy against energy (lower left is better)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_target
+from ..atomic import save_figure
 from .amplitudes import READING_RESOLUTION_DEG, read_amplitudes
 from .laws import envelope, law_nu
 
@@ -45,9 +45,4 @@ def plot(result: dict, path: str | Path) -> Path:
     ax2.set_ylabel("nu")
     ax2.legend(fontsize=7)
     fig.tight_layout()
-    try:
-        with atomic_target(path, suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=110)
-    finally:
-        plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

@@ -4,30 +4,15 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_write_text, save_figure
 from ..jsonable import plain
 from . import residuals as resid
 from .diagnose import Diagnosis
 from .fit import Fit
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
-
-
-def _save(fig, path: Path) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, path)
 
 
 def _segment_times(fit: Fit):
@@ -62,8 +47,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
         axes[row, 1].legend(fontsize=7)
     fig.tight_layout()
     p = folder / "residuals_time.png"
-    _save(fig, p)
-    plt.close(fig)
+    save_figure(fig, p, dpi=110)
     out.append(p)
     # 2. residual RMS by run: amplitude and hold
     fig, ax = plt.subplots(figsize=(7, 3.5))
@@ -80,8 +64,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
     ax.legend(fontsize=8)
     fig.tight_layout()
     p = folder / "residuals_by_run.png"
-    _save(fig, p)
-    plt.close(fig)
+    save_figure(fig, p, dpi=110)
     out.append(p)
     # 3. autocorrelation
     fig, ax = plt.subplots(figsize=(7, 3.2))
@@ -95,8 +78,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
     ax.legend(fontsize=8)
     fig.tight_layout()
     p = folder / "residuals_acf.png"
-    _save(fig, p)
-    plt.close(fig)
+    save_figure(fig, p, dpi=110)
     out.append(p)
     return out
 
@@ -151,6 +133,6 @@ def write_report(diag: Diagnosis, folder: str | os.PathLike) -> Path:
     folder = Path(folder)
     figures = plot_residuals(diag, folder)
     path = folder / "report.md"
-    _atomic_write(path, markdown(diag, figures))
-    _atomic_write(folder / "discovery.json", json.dumps(plain(diag.to_json()), indent=1, allow_nan=False) + "\n")
+    atomic_write_text(path, markdown(diag, figures))
+    atomic_write_text(folder / "discovery.json", json.dumps(plain(diag.to_json()), indent=1, allow_nan=False) + "\n")
     return path

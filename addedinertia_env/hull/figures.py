@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_target
+from ..atomic import save_figure
 from .retardation import retardation_function
 
 
@@ -52,10 +52,4 @@ def plot_study(data: dict, path: str | os.PathLike, swing_omega: float | None = 
     if caption:
         fig.text(0.01, 0.005, caption, fontsize=7, color="0.3")
     fig.tight_layout(rect=(0, 0.03, 1, 1))
-    path = Path(path)
-    try:
-        with atomic_target(path, suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=100)
-    finally:
-        plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100)

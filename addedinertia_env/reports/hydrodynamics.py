@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_target, atomic_write_text
+from ..atomic import atomic_write_text, save_figure
 from ..hull import stability as stab
 from ..hull.geometry import HullShape, quarter_mesh
 from ..hull.presets import preset_hull
@@ -86,10 +86,7 @@ def lamb_figure(data: dict, path: Path) -> Path:
     ax.legend(fontsize=7, ncol=2)
     fig.text(0.01, 0.005, f"{COMMAND}; Capytaine {data['capytaine_version']}; {data['machine']}", fontsize=6, color="0.3")
     fig.tight_layout(rect=(0, 0.03, 1, 1))
-    with atomic_target(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100)
 
 
 def _list(xs) -> str:

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import save_figure
 from .sections import replace_section
 
 MARK = "<!-- curves:{algo}:{end} -->"
@@ -114,10 +115,7 @@ def plot(algo: str, metric: dict[str, np.ndarray], reward: dict[str, np.ndarray]
     axes[0].legend(fontsize=8)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path, dpi=100)
 
 
 def section(algo: str, args, cards: list[dict[str, Any]], metric, reward, figure: str, command: str,
