@@ -20,8 +20,6 @@ Command: ``addedinertia bench tune --suite standard-v0 --controller NAME``.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -31,8 +29,10 @@ import yaml
 from agents.registry import CLASSICAL, controller_class
 from agents.tuned import TUNED_PATH, load_tuned, resolve_params  # noqa: F401 - the gains this module writes
 
+from ..atomic import atomic_write_text
 from .runner import run_tasks
 from .suites import load_suite
+
 
 def sample_candidates(knobs: dict[str, tuple[float, float, str]], n: int, seed: int) -> list[dict[str, float]]:
     """``n`` candidates: ``{}`` (the defaults) then ``n - 1`` random draws over ``knobs``."""
@@ -103,11 +103,7 @@ def write_tuned(name: str, result: dict[str, Any], command: str, path: Path | No
     data[name] = {"params": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in result["params"].items()},
                   "tuning_score_median_abs_error": round(float(result["score"]), 6),
                   "budget": result.get("budget", {}), "command": command}
-    path.parent.mkdir(parents=True, exist_ok=True)
     header = ("# Tuned controller gains, written by `addedinertia bench tune` (addedinertia_env/bench/tuning.py).\n"
               "# Each entry: the parameters, the tuning-split score, the budget and the command.\n")
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(header + yaml.safe_dump(data, sort_keys=True))
-    os.replace(tmp, path)
+    atomic_write_text(path, header + yaml.safe_dump(data, sort_keys=True))
     return path

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ..atomic import atomic_write_text
 from .common import BadInput, emit_json, info, positive_int
 
 
@@ -70,9 +71,7 @@ def run(args) -> int:
             + ([f"--vector-workers {args.vector_workers}"] if args.vector_workers is not None else [])
             + [f"--out {args.out}"])
         text = render_markdown(result, command, os.path.relpath(fig, out.parent))
-        tmp = out.with_suffix(out.suffix + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, out)
+        atomic_write_text(out, text)
         info(f"wrote {out} and {fig}")
     if args.json:
         emit_json(result)
