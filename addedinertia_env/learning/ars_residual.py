@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 
+from ..atomic import atomic_write_text
 from ..task import OBSERVATION_FIELDS
 from .paired_batch import run_batch
 
@@ -142,7 +143,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
                 "cost": {"env_steps": env_steps, "episodes": episodes, "cpu_s": round(cpu_s, 1),
                          "cpu_minutes": round(cpu_s / 60.0, 2), "wall_s": round(time.perf_counter() - wall0, 1)},
                 "command": command}
-        (out / "training_card.json").write_text(json.dumps(card, indent=2))
+        atomic_write_text(out / "training_card.json", json.dumps(card, indent=2) + "\n")
         return card
 
     curve_path = out / "curve.jsonl"

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write_text
+from ..atomic import atomic_write_text, save_figure
 from ..machine import machine_line
 
 VALIDATION_FIRST = 900_000_000  # training-split scenario numbers kept for validation (no run draws them)
@@ -106,9 +106,7 @@ def figure(runs: list[Path], path: Path, title: str) -> None:
 
     fig.suptitle("\n".join(textwrap.wrap(title, 180)), fontsize=8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def main(argv: list[str] | None = None) -> int:
