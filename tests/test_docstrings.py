@@ -1,5 +1,5 @@
-"""Every public function, class and method of the packages says what it does (style.md:
-"docstrings on public functions: what, units, returns").
+"""Every module, and every public function, class and method of the packages, says what it
+does (style.md: "docstrings on public functions: what, units, returns").
 
 Public: a module-level function or class, or a method of a public class, whose name has no
 leading underscore, in a module whose own path has none (``_private.py`` modules are
@@ -76,6 +76,14 @@ def test_every_public_definition_has_a_docstring():
     missing = missing_docstrings()
     assert not missing, (f"{len(missing)} public definitions without a docstring (say what it does, the units "
                          "of physical arguments and of what it returns):\n" + "\n".join(missing))
+
+
+def test_every_module_says_what_it_holds():
+    """Every module (package ``__init__`` files too) opens with a docstring: what is in it, and
+    for a package which file holds what."""
+    missing = [str(path.relative_to(ROOT)) for pkg in PACKAGES for path in sorted((ROOT / pkg).rglob("*.py"))
+               if len((ast.get_docstring(ast.parse(path.read_text())) or "").strip()) < MIN_CHARS]
+    assert not missing, f"modules without a docstring: {missing}"
 
 
 def test_the_allow_list_names_only_existing_undocumented_definitions():
