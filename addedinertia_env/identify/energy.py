@@ -718,11 +718,16 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     # Least squares on (1, t - t_a, the lagged current's column), every lag at once: the first two
     # columns are shared, so they are projected out (twice, for orthogonality to rounding) and
     # each lag's column is then a one-column fit; the residuals are formed explicitly.
-    Z = twice(np.interp(tt[None, :] + lags[:, None], t, i))  # (lags, samples); k_t / J_f leaves the residuals
     Q, _ = np.linalg.qr(np.column_stack([np.ones_like(tt), tt - tt[0]]))
-    for _ in range(2):
-        y = y - Q @ (Q.T @ y)
-        Z = Z - (Z @ Q) @ Q.T
+
+    def projected(x):  # the rows with the first two columns projected out
+        for _ in range(2):
+            x = x - (x @ Q) @ Q.T
+        return x
+
+    y = projected(y)
+    # (lags, samples); k_t / J_f leaves the residuals
+    Z = _lagged_twice(t, i, a, b, lags, lambda x: projected(twice(x)))
     zz = np.einsum("ij,ij->i", Z, Z)
     coef = (Z @ y) / np.where(zz > 0, zz, np.inf)
     r = y[None, :] - coef[:, None] * Z
@@ -743,6 +748,31 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     if not 0.5 < scale < 2.0:
         return None
     return scale, lag
+
+
+def _lagged_twice(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray, linear) -> np.ndarray:
+    """``linear(np.interp(t[a:b + 1] + lag, t, i))`` for every lag (rows), for a map ``linear``
+    acting row by row (the calibration's double integral and projection).
+
+    On an evenly sampled stretch (intervals equal to 1e-9), the current at ``t + lag`` is the
+    blend ``(1 - f) i[k + n] + f i[k + n + 1]`` of two whole-sample shifts, and the map is
+    linear: so only the ~16 whole-sample shifts are mapped and each lag blends two of them
+    (equal to interpolating first, to float rounding). Otherwise every lag is interpolated.
+    """
+    m = b + 1 - a
+    dt = (t[b] - t[a]) / max(m - 1, 1)
+    steps = lags / dt
+    n = np.floor(steps + 1e-9).astype(np.int64)
+    frac = np.clip(steps - n, 0.0, 1.0)
+    lo, hi = a + int(n.min()), b + int(n.max()) + 1
+    if lo >= 0 and hi < len(t) and m > 1:
+        d = np.diff(t[lo:hi + 1])
+        if np.max(np.abs(d - dt)) <= 1e-9 * dt:
+            shifts = np.arange(int(n.min()), int(n.max()) + 2)
+            base = linear(np.stack([i[a + s:a + s + m] for s in shifts]))
+            k = n - shifts[0]
+            return (1.0 - frac)[:, None] * base[k] + frac[:, None] * base[k + 1]
+    return linear(np.interp(t[a:b + 1][None, :] + lags[:, None], t, i))
 
 
 def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float):

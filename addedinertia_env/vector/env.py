@@ -7,6 +7,9 @@ options, spaces, observations, rewards and end-of-episode scoring), with every r
 of every environment taken in one call of the batched rig, and the experiment protocol,
 observation and reward computed on arrays (:mod:`.pool`, :mod:`.observe`).
 
+``workers=W`` (W > 1) runs it in W processes, one shard of environments each
+(:mod:`.shards`, reached through :func:`~.entry.make_vector_env`): for machines with idle cores.
+
 Resets cost nothing at step time: a pool of spare slots runs the next episodes' settle
 and free strokes in the background (in the same batch), and an environment that resets
 takes a slot already braked at its stop. Spare episodes draw their scenario seeds from
