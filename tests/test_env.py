@@ -421,3 +421,15 @@ def test_rgb_array_render_draws_the_rig():
 def test_check_env_with_every_render_mode_passes_with_no_warnings():
     result = _render_in_fresh_interpreter("check_env")
     assert result["dtype"] == "uint8"
+
+
+@pytest.mark.parametrize("repeat", [1, 10])
+def test_controller_context_period_is_the_agents_on_a_suite_with_a_slow_drive(repeat):
+    """hard-v0's drive takes a set-point every 10 samples; a controller called once per agent
+    step must still be told the agent's period (sample dt x action_repeat), not 10x it."""
+    env = ReverseStrokeEnv(suite="hard-v0", action_repeat=repeat)
+    env.reset(seed=3)
+    ctx = env.controller_context()
+    assert ctx.dt == pytest.approx(repeat * env.rig.dt)
+    assert ctx.policy_rate_hz == pytest.approx(env.policy_rate_hz)
+    assert ctx.board_dt == pytest.approx(env.rig.dt)

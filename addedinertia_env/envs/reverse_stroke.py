@@ -297,7 +297,12 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.experiment is None:
             raise gym.error.ResetNeeded("call reset() before controller_context()")
         ctx = _runner_context(self.experiment)
-        return dataclasses.replace(ctx, dt=ctx.dt * self.config.action_repeat)
+        # the agent's period is the rig's sample period x action_repeat, whatever the drive's
+        # own set-point period (a suite's 100 Hz drive already sets ctx.dt to 10 samples)
+        dt = self.rig.dt * self.config.action_repeat
+        if self.config.action_repeat == 1 and ctx.policy_rate_hz is None:
+            return ctx
+        return dataclasses.replace(ctx, dt=dt, policy_rate_hz=1.0 / dt, sample_dt=self.rig.dt)
 
     def record(self, run_id: str = "run") -> RunRecord:
         """The episode's run record so far (complete once terminated)."""
