@@ -284,9 +284,12 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
         lines += ["", "**Against the targets** (1 M samples/s at n = 1024 and 100 x `make_vec` sync, whole task with",
                   f"identification, same run): **{'met' if met else 'not met'}** in this run: "
                   f"{result['vector_env_samples_per_s']:,.0f} samples/s wall and "
-                  f"{result['vector_ratio_to_sync']:,.0f} x. On a machine with its cores to itself the wall figure of "
-                  f"{head.get('workers', 1)} process(es) approaches {head.get('workers', 1)} x the per-CPU-second figure "
-                  f"({head['samples_per_cpu_s']:,.0f}).", "",
+                  f"{result['vector_ratio_to_sync']:,.0f} x. In {head.get('workers', 1)} process(es) the wall figure is at most "
+                  f"{head.get('workers', 1)} x the per-CPU-second one ({head['samples_per_cpu_s']:,.0f}); here the processes "
+                  f"kept {head['cpu_s'] / head['wall_s']:.1f} cores busy (every step waits for the slower shard, whose "
+                  "episodes may need more identifications in that step, and the machine was shared). Per episode "
+                  f"the identification ({ident_ms:,.1f} CPU-ms) costs more than stepping its {per_episode:,.0f} samples "
+                  f"({per_episode / e['samples_per_cpu_s'] * 1e3:,.1f} CPU-ms).", "",
                   "`gym.make_vec(\"AddedInertia/ReverseStroke-v0\", num_envs=N)` gives the batched env (its",
                   "`vector_entry_point`; `workers=W` runs it in W processes); `vectorization_mode=\"sync\"` gives N single",
                   "envs.", "",
