@@ -51,7 +51,6 @@ from .paired_batch import run_batch
 
 CLIP_X = 5.0  # normalised observations are clipped to +-5
 OPSET = 17
-META_PREFIX = "addedinertia."
 TRAIN_SEED_STRIDE = 1_000_003  # training scenario numbers of run ``seed``: disjoint streams per seed
 
 
@@ -233,7 +232,7 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
     from .. import __version__  # noqa: PLC0415
     from ..machine import machine_info  # noqa: PLC0415
     from .callbacks import write_json_atomic  # noqa: PLC0415
-    from .export import measure_latency_us, random_observations  # noqa: PLC0415
+    from .export import measure_latency_us, random_observations, save_with_metadata  # noqa: PLC0415
 
     data = np.load(run / "policy.npz")
     train_card = json.loads((run / "training_card.json").read_text())
@@ -273,13 +272,7 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
         "obs_fields": json.dumps(list(OBSERVATION_FIELDS)),
         "train_env_steps": str(cost["env_steps"]), "train_cpu_minutes": str(cost["cpu_minutes"]),
     }
-    for key, value in meta.items():
-        entry = graph.metadata_props.add()
-        entry.key, entry.value = META_PREFIX + key, value
-    graph.producer_name = "addedinertia"
-    onnx.checker.check_model(graph)
-    onnx.save(graph, str(tmp))
-    tmp.replace(onnx_path)
+    save_with_metadata(graph, meta, onnx_path)
     import onnxruntime as ort  # noqa: PLC0415
 
     obs = random_observations(1000)

@@ -166,13 +166,7 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
         "train_env_steps": str(cost.get("env_steps", "")),
         "train_cpu_minutes": str(cost.get("cpu_minutes", "")),
     }
-    for key, value in meta.items():
-        entry = graph.metadata_props.add()
-        entry.key, entry.value = META_PREFIX + key, value
-    graph.producer_name = "addedinertia"
-    onnx.checker.check_model(graph)
-    onnx.save(graph, str(tmp))
-    tmp.replace(onnx_path)
+    save_with_metadata(graph, meta, onnx_path)
 
     parity = parity_max_abs_diff(onnx_path, model, vecnorm, n=n_parity)
     latency = measure_latency_us(onnx_path)
@@ -199,6 +193,23 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
     }
     write_json_atomic(onnx_path.with_suffix(".json"), card)
     return card
+
+
+def save_with_metadata(graph, meta: dict[str, str], onnx_path: str | Path) -> None:
+    """Write the ONNX ``graph`` to ``onnx_path`` atomically (a ``.tmp`` beside it, then a
+    rename), after adding every ``meta`` item as metadata ``addedinertia.<key>`` and
+    checking the model with ``onnx.checker``."""
+    import onnx  # noqa: PLC0415
+
+    onnx_path = Path(onnx_path)
+    for key, value in meta.items():
+        entry = graph.metadata_props.add()
+        entry.key, entry.value = META_PREFIX + key, value
+    graph.producer_name = "addedinertia"
+    onnx.checker.check_model(graph)
+    tmp = onnx_path.with_name(onnx_path.name + ".tmp")
+    onnx.save(graph, str(tmp))
+    tmp.replace(onnx_path)
 
 
 def _portable(training: dict[str, Any]) -> dict[str, Any]:
