@@ -242,11 +242,23 @@ def test_hard_suite_episodes_equal_the_single_envs_control_loop_included():
     assert not any(live), "every episode should end within 3000 agent steps"
 
 
-def test_sharded_env_runs_the_same_first_episodes_in_two_processes():
+def _swap_all(loads, moved):
+    """Every ended episode's record goes to the other shard for its identification (listed in ``moved``)."""
+    moves = [(k, i, 1 - k) for k in range(2) for i in range(len(loads[k]))]
+    moved.extend(moves)
+    return moves
+
+
+@pytest.mark.parametrize("plan", ["balanced", "swap"])
+def test_sharded_env_runs_the_same_first_episodes_in_two_processes(plan):
     """workers=2: each shard is the one-process env of its environments (same seeds, same
-    episodes to rounding); infos join in environment order, missing keys masked off."""
+    episodes to rounding); infos join in environment order, missing keys masked off. With
+    ``swap`` every record is identified in the other shard: the estimates are the same."""
     one = gym.make_vec(ENV_ID, num_envs=3, **SHORT)
     two = gym.make_vec(ENV_ID, num_envs=3, workers=2, **SHORT)
+    moved: list = []
+    if plan == "swap":
+        two.unwrapped._plan = lambda loads: _swap_all(loads, moved)
     try:
         assert two.unwrapped.sizes == [2, 1]
         o1, i1 = one.reset(seed=8)
@@ -264,6 +276,8 @@ def test_sharded_env_runs_the_same_first_episodes_in_two_processes():
             for k in np.nonzero(r1[2] & live)[0]:
                 assert r2[4]["_lambda66_est"][k] and r2[4]["lambda66_est"][k] == pytest.approx(
                     r1[4]["lambda66_est"][k], rel=1e-9)
+                np.testing.assert_allclose(r2[4]["ci95"][k], r1[4]["ci95"][k], rtol=1e-9)
+                assert r2[4]["failure"][k] == r1[4]["failure"][k]
                 np.testing.assert_allclose(two.unwrapped.record(int(k))["phi"], one.unwrapped.record(int(k))["phi"],
                                            rtol=1e-9)
             if r1[2].any():
@@ -275,6 +289,25 @@ def test_sharded_env_runs_the_same_first_episodes_in_two_processes():
                 break
         assert not live.any()
         assert two.unwrapped.episodes_ended == 3 and two.unwrapped.worker_cpu_s() > 0
+        if plan == "swap":
+            assert len(moved) == 3  # every episode was identified in the other process
     finally:
         one.close()
         two.close()
+
+
+def test_balance_plan_evens_the_identification_work_between_shards():
+    """Records move from the busiest shard to the idlest only while that lowers the larger load
+    by more than the transfer margin; the moves name real records and each moves once."""
+    from addedinertia_env.vector.shards import balance_plan
+
+    assert balance_plan([[], []]) == [] and balance_plan([[5000], []]) == []  # one record: nothing to share
+    assert balance_plan([[9000, 8000], []]) == [(0, 1, 1)] or balance_plan([[9000, 8000], []]) == [(0, 0, 1)]
+    assert balance_plan([[9000, 8000], [8500]]) == []  # 17000 vs 16500 at best: not worth a transfer
+    loads = [[9000, 8000, 7000, 100], [], [5]]
+    moves = balance_plan(loads)
+    totals = [sum(c) for c in loads]
+    for src, i, dst in moves:
+        totals[src] -= loads[src][i]
+        totals[dst] += loads[src][i]
+    assert max(totals) == 9000 and len({(s, i) for s, i, _ in moves}) == len(moves)

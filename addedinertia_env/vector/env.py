@@ -38,6 +38,7 @@ observation and info are in ``info["final_obs"]`` and ``info["final_info"]``).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from typing import Any
 
 import gymnasium as gym
@@ -61,6 +62,36 @@ _BLAS = ThreadpoolController()  # the small least-squares fits run on one BLAS t
 SPARE_FRACTION = 0.6  # spare slots per environment (free strokes running ahead; 0.5 leaves resets waiting)
 SPARE_BATCH_DIVISOR = 32  # spares start in batches of n_spare / this (fewer, larger begin() calls)
 METRIC_KEYS = ("lambda66_est", "lambda66_true", "rel_error", "energy_J", "tracking_rms_rad", "saturated_frac")
+
+
+def estimate_lambda66(record) -> tuple[float, float, float, str | None]:
+    """``identify([record], "energy")`` of one ended episode, as the single environment scores it:
+    ``(lambda66 kg m^2, ci95 low, ci95 high, None)``, or ``(nan, nan, nan, message)`` when the
+    identification fails. Runs on one BLAS thread; any process may compute it (the sharded env
+    sends records to whichever worker has the least to do)."""
+    with _BLAS.limit(limits=1, user_api="blas"):
+        return _estimate(record)
+
+
+def _estimate(record) -> tuple[float, float, float, str | None]:
+    try:
+        result = identify([record], "energy")
+    except IdentificationError as err:
+        return math.nan, math.nan, math.nan, str(err)
+    return float(result.lambda66), float(result.ci95[0]), float(result.ci95[1]), None
+
+
+@dataclass
+class PendingStep:
+    """A step between :meth:`ReverseStrokeVectorEnv.advance` and :meth:`~ReverseStrokeVectorEnv.finish`:
+    environments that reset at its start, those whose episode ended in it, those of them to score
+    and their ``records`` (same order), and the reward terms so far (``accuracy`` still missing)."""
+
+    resetting: np.ndarray
+    ended_envs: np.ndarray
+    scored_envs: np.ndarray
+    terms: dict[str, np.ndarray]
+    records: list = field(default_factory=list)
 
 
 class ReverseStrokeVectorEnv(VectorEnv):
@@ -239,6 +270,18 @@ class ReverseStrokeVectorEnv(VectorEnv):
             return self._step(actions)
 
     def _step(self, actions):
+        pending = self._advance(actions)  # step() holds the one-BLAS-thread limit for all three parts
+        return self._finish(pending, [_estimate(r) for r in pending.records])
+
+    def advance(self, actions) -> "PendingStep":
+        """The first half of :meth:`step`: every environment's samples, up to the identification of
+        the episodes that ended. Returns the :class:`PendingStep`; its ``records`` (one per ended
+        episode, when episodes are scored) go through :func:`estimate_lambda66` (here or in another
+        process) and :meth:`finish` completes the step with those estimates."""
+        with _BLAS.limit(limits=1, user_api="blas"):
+            return self._advance(actions)
+
+    def _advance(self, actions) -> "PendingStep":
         pool = self.pool
         if pool is None:
             raise gym.error.ResetNeeded("call reset() before step()")
@@ -277,15 +320,32 @@ class ReverseStrokeVectorEnv(VectorEnv):
         env_of_slot[self.env_slot] = np.arange(n)
         terms = self._task.terms(tracking_sq=tracking[self.env_slot], energy=energy[self.env_slot],
                                  limit_samples=limits[self.env_slot], dt=pool.dt)
+        ended_envs = env_of_slot[np.concatenate(ended)] if ended else np.zeros(0, dtype=np.int64)
+        scored = ended_envs if self.score_episodes else np.zeros(0, dtype=np.int64)
+        records = [pool.record(int(self.env_slot[e])) for e in scored]
+        return PendingStep(resetting=resetting, ended_envs=ended_envs, scored_envs=scored, terms=terms,
+                           records=records)
+
+    def finish(self, pending: "PendingStep", estimates: list[tuple[float, float, float, str | None]]):
+        """The second half of :meth:`step`: the ended episodes' benchmark numbers from ``estimates``
+        (:func:`estimate_lambda66` of ``pending.records``, in order), rewards, observations, infos and
+        autoresets; returns ``(obs, rewards, terminated, truncated, info)``."""
+        with _BLAS.limit(limits=1, user_api="blas"):
+            return self._finish(pending, estimates)
+
+    def _finish(self, pending: "PendingStep", estimates):
+        pool, n = self.pool, self.num_envs
+        if len(estimates) != len(pending.records):
+            raise ValueError(f"finish(): {len(estimates)} estimates for {len(pending.records)} ended episodes")
+        resetting, ended_envs, terms = pending.resetting, pending.ended_envs, pending.terms
         terms["accuracy"] = np.zeros(n)
         terminated = np.zeros(n, dtype=bool)
         infos: dict[str, Any] = {}
-        ended_envs = env_of_slot[np.concatenate(ended)] if ended else np.zeros(0, dtype=np.int64)
         if len(ended_envs):
             terminated[ended_envs] = True
-        if len(ended_envs) and self.score_episodes:
-            metrics = self._score(ended_envs)
-            terms["accuracy"][ended_envs] = metrics.pop("_accuracy")
+        if len(pending.scored_envs):
+            metrics = self._score(pending.scored_envs, pending.records, estimates)
+            terms["accuracy"][pending.scored_envs] = metrics.pop("_accuracy")
             infos.update(metrics)
         not_stepping = np.zeros(n, dtype=bool)
         not_stepping[resetting] = True
@@ -314,8 +374,9 @@ class ReverseStrokeVectorEnv(VectorEnv):
             self._needs_reset = terminated | truncated
         return obs, rewards.astype(np.float64), terminated, truncated, infos
 
-    def _score(self, envs: np.ndarray) -> dict[str, Any]:
-        """The benchmark numbers of the episodes that ended (ReverseStrokeEnv._score), as info arrays."""
+    def _score(self, envs: np.ndarray, records: list, estimates: list) -> dict[str, Any]:
+        """The benchmark numbers of the episodes that ended (ReverseStrokeEnv._score), as info arrays,
+        from their records and :func:`estimate_lambda66` estimates."""
         pool, n = self.pool, self.num_envs
         mask = np.zeros(n, dtype=bool)
         mask[envs] = True
@@ -327,15 +388,11 @@ class ReverseStrokeVectorEnv(VectorEnv):
         accuracy = np.zeros(len(envs))
         for j, e in enumerate(envs):
             k = int(self.env_slot[e])
-            failed = False
-            record = pool.record(k)
-            try:
-                result = identify([record], "energy")
-                est, ci = float(result.lambda66), [float(result.ci95[0]), float(result.ci95[1])]
-            except IdentificationError as err:
-                est, ci = math.nan, [math.nan, math.nan]
-                failed = True
-                out["failure"][e] = str(err)
+            record = records[j]
+            est, lo, hi, failure = estimates[j]
+            failed = failure is not None
+            if failed:
+                out["failure"][e] = failure
             true = forces.true_lambda66(pool.scenarios[k].rig)
             rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
             m = episode_metrics(record, pool.reference(k))  # the one computation of the episode's numbers (metrics.py)
@@ -343,7 +400,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
                       "tracking_rms_rad": m.tracking_rms_rad, "saturated_frac": m.saturated_frac}
             for key, v in values.items():
                 out[key][e] = v
-            out["ci95"][e] = ci
+            out["ci95"][e] = [lo, hi]
             out["failed"][e] = failed
             out["scenario_seed"][e] = self.slot_seed[k]
             accuracy[j] = self._task.accuracy_term(rel, failed=failed)

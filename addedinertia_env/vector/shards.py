@@ -12,6 +12,15 @@ What differs from one process: the spare episodes (those after an autoreset) are
 per shard, so they are other scenarios than one process would draw (each reports its
 ``scenario_seed``, as always).
 
+The end-of-episode identification is shared: a step runs in two halves. First every shard
+samples its environments (:meth:`~.env.ReverseStrokeVectorEnv.advance`) and says how long the
+records of its ended episodes are; then :func:`balance_plan` moves records from the shard with
+the most identification work to the one with the least, each shard identifies what it holds
+(:func:`~.env.estimate_lambda66`), the estimates of moved records go back to their shard, and
+every shard finishes its step (:meth:`~.env.ReverseStrokeVectorEnv.finish`). The numbers are the
+same wherever a record is identified; only the wall time changes (the step waits for the
+slowest shard, so without this the shard that happens to have more episodes ending sets it).
+
 Use it when the machine has idle cores: on one busy core it only adds the transfers.
 """
 
@@ -25,11 +34,68 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import VectorEnv
 
-from .env import ReverseStrokeVectorEnv
+from .env import ReverseStrokeVectorEnv, estimate_lambda66
+
+MOVE_MARGIN = 0.15  # a record moves only if the busiest shard's load drops by more than this fraction of it (the transfer's cost)
+
+
+def balance_plan(loads: list[list[float]], margin: float = MOVE_MARGIN) -> list[tuple[int, int, int]]:
+    """Which ended episodes' records to identify in another shard: ``loads[k]`` holds the cost of
+    each record shard ``k`` has (its number of samples, say). Greedy: while moving one record from
+    the most loaded shard to the least loaded lowers the larger of their two loads by more than
+    ``margin`` times that record's cost, move the record that best evens them. Returns the moves
+    as ``(from shard, record index in it, to shard)``; the records' own shard does the rest."""
+    totals = [float(sum(c)) for c in loads]
+    left = [dict(enumerate(c)) for c in loads]  # records not moved yet, by index
+    moves: list[tuple[int, int, int]] = []
+    while len(totals) > 1:
+        src = max(range(len(totals)), key=totals.__getitem__)
+        dst = min(range(len(totals)), key=totals.__getitem__)
+        best, best_gain = None, 0.0
+        for i, c in left[src].items():
+            gain = totals[src] - max(totals[src] - c, totals[dst] + c) - margin * c
+            if gain > best_gain:
+                best, best_gain = i, gain
+        if best is None:
+            break
+        c = left[src].pop(best)
+        totals[src] -= c
+        totals[dst] += c
+        moves.append((src, best, dst))
+    return moves
+
+
+def _expect(conn, kind: str):
+    command, args = conn.recv()
+    if command != kind:
+        raise RuntimeError(f"shard protocol: expected {kind!r} from the parent, got {command!r}")
+    return args
+
+
+def _settle(conn, env: ReverseStrokeVectorEnv, pending, export: list[int], n_import: int):
+    """The second half of a sharded step in a worker (module docstring): send the ``export``
+    records, identify the rest, identify ``n_import`` records of other shards and send their
+    estimates back, take the estimates of the exported records, finish the step."""
+    records = pending.records
+    if export:
+        conn.send(("ok", [records[i] for i in export]))
+    moved = set(export)
+    estimates: list = [None] * len(records)
+    for i, record in enumerate(records):
+        if i not in moved:
+            estimates[i] = estimate_lambda66(record)
+    if n_import:
+        foreign = _expect(conn, "foreign")
+        conn.send(("ok", [estimate_lambda66(r) for r in foreign]))
+    if export:
+        for i, estimate in zip(export, _expect(conn, "estimates")):
+            estimates[i] = estimate
+    return env.finish(pending, estimates)
 
 
 def _worker(conn, num_envs: int, kwargs: dict) -> None:
     env = None
+    pending = None
     try:
         env = ReverseStrokeVectorEnv(num_envs, **kwargs)
         conn.send(("ok", None))
@@ -37,7 +103,12 @@ def _worker(conn, num_envs: int, kwargs: dict) -> None:
             command, args = conn.recv()
             if command == "close":
                 break
-            if command == "step":
+            if command == "advance":  # first half of a step: the ended episodes' record lengths
+                pending = env.advance(args)
+                out = [len(r) for r in pending.records]
+            elif command == "settle":
+                out, pending = _settle(conn, env, pending, *args), None
+            elif command == "step":
                 out = env.step(args)
             elif command == "reset":
                 out = env.reset(**args)
@@ -134,10 +205,32 @@ class ShardedVectorEnv(VectorEnv):
     def step(self, actions):
         """Step every shard with its rows of ``actions`` at the same time; returns ``(obs, rewards, terminated, truncated, info)`` joined in environment order."""
         a = np.asarray(actions).reshape(self.num_envs, -1)
-        out = self._all("step", [a[lo:hi] for lo, hi in zip(self.offsets[:-1], self.offsets[1:])])
+        loads = self._all("advance", [a[lo:hi] for lo, hi in zip(self.offsets[:-1], self.offsets[1:])])
+        moves = self._plan(loads)
+        exports: dict[int, list[int]] = {}
+        imports: dict[int, list[tuple[int, int]]] = {}  # importer -> (exporter, position in its export list)
+        for src, i, dst in moves:
+            exports.setdefault(src, []).append(i)
+            imports.setdefault(dst, []).append((src, len(exports[src]) - 1))
+        for k, conn in enumerate(self._conns):
+            conn.send(("settle", (exports.get(k, []), len(imports.get(k, [])))))
+        sent = {k: self._gather_one(k) for k in exports}
+        for dst, items in imports.items():
+            self._conns[dst].send(("foreign", [sent[src][pos] for src, pos in items]))
+        back = {k: [None] * len(v) for k, v in exports.items()}
+        for dst, items in imports.items():
+            for (src, pos), estimate in zip(items, self._gather_one(dst)):
+                back[src][pos] = estimate
+        for k, estimates in back.items():
+            self._conns[k].send(("estimates", estimates))
+        out = self._gather()
         obs, rew, term, trunc, infos = zip(*out)
         return (np.concatenate(obs), np.concatenate(rew), np.concatenate(term), np.concatenate(trunc),
                 _join(list(infos), self.sizes))
+
+    def _plan(self, loads: list[list[int]]) -> list[tuple[int, int, int]]:
+        """The records to identify in another shard this step (:func:`balance_plan`)."""
+        return balance_plan(loads)
 
     def record(self, env: int = 0, run_id: str = "run"):
         """Environment ``env``'s current (or just finished) episode as a run record (no tail)."""
