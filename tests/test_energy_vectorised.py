@@ -162,6 +162,30 @@ def test_flywheel_calibration_equals_a_fit_per_lag(records, monkeypatch):
     assert calibrated >= 2, "the episodes should calibrate the current's lag on the flywheel"
 
 
+def test_lag_search_ranks_like_every_residual_formed(records, monkeypatch):
+    """The lag search forms the residuals of the best lag and its neighbours only (the others
+    ranked through the shifts' products): same best lag and the same three sums of squares
+    as forming every lag's residuals."""
+    original = energy._lag_rss
+    checked = []
+
+    def spy(t, i, a, b, lags, linear, y):
+        rss = original(t, i, a, b, lags, linear, y)
+        full = energy._explicit_rss(energy._lagged_twice(t, i, a, b, lags, linear), y)
+        j = int(np.argmin(full))
+        assert int(np.argmin(rss)) == j
+        near = slice(max(j - 1, 0), j + 2)
+        np.testing.assert_allclose(rss[near], full[near], rtol=1e-12, atol=0)
+        assert np.all(rss >= full[j] * (1 - 1e-12))  # the others are never taken for the best
+        checked.append(energy._lagged_twice(t, i, a, b, lags, linear, blend=False) is not None)
+        return rss
+
+    monkeypatch.setattr(energy, "_lag_rss", spy)
+    for rec in records.values():
+        energy.RunBalance(rec.without_truth())
+    assert any(checked), "some records should be evenly sampled (the ranked path)"
+
+
 def test_identify_on_each_record_is_finite_and_repeatable(records):
     for name, rec in list(records.items())[:3]:
         a, b = identify([rec], "energy"), identify([rec], "energy")

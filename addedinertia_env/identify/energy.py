@@ -460,13 +460,13 @@ class RunBalance:
             sat = np.zeros(len(good))
         mismatch = np.abs(np.abs(T.w1r) - np.abs(T.w1f)) / np.maximum(np.abs(T.w1f), 1e-12)
         names = list(BalanceTerms.__dataclass_fields__)
-        columns = [getattr(T, name) for name in names]
+        columns = [np.asarray(getattr(T, name), dtype=float).tolist() for name in names]  # Python floats, as float()
         for row, j in enumerate(good.tolist()):
             iv = out[j]
             iv.lambda66, iv.w1f, iv.w1r = float(lam[row]), float(T.w1f[row]), float(T.w1r[row])
             iv.sigma_independent, iv.sigma_common = float(s_independent[row]), float(s_common[row])
             iv.sigma = float(sigma[row])
-            terms = {name: float(col[row]) for name, col in zip(names, columns)}
+            terms = {name: col[row] for name, col in zip(names, columns)}
             terms.update(saturated_frac=float(sat[row]), s_current=float(s_current[row]),
                          rate_kernel_f=fit["f"]["kernel"][row], rate_kernel_r=fit["r"]["kernel"][row],
                          speed_mismatch=float(mismatch[row]))
@@ -726,12 +726,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
         return x
 
     y = projected(y)
-    # (lags, samples); k_t / J_f leaves the residuals
-    Z = _lagged_twice(t, i, a, b, lags, lambda x: projected(twice(x)))
-    zz = np.einsum("ij,ij->i", Z, Z)
-    coef = (Z @ y) / np.where(zz > 0, zz, np.inf)
-    r = y[None, :] - coef[:, None] * Z
-    rss = np.einsum("ij,ij->i", r, r)
+    rss = _lag_rss(t, i, a, b, lags, lambda x: projected(twice(x)), y)  # k_t / J_f leaves the residuals
     j = int(np.argmin(rss))
     if not 0 < j < len(lags) - 1 or np.sqrt(rss[j] / len(tt)) > 1e-3:
         return None
@@ -750,7 +745,49 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     return scale, lag
 
 
-def _lagged_twice(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray, linear) -> np.ndarray:
+def _lag_rss(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray, linear, y: np.ndarray) -> np.ndarray:
+    """Residual sum of squares of the one-column fit ``y ~ c z_lag`` for every lag, where
+    ``z_lag = linear(np.interp(t[a:b + 1] + lag, t, i))`` (the calibration's lagged current, twice
+    integrated and projected); the residuals of the lags that can be the best one or its
+    neighbours are formed explicitly (no cancellation), the others only bounded.
+
+    On an evenly sampled stretch each ``z_lag`` blends two whole-sample shifts ``(1 - f) B_k + f
+    B_(k+1)`` (:func:`_lagged_twice`), so ``z.y`` and ``z.z`` follow for every lag from the ~16
+    shifts' products, and ``|y|^2 - (z.y)^2 / z.z`` ranks the lags; the rows within rounding of
+    the smallest (and their neighbours) are then formed and their residuals summed as before.
+    Otherwise (or if the ranking is not clear-cut) every row is formed.
+    """
+    blended = _lagged_twice(t, i, a, b, lags, linear, blend=False)
+    if blended is not None:
+        base, k, frac = blended
+        by, gram = base @ y, base @ base.T
+        g = 1.0 - frac
+        zy = g * by[k] + frac * by[k + 1]
+        zz = g * g * gram[k, k] + 2.0 * g * frac * gram[k, k + 1] + frac * frac * gram[k + 1, k + 1]
+        yy = float(y @ y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bound = yy - np.where(zz > 0, zy * zy / zz, 0.0)
+        tol = 1e-9 * yy  # far above the rounding of the bound, far below a step of rss between lags
+        near = np.nonzero(bound <= np.min(bound) + tol)[0]
+        rows = np.unique(np.clip(np.concatenate([near - 1, near, near + 1]), 0, len(lags) - 1))
+        rss = bound + 2.0 * tol + (np.max(bound) - np.min(bound))  # above every explicit one
+        Z = g[rows, None] * base[k[rows]] + frac[rows, None] * base[k[rows] + 1]
+        rss[rows] = _explicit_rss(Z, y)
+        j = int(np.argmin(rss))
+        if np.all(np.isin([max(j - 1, 0), j, min(j + 1, len(lags) - 1)], rows)):
+            return rss
+    return _explicit_rss(_lagged_twice(t, i, a, b, lags, linear), y)
+
+
+def _explicit_rss(Z: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Per row of ``Z``: the residual sum of squares of ``y ~ c z`` (least squares), residuals formed explicitly."""
+    zz = np.einsum("ij,ij->i", Z, Z)
+    coef = (Z @ y) / np.where(zz > 0, zz, np.inf)
+    r = y[None, :] - coef[:, None] * Z
+    return np.einsum("ij,ij->i", r, r)
+
+
+def _lagged_twice(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray, linear, blend: bool = True):
     """``linear(np.interp(t[a:b + 1] + lag, t, i))`` for every lag (rows), for a map ``linear``
     acting row by row (the calibration's double integral and projection).
 
@@ -758,6 +795,8 @@ def _lagged_twice(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray
     blend ``(1 - f) i[k + n] + f i[k + n + 1]`` of two whole-sample shifts, and the map is
     linear: so only the ~16 whole-sample shifts are mapped and each lag blends two of them
     (equal to interpolating first, to float rounding). Otherwise every lag is interpolated.
+    With ``blend=False``: the shifts' rows ``B``, each lag's first row ``k`` and weight ``f`` (row
+    ``(1 - f) B[k] + f B[k + 1]``) on an evenly sampled stretch, None otherwise.
     """
     m = b + 1 - a
     dt = (t[b] - t[a]) / max(m - 1, 1)
@@ -771,7 +810,11 @@ def _lagged_twice(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray
             shifts = np.arange(int(n.min()), int(n.max()) + 2)
             base = linear(np.stack([i[a + s:a + s + m] for s in shifts]))
             k = n - shifts[0]
+            if not blend:
+                return base, k, frac
             return (1.0 - frac)[:, None] * base[k] + frac[:, None] * base[k + 1]
+    if not blend:
+        return None
     return linear(np.interp(t[a:b + 1][None, :] + lags[:, None], t, i))
 
 
