@@ -286,8 +286,11 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   f"{result['vector_env_samples_per_s']:,.0f} samples/s wall and "
                   f"{result['vector_ratio_to_sync']:,.0f} x. In {head.get('workers', 1)} process(es) the wall figure is at most "
                   f"{head.get('workers', 1)} x the per-CPU-second one ({head['samples_per_cpu_s']:,.0f}); here the processes "
-                  f"kept {head['cpu_s'] / head['wall_s']:.1f} cores busy (every step waits for the slower shard, whose "
-                  "episodes may need more identifications in that step, and the machine was shared). Per episode "
+                  f"kept {head['cpu_s'] / head['wall_s']:.1f} cores busy: every step waits for the slower shard. The shards "
+                  "share the identification of the episodes that ended in a step (records move to the shard with less "
+                  "to do), but a record is identified in one piece, so a step with one ended episode keeps one core busy "
+                  "for it; the shards' sampling halves also differ from step to step (resets waiting for spare slots), "
+                  "and the machine was shared. Per episode "
                   f"the identification ({ident_ms:,.1f} CPU-ms) costs more than stepping its {per_episode:,.0f} samples "
                   f"({per_episode / e['samples_per_cpu_s'] * 1e3:,.1f} CPU-ms).", "",
                   "`gym.make_vec(\"AddedInertia/ReverseStroke-v0\", num_envs=N)` gives the batched env (its",
