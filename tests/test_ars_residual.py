@@ -63,6 +63,8 @@ def test_an_exported_policy_runs_at_100_hz_on_its_base_and_matches_its_card(tmp_
     policy = OnnxPolicy(tmp_path / "p.onnx")
     assert policy.policy_rate_hz == 100.0 and policy.board_mode == "zoh"
     assert policy.residual_base == "pid" and policy.residual_scale == 0.1
+    # trained with pid deciding once per 100 Hz action, so it must run that way everywhere
+    assert policy.residual_base_rate == "policy" and card["residual"]["base_rate"] == "policy"
     assert policy.train_cpu_minutes == 0.5 and policy.base is not None
     linear = LinearPolicy(**{k: np.array(v) for k, v in card["linear_policy"].items()})
     obs = np.random.default_rng(2).normal(size=(50, len(OBSERVATION_FIELDS))).astype(np.float32)

@@ -269,6 +269,7 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
         "policy_rate_hz": repr(sample_rate / repeat), "board_mode": "zoh",
         "residual_base": train_card["base"], "residual_scale": str(float(train_card["scale"])),
         "residual_base_params": json.dumps(train_card.get("base_params") or {}),
+        "residual_base_rate": "policy",  # the base decides with the correction, once per action
         "obs_fields": json.dumps(list(OBSERVATION_FIELDS)),
         "train_env_steps": str(cost["env_steps"]), "train_cpu_minutes": str(cost["cpu_minutes"]),
     }
@@ -285,7 +286,7 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
         "action_repeat": repeat, "policy_rate_hz": sample_rate / repeat, "board_mode": "zoh",
         "sample_rate_hz": sample_rate,
         "residual": {"enabled": True, "base": train_card["base"], "scale": float(train_card["scale"]),
-                     "base_params": train_card.get("base_params") or {}},
+                     "base_params": train_card.get("base_params") or {}, "base_rate": "policy"},
         "observation_fields": list(OBSERVATION_FIELDS), "parity_max_abs_diff": parity,
         # the whole policy, to check the graph against (LinearPolicy(mean, std, theta))
         "linear_policy": {"mean": policy.mean.tolist(), "std": policy.std.tolist(), "theta": policy.theta.tolist()},
