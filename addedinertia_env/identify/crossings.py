@@ -24,6 +24,23 @@ def first_crossings(phi: np.ndarray, a: int, b: int, levels: np.ndarray, directi
     """For each of ``levels``: the first sample in [a, b) after which ``phi`` has crossed it
     moving in ``direction`` (the index of the first sample at or past it), or -1."""
     levels = np.asarray(levels, dtype=float)
+    x = direction * phi[a:b]
+    if len(x) >= 2 and np.all(np.isfinite(x)) and np.all(np.isfinite(levels)):
+        # The first sample at or past a level that the stroke starts short of is the crossing:
+        # a search in the running maximum (sign(d (phi - level)) is that of d phi - d level, exactly).
+        top = np.maximum.accumulate(x)
+        target = direction * levels
+        i = np.searchsorted(top, target, side="left")
+        out = np.where(i < len(x), a + i, -1)
+        past = np.nonzero(x[0] >= target)[0]  # levels already reached at the first sample: the full test
+        if len(past):
+            out[past] = _first_crossings_plain(phi, a, b, levels[past], direction)
+        return out
+    return _first_crossings_plain(phi, a, b, levels, direction)
+
+
+def _first_crossings_plain(phi: np.ndarray, a: int, b: int, levels: np.ndarray, direction: float) -> np.ndarray:
+    """:func:`first_crossings` by testing every pair of samples against every level."""
     seg = direction * (phi[a:b][None, :] - levels[:, None])
     hit = (seg[:, :-1] < 0) & (seg[:, 1:] >= 0)
     first = np.argmax(hit, axis=1)
@@ -86,18 +103,19 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     out_t, rate, sigma = np.empty(n_fit), np.empty(n_fit), np.empty(n_fit)
     kernels: list = [None] * n_fit
     powers = np.arange(degree + 1)
+    coef = np.empty((n_fit, degree + 1))
+    groups = []  # (fits, sample indices, angles, design, pseudo-inverse): P0/X0 shared, or P/X per fit
     for m in np.unique(size).tolist():
         g = np.nonzero(size == m)[0]
         idx = first[g][:, None] + np.arange(m)[None, :]  # (fits, m) sample indices
         sv = t[idx] - tc[g][:, None]
         y = phi[idx]
         x_scaled = sv / half_width
-        P = None
-        if np.max(np.abs(x_scaled - x_scaled[:1])) <= SHARED_DESIGN_TOLERANCE:  # one design for the group
-            X0 = np.vander(x_scaled[0], degree + 1, increasing=True)
-            P0 = np.linalg.pinv(X0)  # (degree + 1, m)
-            coef = y @ P0.T
-            fitted = coef @ X0.T
+        shared = _shared_design(x_scaled, degree)
+        if shared is not None:  # one design for the group
+            X0, P0 = shared
+            coef[g] = y @ P0.T
+            groups.append((g, idx, y, X0, P0, True))
         else:
             X = np.empty((len(g), m, degree + 1))  # np.vander(sv / half_width, degree + 1, increasing=True)
             X[:, :, 0] = 1.0
@@ -105,20 +123,54 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
                 X[:, :, 1:] = x_scaled[:, :, None]
                 np.multiply.accumulate(X[:, :, 1:], out=X[:, :, 1:], axis=2)
             P = np.linalg.pinv(X)
-            coef = np.matmul(P, y[:, :, None])[:, :, 0]  # (fits, degree + 1)
-            fitted = np.matmul(X, coef[:, :, None])[:, :, 0]
-        dcoef = coef[:, 1:] * powers[1:]
-        lev = levels[g]
-        x = np.zeros(len(g))
-        for _ in range(8):  # Newton on poly(x) = level
-            x = x - (_polyval(coef, x) - lev) / _polyval(dcoef, x)
-        rate[g] = _polyval(dcoef, x) / half_width
-        out_t[g] = tc[g] + x * half_width
-        grad = np.where(powers > 0, powers * x[:, None] ** np.maximum(powers - 1, 0), 0.0) / half_width
-        kernel = grad @ P0 if P is None else np.matmul(grad[:, None, :], P)[:, 0, :]  # (fits, m)
+            coef[g] = np.matmul(P, y[:, :, None])[:, :, 0]  # (fits, degree + 1)
+            groups.append((g, idx, y, X, P, False))
+    # Newton on poly(x) = level for every fit at once (element by element, as fit by fit)
+    dcoef = coef[:, 1:] * powers[1:]
+    x = np.zeros(n_fit)
+    for _ in range(8):
+        x = x - (_polyval(coef, x) - levels) / _polyval(dcoef, x)
+    rate[:] = _polyval(dcoef, x) / half_width
+    out_t[:] = tc + x * half_width
+    grad_all = np.where(powers > 0, powers * x[:, None] ** np.maximum(powers - 1, 0), 0.0) / half_width
+    for g, idx, y, X, P, is_shared in groups:
+        m = idx.shape[1]
+        grad = grad_all[g]
+        if is_shared:
+            fitted = coef[g] @ X.T
+            kernel = grad @ P  # (fits, m)
+        else:
+            fitted = np.matmul(X, coef[g][:, :, None])[:, :, 0]
+            kernel = np.matmul(grad[:, None, :], P)[:, 0, :]
         resid = y - fitted
         var = np.maximum(np.einsum("ij,ij->i", resid, resid) / max(m - degree - 1, 1), 1e-24)
         sigma[g] = np.sqrt(var) * np.linalg.norm(kernel, axis=1)
         for row, j in enumerate(g.tolist()):
             kernels[j] = (idx[row], kernel[row])
     return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": kernels}
+
+
+_DESIGNS: dict = {}  # (m, degree, first abscissa in 1e-6) -> (abscissae, design, pseudo-inverse), across records
+_DESIGNS_MAX = 512
+
+
+def _shared_design(x_scaled: np.ndarray, degree: int):
+    """The design ``X0`` and pseudo-inverse ``P0`` that every fit of a group shares, or None.
+
+    Fits share one when their scaled abscissae (rows of ``x_scaled``, in [-1, 1]) agree to
+    :data:`SHARED_DESIGN_TOLERANCE` with the group's first row; the pair is kept across
+    calls (records on one sampling grid reuse it) and used only where the same test holds
+    against the abscissae it was built from."""
+    ref = x_scaled[0]
+    key = (len(ref), degree, round(float(ref[0]) * 1e6), round(float(ref[-1]) * 1e6))
+    hit = _DESIGNS.get(key)
+    if hit is not None and np.max(np.abs(x_scaled - hit[0])) <= SHARED_DESIGN_TOLERANCE:
+        return hit[1], hit[2]
+    if np.max(np.abs(x_scaled - ref)) > SHARED_DESIGN_TOLERANCE:
+        return None
+    X0 = np.vander(ref, degree + 1, increasing=True)
+    P0 = np.linalg.pinv(X0)  # (degree + 1, m)
+    if len(_DESIGNS) >= _DESIGNS_MAX:
+        _DESIGNS.clear()
+    _DESIGNS[key] = (ref.copy(), X0, P0)
+    return X0, P0

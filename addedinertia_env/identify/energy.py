@@ -185,19 +185,22 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
 
 
 def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool) -> _RunEstimate:
-    balance, phi1_list, weights, first = prepared_balance(rec, work, fractions, asymmetry_correction)
+    balance, phi1_list, weights, first = prepared_balance(rec, work, fractions, asymmetry_correction,
+                                                          first_value_only=True)
     if not np.isfinite(first.value):
         return first
     return _combine(balance, balance.intervals(np.asarray(phi1_list, dtype=float)), weights)
 
 
 def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_FRACTIONS,
-                     asymmetry_correction: bool = True):
+                     asymmetry_correction: bool = True, first_value_only: bool = False):
     """A record's :class:`RunBalance` after the first pass, its boundary angles (rad), their
     weights (None: pooled by inverse variance) and the first pass's estimate.
 
     The first pass (no dissipation-mismatch correction) gives the total inertia that the
-    damping-law fit and the hull's energy at rest then use.
+    damping-law fit and the hull's energy at rest then use. ``first_value_only``: when the
+    first estimate is finite, only its value is computed (its ``sigma`` is nan and it holds
+    no intervals; the value is the same number); the full estimate otherwise.
     """
     balance = RunBalance(rec, work, asymmetry_correction)
     given = rec.experiment.get("phi1")
@@ -210,7 +213,13 @@ def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_F
         weights = hann_weights(f, fractions[0], fractions[1])
     else:
         phi1_list, weights = [balance.phi_n + x * (balance.phi2 - balance.phi_n) for x in fractions], None
-    first = _combine(balance, balance.intervals(np.asarray(phi1_list, dtype=float)), weights)
+    first = None
+    if first_value_only and weights is not None:  # the Hann-weighted value alone (what the second pass needs)
+        value = balance.weighted_value(np.asarray(phi1_list, dtype=float), weights)
+        if np.isfinite(value):
+            first = _RunEstimate(value, float("nan"), [])
+    if first is None:
+        first = _combine(balance, balance.intervals(np.asarray(phi1_list, dtype=float)), weights)
     if np.isfinite(first.value):
         balance.use_total_inertia(first.value + balance.J_h)
     return balance, phi1_list, weights, first
@@ -331,6 +340,7 @@ class RunBalance:
         if "i_cmd" in rec.samples and np.isfinite(rig.current_limit):
             sat = current_at_limit(rec["i_cmd"], rig.current_limit)
         self.saturated = sat
+        self._sat_count: np.ndarray | None = None  # cumulative count of saturated samples (built once)
         w2 = self._fit_before.deriv()(0.0) if self._fit_before is not None else self._rest_rate(self.k2, free.start)
         w3 = w2 if hold is None else self._rest_rate(self.k3, hold.start)
         self.rest_w2, self.rest_w3 = float(w2), float(w3)  # hull rates at t2 and t3, rad/s
@@ -452,13 +462,7 @@ class RunBalance:
         s_gain = gain_u * np.hypot(T.A_f, T.A_r)
         s_common = np.hypot(s_gain, got["s_dW"]) / denom
         sigma = np.hypot(s_independent, s_common)
-        if self.saturated is not None:  # fraction of samples k3..k4 at the limit
-            count = np.concatenate([[0], np.cumsum(self.saturated)])
-            sat = (count[np.minimum(k4s + 1, len(count) - 1)] - count[self.k3]) / (
-                np.minimum(k4s + 1, len(self.saturated)) - self.k3)
-        else:
-            sat = np.zeros(len(good))
-        mismatch = np.abs(np.abs(T.w1r) - np.abs(T.w1f)) / np.maximum(np.abs(T.w1f), 1e-12)
+        sat, mismatch = self._saturation_and_mismatch(T, k4s)
         names = list(BalanceTerms.__dataclass_fields__)
         columns = [np.asarray(getattr(T, name), dtype=float).tolist() for name in names]  # Python floats, as float()
         for row, j in enumerate(good.tolist()):
@@ -476,6 +480,40 @@ class RunBalance:
             elif mismatch[row] > 0.2:
                 iv.rejected = f"reverse speed at phi1 differs by {mismatch[row]:.0%} from the forward speed"
         return out
+
+    def _saturation_and_mismatch(self, T: BalanceTerms, k4s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per usable angle: the fraction of samples k3..k4 with the current at its limit, and the
+        relative difference of the reverse and forward speeds at the angle (the rejection tests)."""
+        if self.saturated is not None:  # fraction of samples k3..k4 at the limit
+            if self._sat_count is None:
+                self._sat_count = np.concatenate([[0], np.cumsum(self.saturated)])
+            count = self._sat_count
+            sat = (count[np.minimum(k4s + 1, len(count) - 1)] - count[self.k3]) / (
+                np.minimum(k4s + 1, len(self.saturated)) - self.k3)
+        else:
+            sat = np.zeros(len(k4s))
+        mismatch = np.abs(np.abs(T.w1r) - np.abs(T.w1f)) / np.maximum(np.abs(T.w1f), 1e-12)
+        return sat, mismatch
+
+    def weighted_value(self, phi1: np.ndarray, weights: np.ndarray) -> float:
+        """The Hann-weighted lambda66 (kg m^2) over the usable angles ``phi1`` (weights ``weights``),
+        the same number as :func:`_combine` of :meth:`intervals` gives, without the
+        uncertainty parts or the per-angle records (nan when no angle is usable)."""
+        got = self.terms_many(np.asarray(phi1, dtype=float))
+        good = got["good"]
+        if not len(good):
+            return float("nan")
+        T = got["terms"]
+        lam = inertia_from_terms(T, self.J_h)
+        sat, mismatch = self._saturation_and_mismatch(T, got["k4s"])
+        keep = ~((sat > 0.02) | (mismatch > 0.2))  # the angles intervals() does not reject
+        if not keep.any():
+            return float("nan")
+        g = np.asarray(weights, dtype=float)[good[keep]]
+        if g.sum() <= 0:
+            return float("nan")
+        g = g / g.sum()
+        return float(g @ np.asarray(lam, dtype=float)[keep])
 
     def averaged_rate_sigma(self, ivs: list[Interval], g: np.ndarray) -> float:
         """1-sigma of the weighted average's rate part, kg m^2, from the fits' linear kernels.
