@@ -197,3 +197,40 @@ def test_no_angles_give_no_fits():
     got = crossing_fits(t, np.sin(t), np.zeros(0, dtype=int), np.zeros(0), 0.01, 3)
     assert got["t"].shape == (0,) and got["kernel"] == []
     assert np.array_equal(first_crossings(np.sin(t), 0, 50, np.array([2.0]), 1.0), [-1])  # never reached
+
+
+def test_first_crossings_search_equals_the_plain_test():
+    """The running-maximum search finds the same crossing samples as testing every pair of samples."""
+    from addedinertia_env.identify.crossings import _first_crossings_plain
+
+    rng = np.random.default_rng(7)
+    for _ in range(2000):
+        n = int(rng.integers(3, 60))
+        phi = np.round(np.cumsum(rng.normal(0.3, 1.0, n)) * 2) / 2  # quantised, back and forth
+        levels = rng.uniform(phi.min() - 1, phi.max() + 1, 7)
+        levels[:2] = phi[rng.integers(0, n, 2)]  # levels equal to samples
+        direction = float(rng.choice([-1.0, 1.0]))
+        a = int(rng.integers(0, n - 2))
+        b = int(rng.integers(a + 2, n + 1))
+        assert np.array_equal(first_crossings(phi, a, b, levels, direction),
+                              _first_crossings_plain(phi, a, b, levels, direction))
+
+
+def test_first_pass_value_equals_the_full_first_pass(records):
+    """The first pass's value alone (what identify uses) is the number the full first pass gives."""
+    for name, rec in records.items():
+        balance, phi1, weights, first = energy.prepared_balance(rec.without_truth())
+        fresh = energy.RunBalance(rec.without_truth())
+        assert fresh.weighted_value(np.asarray(phi1), weights) == first.value, name
+
+
+def test_identification_does_not_depend_on_what_ran_before(records):
+    """Shared fit designs are kept across records; the estimates must not depend on the order."""
+    from addedinertia_env.identify import crossings
+
+    recs = list(records.values())
+    crossings._DESIGNS.clear()
+    forward = [identify([r], "energy").lambda66 for r in recs]
+    crossings._DESIGNS.clear()
+    backward = [identify([r], "energy").lambda66 for r in reversed(recs)][::-1]
+    assert forward == backward

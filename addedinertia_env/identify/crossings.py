@@ -150,27 +150,30 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": kernels}
 
 
-_DESIGNS: dict = {}  # (m, degree, first abscissa in 1e-6) -> (abscissae, design, pseudo-inverse), across records
+_DESIGNS: dict = {}  # (degree, canonical abscissae as bytes) -> (design, pseudo-inverse), across records
 _DESIGNS_MAX = 512
+_GRID = 2.0**40  # canonical abscissae: multiples of 2**-40 (9.1e-13; rounding moves them by at most 4.6e-13)
 
 
 def _shared_design(x_scaled: np.ndarray, degree: int):
     """The design ``X0`` and pseudo-inverse ``P0`` that every fit of a group shares, or None.
 
-    Fits share one when their scaled abscissae (rows of ``x_scaled``, in [-1, 1]) agree to
-    :data:`SHARED_DESIGN_TOLERANCE` with the group's first row; the pair is kept across
-    calls (records on one sampling grid reuse it) and used only where the same test holds
-    against the abscissae it was built from."""
-    ref = x_scaled[0]
-    key = (len(ref), degree, round(float(ref[0]) * 1e6), round(float(ref[-1]) * 1e6))
-    hit = _DESIGNS.get(key)
-    if hit is not None and np.max(np.abs(x_scaled - hit[0])) <= SHARED_DESIGN_TOLERANCE:
-        return hit[1], hit[2]
-    if np.max(np.abs(x_scaled - ref)) > SHARED_DESIGN_TOLERANCE:
+    The shared design is built on canonical abscissae: the group's first row rounded to
+    multiples of 2**-40. Fits share it when every row of ``x_scaled`` (the scaled abscissae,
+    in [-1, 1]) agrees with those to :data:`SHARED_DESIGN_TOLERANCE`. The canonical row
+    depends on the group alone (not on what was computed before), so the pair is kept
+    across calls: records on one sampling grid reuse it, and every result is the same
+    whatever ran before."""
+    canonical = np.round(x_scaled[0] * _GRID) / _GRID  # exact: scaling by a power of two
+    if np.max(np.abs(x_scaled - canonical)) > SHARED_DESIGN_TOLERANCE:
         return None
-    X0 = np.vander(ref, degree + 1, increasing=True)
+    key = (degree, canonical.tobytes())
+    hit = _DESIGNS.get(key)
+    if hit is not None:
+        return hit
+    X0 = np.vander(canonical, degree + 1, increasing=True)
     P0 = np.linalg.pinv(X0)  # (degree + 1, m)
     if len(_DESIGNS) >= _DESIGNS_MAX:
         _DESIGNS.clear()
-    _DESIGNS[key] = (ref.copy(), X0, P0)
+    _DESIGNS[key] = (X0, P0)
     return X0, P0
