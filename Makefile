@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
+.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -73,6 +73,9 @@ policy-100hz: $(STAMP)
 # search on the paired score, 6 CPU-minutes each, on hard-v0's training split; then the curves,
 # the choice of seed on held-aside training scenarios and the export (about 15 min on 2 idle cores).
 HARD_SEEDS ?= 0 1 2
+comma := ,
+empty :=
+space := $(empty) $(empty)
 hard-policy: $(STAMP)
 	for s in $(HARD_SEEDS); do \
 	  nice -n 10 $(BIN)/python -m addedinertia_env.learning.ars_residual --seed $$s --generations 200 \
@@ -81,6 +84,25 @@ hard-policy: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.ars_curves --runs $(foreach s,$(HARD_SEEDS),out/train/ars-hard-s$(s)) \
 	  --validate 24 --onnx agents/policies/hard_residual.onnx --figure docs/figures/learning_hard_ars.png \
 	  --summary docs/figures/learning_hard_ars.json
+
+# The oracle distilled by DAgger (docs/LEARNING.md, issue 13): three seeds of a correction on pid
+# that acts in the hold (the shipped configuration) and, for comparison, three of a correction
+# on pd that acts on the reverse stroke; each 6 iterations of 128 training scenarios (about 1.2
+# CPU-minutes a run); then the curves, the choice of seed on held-aside training scenarios and the
+# export (about 12 CPU-minutes in all).
+DAGGER_ARGS ?= --iterations 6 --scenarios 128 --hidden 32 --fit-steps 3000 --beta-decay 0.5 --cpu-minutes 4
+hard-policy-dagger: $(STAMP)
+	for s in $(HARD_SEEDS); do \
+	  nice -n 10 $(BIN)/python -m addedinertia_env.learning.dagger --base pid --gate hold --seed $$s $(DAGGER_ARGS) \
+	    --out out/train/dagger-hold-s$$s || exit 1; \
+	  nice -n 10 $(BIN)/python -m addedinertia_env.learning.dagger --base pd --gate reverse --seed $$s $(DAGGER_ARGS) \
+	    --out out/train/dagger-reverse-s$$s || exit 1; \
+	done
+	nice -n 10 $(BIN)/python -m addedinertia_env.reports.dagger_curves \
+	  --group "pid + correction in the hold=$(subst $(space),$(comma),$(foreach s,$(HARD_SEEDS),out/train/dagger-hold-s$(s)))" \
+	  --group "pd + correction on the reverse stroke=$(subst $(space),$(comma),$(foreach s,$(HARD_SEEDS),out/train/dagger-reverse-s$(s)))" \
+	  --validate 48 --onnx agents/policies/hard_dagger.onnx --figure docs/figures/learning_hard_dagger.png \
+	  --summary docs/figures/learning_hard_dagger.json
 
 accuracy-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md

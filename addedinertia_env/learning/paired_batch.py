@@ -58,6 +58,19 @@ class BatchResult:
     agent_steps: int  # controller calls summed over the episodes
     samples: int  # rig samples stepped, all slots (free strokes included)
     observations: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.float32))  # (steps, n_obs), if kept
+    labels: "TeacherLabels | None" = None  # with ``teacher_labels=True``
+
+
+@dataclass
+class TeacherLabels:
+    """Every controller call of the non-oracle slots of a :func:`run_batch` with ``teacher_labels``:
+    what the student saw and what the oracle (the teacher, on the slot's truth) would have done there."""
+
+    observations: np.ndarray  # (m, n_obs) float32, the observation the controller got
+    base_action: np.ndarray  # (m,) the base controller's action there (fraction of i_max)
+    teacher_action: np.ndarray  # (m,) the oracle's action on the true state at that moment (fraction of i_max)
+    slot: np.ndarray  # (m,) slot (index into the seeds) of each row
+    followed_teacher: np.ndarray  # (m,) bool, the rig got the teacher's action (DAgger's mixing)
 
 
 class _SlotTruth:
@@ -100,21 +113,32 @@ def slot_context(pool: ExperimentPool, k: int, action_repeat: int) -> Controller
 
 def run_batch(suite, seeds: Sequence[int], make_base: Callable[[], Any] | None, *, split: str = "train",
               oracle: Sequence[bool] | None = None, policy: Policy | None = None, residual_scale: float = 0.0,
-              action_repeat: int = 10, keep_observations: bool = False) -> BatchResult:
+              action_repeat: int = 10, keep_observations: bool = False, teacher_labels: bool = False,
+              teacher_mix: float = 0.0, mix_seed: int = 0,
+              teacher_omega_c: float = 40.0) -> BatchResult:
     """One episode per seed (``suite.split_seed(split, seed)``), all in one batch; see module doc.
 
     ``oracle[j]``: slot ``j`` runs the oracle instead of the base. ``policy`` maps the
     observations of the non-oracle slots still running (and their slot numbers) to
     corrections in [-1, 1], applied as ``clip(base + residual_scale * correction, -1, 1)``.
+
+    ``teacher_labels``: also evaluate, at every call of a non-oracle slot, the oracle on that
+    slot's truth (the teacher of :mod:`.dagger`) and return the rows in ``result.labels``.
+    ``teacher_mix`` (probability, 0-1): at each such call, draw (``mix_seed``) whether the rig
+    gets the teacher's action instead of the slot's own (DAgger's beta; needs ``teacher_labels``).
+    ``teacher_omega_c`` (rad/s): the teacher's tracking bandwidth (the oracle slots keep the benchmark's).
     """
     if split == "test":
         raise ValueError("run_batch(split='test'): the test split is held out; train on 'train' (or 'tuning')")
+    if teacher_mix and not teacher_labels:
+        raise ValueError(f"run_batch(teacher_mix={teacher_mix}): mixing in the teacher needs teacher_labels=True")
     with _BLAS.limit(limits=1, user_api="blas"):
         return _run(suite, list(seeds), make_base, split, oracle, policy, residual_scale, action_repeat,
-                    keep_observations)
+                    keep_observations, teacher_labels, float(teacher_mix), mix_seed, teacher_omega_c)
 
 
-def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep) -> BatchResult:
+def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep, label=False, mix=0.0,
+         mix_seed=0, teacher_omega_c=40.0) -> BatchResult:
     n = len(seeds)
     # the sensor noise of the benchmark's scored cycle 0 (bench/runner.py), so that a scenario here
     # is the benchmark's episode on the same scenario
@@ -130,12 +154,17 @@ def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep) ->
         samples += n
     pool.take(slots)
     is_oracle = np.zeros(n, dtype=bool) if oracle is None else np.asarray(oracle, dtype=bool)
-    controllers = []
+    controllers, teachers = [], {}
     for k in range(n):
         ctx = slot_context(pool, k, repeat)
         c = OracleController(_SlotTruth(pool, k)) if is_oracle[k] else make_base()
         c.reset(ctx)
         controllers.append(c)
+        if label and not is_oracle[k]:
+            teachers[k] = OracleController(_SlotTruth(pool, k), omega_c=teacher_omega_c)
+            teachers[k].reset(ctx)
+    rows: dict[str, list] = {"obs": [], "base": [], "teacher": [], "slot": [], "followed": []}
+    mix_rng = np.random.default_rng(mix_seed)
     controlled = np.ones(n, dtype=bool)
     obs = observe(pool, slots)
     kept: list[np.ndarray] = []
@@ -145,12 +174,19 @@ def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep) ->
         action = np.zeros(n)
         for k in live:
             action[k] = float(controllers[k].predict(obs[k], deterministic=True)[0][0])
-        if policy is not None:
-            learned = live[~is_oracle[live]]
-            if len(learned):
-                corr = np.asarray(policy(obs[learned], learned), dtype=np.float32).reshape(-1)
-                for j, k in enumerate(learned):
-                    action[k] = float(residual_action(np.float32(action[k]), corr[j], scale)[0])
+        learned = live[~is_oracle[live]]
+        base_action = action[learned].copy()
+        if policy is not None and len(learned):
+            corr = np.asarray(policy(obs[learned], learned), dtype=np.float32).reshape(-1)
+            for j, k in enumerate(learned):
+                action[k] = float(residual_action(np.float32(action[k]), corr[j], scale)[0])
+        if label and len(learned):
+            taught = np.array([float(teachers[k].predict(obs[k], deterministic=True)[0][0]) for k in learned])
+            follow = mix_rng.random(len(learned)) < mix if mix > 0 else np.zeros(len(learned), dtype=bool)
+            action[learned[follow]] = taught[follow]
+            for key, value in (("obs", obs[learned]), ("base", base_action), ("teacher", taught),
+                               ("slot", learned), ("followed", follow)):
+                rows[key].append(value)
         if keep:
             kept.append(obs[live])
         steps += len(live)
@@ -172,5 +208,11 @@ def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep) ->
         except Exception:  # noqa: BLE001 - any failure of one episode is that episode's result (bench/runner.py)
             rel[k] = math.nan
     observations = np.concatenate(kept) if kept else np.zeros((0, 0), np.float32)
+    labels = None
+    if label:
+        cat = {key: (np.concatenate(v) if v else np.zeros(0)) for key, v in rows.items()}
+        labels = TeacherLabels(observations=cat["obs"].astype(np.float32).reshape(len(cat["base"]), -1),
+                               base_action=cat["base"].astype(float), teacher_action=cat["teacher"].astype(float),
+                               slot=cat["slot"].astype(int), followed_teacher=cat["followed"].astype(bool))
     return BatchResult(seeds=list(seeds), rel_error=rel, energy_J=pool.energy.copy(), agent_steps=steps,
-                       samples=samples, observations=observations)
+                       samples=samples, observations=observations, labels=labels)
