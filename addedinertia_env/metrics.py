@@ -61,21 +61,27 @@ def cycles_metrics(records: list[RunRecord], references: list[MirroredReference]
     if not records:
         raise ValueError("episode metrics of no record")
     refs = references if references is not None else [None] * len(records)
-    errors = np.concatenate([tracking_errors(r, ref) for r, ref in zip(records, refs)])
-    return EpisodeMetrics(energy_J=float(np.mean([electric_energy(r) for r in records])),
+    masks = [controlled(r) for r in records]  # computed once per record
+    errors = np.concatenate([tracking_errors(r, ref, m) for r, ref, m in zip(records, refs, masks)])
+    return EpisodeMetrics(energy_J=float(np.mean([electric_energy(r, m) for r, m in zip(records, masks)])),
                           tracking_rms_rad=float(np.sqrt(np.mean(np.square(errors)))) if errors.size else math.nan,
-                          saturated_frac=float(np.mean([saturated_fraction(r) for r in records])))
+                          saturated_frac=float(np.mean([saturated_fraction(r, m) for r, m in zip(records, masks)])))
 
 
 def controlled(rec: RunRecord) -> np.ndarray:
     """Mask of the controlled samples (hold and reverse)."""
-    return np.isin(rec.phase, CONTROLLED_PHASES)
+    phase = np.asarray(rec.phase)
+    mask = phase == CONTROLLED_PHASES[0]
+    for name in CONTROLLED_PHASES[1:]:
+        mask |= phase == name
+    return mask
 
 
-def electric_energy(rec: RunRecord) -> float:
-    """Integral of ``|u i|`` over the hold and the reverse stroke, J (measured channels)."""
+def electric_energy(rec: RunRecord, mask: np.ndarray | None = None) -> float:
+    """Integral of ``|u i|`` over the hold and the reverse stroke, J (measured channels);
+    ``mask``: :func:`controlled` of ``rec`` if the caller has it."""
     t, u, i = rec.t, rec["u"], rec["i"]
-    mask = controlled(rec)
+    mask = controlled(rec) if mask is None else mask
     dt = np.diff(t, prepend=t[0])
     return float(np.sum(np.abs(u * i)[mask] * dt[mask]))
 
@@ -93,9 +99,10 @@ def samples_at_limit(rec: RunRecord) -> np.ndarray:
     return at
 
 
-def saturated_fraction(rec: RunRecord) -> float:
-    """Fraction of the controlled samples whose command was at its limit; 0 if there are none."""
-    mask = controlled(rec)
+def saturated_fraction(rec: RunRecord, mask: np.ndarray | None = None) -> float:
+    """Fraction of the controlled samples whose command was at its limit; 0 if there are none
+    (``mask``: :func:`controlled` of ``rec`` if the caller has it)."""
+    mask = controlled(rec) if mask is None else mask
     return float(np.mean(samples_at_limit(rec)[mask])) if mask.any() else 0.0
 
 
@@ -114,9 +121,11 @@ def stroke_reference(rec: RunRecord) -> MirroredReference:
     return MirroredReference(law, t_begin=t_brake + float(exp["hold_s"]))
 
 
-def tracking_errors(rec: RunRecord, reference: MirroredReference | None = None) -> np.ndarray:
-    """``phi_ref - phi`` (rad) at the controlled samples inside the reverse stroke."""
+def tracking_errors(rec: RunRecord, reference: MirroredReference | None = None,
+                    mask: np.ndarray | None = None) -> np.ndarray:
+    """``phi_ref - phi`` (rad) at the controlled samples inside the reverse stroke (``mask``:
+    :func:`controlled` of ``rec`` if the caller has it)."""
     ref = reference if reference is not None else stroke_reference(rec)
     t = rec.t
-    window = controlled(rec) & (t > ref.t_begin) & (t <= ref.t_end + 0.5 * rec.known.dt)
+    window = (controlled(rec) if mask is None else mask) & (t > ref.t_begin) & (t <= ref.t_end + 0.5 * rec.known.dt)
     return np.asarray(ref.phi(t[window]), dtype=float) - rec["phi"][window]

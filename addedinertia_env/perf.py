@@ -291,8 +291,12 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   "to do), but a record is identified in one piece, so a step with one ended episode keeps one core busy "
                   "for it; the shards' sampling halves also differ from step to step (resets waiting for spare slots), "
                   "and the machine was shared. Per episode "
-                  f"the identification ({ident_ms:,.1f} CPU-ms) costs more than stepping its {per_episode:,.0f} samples "
-                  f"({per_episode / e['samples_per_cpu_s'] * 1e3:,.1f} CPU-ms).", "",
+                  f"the identification ({ident_ms:,.1f} CPU-ms) costs "
+                  f"{'more' if ident_ms > per_episode / e['samples_per_cpu_s'] * 1e3 else 'less'} than stepping its "
+                  f"{per_episode:,.0f} samples ({per_episode / e['samples_per_cpu_s'] * 1e3:,.1f} CPU-ms): per sample, "
+                  f"{1e6 / e['samples_per_cpu_s']:.2f} CPU-us of stepping (settle, free strokes, resets included) and "
+                  f"{ident_ms * 1e3 / per_episode:.2f} CPU-us of end-of-episode work; 1 M samples/s on "
+                  f"{head.get('workers', 1)} cores needs at most {head.get('workers', 1):g} CPU-us per sample all in.", "",
                   "`gym.make_vec(\"AddedInertia/ReverseStroke-v0\", num_envs=N)` gives the batched env (its",
                   "`vector_entry_point`; `workers=W` runs it in W processes); `vectorization_mode=\"sync\"` gives N single",
                   "envs.", "",

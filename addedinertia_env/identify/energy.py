@@ -522,13 +522,17 @@ class RunBalance:
         lambda66 over the angles is, to first order, one combination of them, whose noise
         is the angle noise times the combined kernel's norm.
         """
-        combined = np.zeros(len(self.t))
+        idxs, parts = [], []
         for gk, iv in zip(g, ivs):
             denom = 0.5 * (iv.w1f**2 + iv.w1r**2)
             J_total = iv.lambda66 + self.J_h
             for key, w in (("rate_kernel_f", iv.w1f), ("rate_kernel_r", iv.w1r)):
                 idx, kern = iv.terms[key]
-                combined[idx] += gk * (-J_total * w / denom) * kern
+                idxs.append(idx)
+                parts.append(gk * (-J_total * w / denom) * kern)
+        # summed sample by sample in the order above (as adding the kernels one after another)
+        combined = (np.bincount(np.concatenate(idxs), weights=np.concatenate(parts), minlength=len(self.t))
+                    if idxs else np.zeros(len(self.t)))
         for iv in ivs:  # the kernels are bulky; keep the JSON small
             iv.terms.pop("rate_kernel_f", None)
             iv.terms.pop("rate_kernel_r", None)
@@ -867,21 +871,22 @@ def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: flo
         a, b = k, int(np.searchsorted(t, t[k] + span_s, side="right")) - 1
     d = np.diff(phi[a:b + 1])
     steps = np.nonzero(d != 0)[0]
-    times, levels = [], []
-    for j in steps:
-        n = max(1, int(round(abs(d[j]) / q)))
-        t0, t1 = t[a + j], t[a + j + 1]
-        for m in range(n):  # several counts in one sample: spread the crossings over it
-            times.append(t0 + (m + 0.5) / n * (t1 - t0))
-            levels.append(phi[a + j] + np.sign(d[j]) * (m + 0.5) * q)
-    if len(times) < 4:
+    # several counts in one sample: the crossings spread over it (count m of n at (m + 0.5) / n)
+    n = np.maximum(1, np.round(np.abs(d[steps]) / q)).astype(np.int64)
+    if int(n.sum()) < 4:
         return None
-    tau = np.asarray(times) - t[k]
+    j = np.repeat(steps, n)
+    n_j = np.repeat(n, n).astype(float)
+    m = np.arange(len(j)) - np.repeat(np.cumsum(n) - n, n)
+    t0, t1 = t[a + j], t[a + j + 1]
+    times = t0 + (m + 0.5) / n_j * (t1 - t0)
+    levels = phi[a + j] + np.sign(d[j]) * (m + 0.5) * q
+    tau = times - t[k]
     # Before t2 the hull may pass its stop and come back a little: a free quadratic. After t3
     # it starts from rest at the brake's release: no linear term (a free one, extrapolated
     # back over the first count's dwell, is off by a count or more).
     X = np.column_stack([np.ones_like(tau), tau, tau**2]) if span_s < 0 else np.column_stack([np.ones_like(tau), tau**2])
-    coef, *_ = np.linalg.lstsq(X, np.asarray(levels), rcond=None)
+    coef, *_ = np.linalg.lstsq(X, levels, rcond=None)
     if span_s < 0:
         return np.polynomial.Polynomial(coef)
     return np.polynomial.Polynomial([coef[0], 0.0, coef[1]])

@@ -308,7 +308,8 @@ class ExperimentPool:
         cand = free[~np.isnan(self.t_cross[free]) & (w < 0.3 * self.peak[free])]
         stops = cand[self._stop_due(cand)] if len(cand) else cand
         over = free[(self.free_n[free] >= self.free_max[free])]
-        over = np.setdiff1d(over, stops)
+        if len(over):
+            over = np.setdiff1d(over, stops)
         if len(over):
             raise RuntimeError(f"the hull did not stop within max_free_s in slot(s) {over.tolist()} "
                                f"(scenario {self.scenarios[int(over[0])].name})")
