@@ -149,7 +149,16 @@ def _noise(x: np.ndarray) -> float:
     if x.size < 3:
         return 0.0
     d2 = np.diff(x, 2)
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+    return float(1.4826 * _median(np.abs(d2 - _median(d2))) / math.sqrt(6.0))
+
+
+def _median(x: np.ndarray) -> float:
+    """``np.median`` of a non-empty 1-D float array, by sorting (the same number, faster on these sizes)."""
+    s = np.sort(x)
+    if np.isnan(s[-1]):  # NaNs sort last; np.median returns nan then
+        return math.nan
+    k = len(s) // 2
+    return s[k] if len(s) % 2 else (s[k - 1] + s[k]) / 2.0
 
 
 def _robust_max_rate(t: np.ndarray, x: np.ndarray) -> float:

@@ -456,11 +456,17 @@ class ExperimentPool:
         slots = slots[self._stage_cnt[slots] > 0]
         if not len(slots):
             return
-        if len(slots) > 64:  # many slots: one transposing gather, then contiguous copies
-            staged = np.ascontiguousarray(self._stage_block[:, :, slots].transpose(2, 1, 0))  # slot x column x row
-        else:
-            staged = None
         counts, starts, n0s = (a[slots].tolist() for a in (self._stage_cnt, self._stage_from, self._flushed))
+        staged, lo = None, 0
+        if len(slots) > 64:  # many slots: one transposing copy of the staged rows, then contiguous copies
+            lo, hi = min(starts), max(s + c for s, c in zip(starts, counts))
+            rows = self._stage_block[lo:hi]
+            if 2 * len(slots) > self.n:  # most slots: every column, no gather (slot x column x row)
+                staged = np.ascontiguousarray(rows.transpose(2, 1, 0))
+                pick = slots.tolist()
+            else:
+                staged = np.ascontiguousarray(rows[:, :, slots].transpose(2, 1, 0))
+                pick = range(len(slots))
         for j, (k, cnt, start, n0) in enumerate(zip(slots.tolist(), counts, starts, n0s)):
             log = self._logs[k]
             if n0 + cnt > log.shape[1]:
@@ -468,7 +474,7 @@ class ExperimentPool:
                 grown[:, :n0] = log[:, :n0]
                 log = self._logs[k] = grown
             if staged is not None:
-                log[:, n0:n0 + cnt] = staged[j, :, start:start + cnt]
+                log[:, n0:n0 + cnt] = staged[pick[j], :, start - lo:start - lo + cnt]
             else:
                 log[:, n0:n0 + cnt] = self._stage_block[start:start + cnt, :, k].T
         self._flushed[slots] += self._stage_cnt[slots]
