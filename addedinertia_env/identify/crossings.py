@@ -129,7 +129,10 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     dcoef = coef[:, 1:] * powers[1:]
     x = np.zeros(n_fit)
     for _ in range(8):
-        x = x - (_polyval(coef, x) - levels) / _polyval(dcoef, x)
+        x_next = x - (_polyval(coef, x) - levels) / _polyval(dcoef, x)
+        if np.array_equal(x_next, x):  # a fixed point: the remaining steps would not move it
+            break
+        x = x_next
     rate[:] = _polyval(dcoef, x) / half_width
     out_t[:] = tc + x * half_width
     grad_all = np.where(powers > 0, powers * x[:, None] ** np.maximum(powers - 1, 0), 0.0) / half_width

@@ -444,7 +444,8 @@ class RunBalance:
         """Each boundary angle's estimate with its uncertainty parts, or a rejected interval."""
         phi1 = np.asarray(phi1, dtype=float)
         got = self.terms_many(phi1)
-        out = [Interval(run=self.rec.name, phi1=float(x), lambda66=float("nan"), sigma=float("inf"), w1f=0.0, w1r=0.0,
+        name = self.rec.name
+        out = [Interval(run=name, phi1=float(x), lambda66=float("nan"), sigma=float("inf"), w1f=0.0, w1r=0.0,
                         rejected=why) for x, why in zip(phi1, got["reason"])]
         good = got["good"]
         if not len(good):
@@ -755,7 +756,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
             np.cumsum(step, axis=-1, out=out[..., 1:])
         return out
 
-    y = th + twice(friction) / J_f
+    y = target = th + twice(friction) / J_f  # the angle the fit explains (kept for the final fit)
     lags = np.arange(-2e-3, MAX_LAG_S + 1e-9, 2.5e-4)
     # Least squares on (1, t - t_a, the lagged current's column), every lag at once: the first two
     # columns are shared, so they are projected out (twice, for orthogonality to rounding) and
@@ -780,7 +781,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     frac = 0.5 * (rss[j - 1] - rss[j + 1]) / den if den > 0 else 0.0
     lag = float(lags[j] + frac * (lags[1] - lags[0]))
     X = np.column_stack([np.ones_like(tt), tt - tt[0], k_t * twice(np.interp(tt + lag, t, i)) / J_f])
-    coef, *_ = np.linalg.lstsq(X, th + twice(friction) / J_f, rcond=None)
+    coef, *_ = np.linalg.lstsq(X, target, rcond=None)
     scale = float(coef[2])
     if not 0.5 < scale < 2.0:
         return None
