@@ -89,7 +89,7 @@ hard-policy: $(STAMP)
 # that acts in the hold (the shipped configuration) and, for comparison, three of a correction
 # on pd that acts on the reverse stroke; each 6 iterations of 128 training scenarios (about 1.2
 # CPU-minutes a run); then the curves, the choice of seed on held-aside training scenarios and the
-# export (about 12 CPU-minutes in all).
+# export (about 7 CPU-minutes in all).
 DAGGER_ARGS ?= --iterations 6 --scenarios 128 --hidden 32 --fit-steps 3000 --beta-decay 0.5 --cpu-minutes 4
 hard-policy-dagger: $(STAMP)
 	for s in $(HARD_SEEDS); do \
@@ -126,7 +126,7 @@ leaderboard-realistic:
 leaderboard-hard:
 	$(MAKE) leaderboard BENCH_SUITE=hard-v0 LEADERBOARD_DOC=docs/LEADERBOARD_hard.md \
 	  LEADERBOARD_HTML=docs/leaderboard_hard.html \
-	  LEARNED_POLICIES="agents/policies/reverse_stroke.onnx agents/policies/hard_residual.onnx"
+	  LEARNED_POLICIES="agents/policies/reverse_stroke.onnx agents/policies/hard_residual.onnx agents/policies/hard_dagger.onnx"
 
 # Re-tune every classical controller on hard-v0's tuning split with one budget
 # (configs/controllers/tuned-hard-v0.yaml; about 25 min on 2 shared cores).

@@ -86,3 +86,18 @@ def test_an_exported_student_is_the_numpy_student_and_says_how_to_run(tmp_path):
     ours = load_student(tmp_path / "policy.npz")(obs)
     np.testing.assert_allclose(policy.network(obs).reshape(-1), ours, atol=1e-5)
     assert np.all(ours[::2] == 0.0) and np.any(np.abs(ours[1::2]) > 0.01)  # gated: acts in the hold only
+
+
+def test_the_oracle_ablation_with_nothing_taken_away_is_the_oracle(monkeypatch):
+    """``DegradedOracle`` with the true state, J and k_t acts as the benchmark's oracle; with the
+    prior J it does not."""
+    from addedinertia_env.learning import paired_batch
+    from addedinertia_env.reports.oracle_ablation import DegradedOracle
+
+    suite = load_suite("hard-v0")
+    real = run_batch(suite, [2], None, oracle=[True]).rel_error[0]
+    for knobs, same in (({}, True), ({"J": "prior"}, False)):
+        monkeypatch.setattr(paired_batch, "OracleController",
+                            lambda rig, omega_c=40.0, k=knobs: DegradedOracle(rig, omega_c, **k))
+        e = run_batch(suite, [2], None, oracle=[True]).rel_error[0]
+        assert (e == pytest.approx(real, abs=1e-12)) == same, knobs

@@ -109,9 +109,9 @@ def figure(groups: list[tuple[str, list[Path]]], path: Path, title: str) -> None
         for row, key, scale in ((0, "onpolicy_loss", 1.0), (1, "val_median_ce", 100.0)):
             for col, xkey, xscale in ((0, "agent_steps", 1e-6), (1, "cpu_s", 1 / 60.0)):
                 ax = axes[row, col]
-                first = 1 if key == "onpolicy_loss" else 1  # row 0 of a curve is the bare base
-                x = np.array([[c[i][xkey] * xscale for i in range(first, m)] for c in curves])
-                y = np.array([[(c[i][key] if c[i][key] is not None else np.nan) * scale for i in range(first, m)]
+                # row 0 of a curve is the bare base (no student yet): a dotted line below
+                x = np.array([[c[i][xkey] * xscale for i in range(1, m)] for c in curves])
+                y = np.array([[(c[i][key] if c[i][key] is not None else np.nan) * scale for i in range(1, m)]
                               for c in curves])
                 for xi, yi in zip(x, y):
                     ax.plot(xi, yi, color=colour, lw=0.6, alpha=0.5)
