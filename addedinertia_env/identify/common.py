@@ -145,6 +145,13 @@ def smooth_angles(t: np.ndarray, angles, window_s: float = 0.04, degree: int = 3
     return [a.astype(float) if len(a) <= n else savgol(a, n, degree) for a in angles]
 
 
+def prepare() -> None:
+    """Load now what the methods load on first use (``scipy.signal``, about a second of imports),
+    so that a process's first identification costs what the others do (the batched env calls this
+    when it is built to score episodes)."""
+    from scipy.signal import savgol_coeffs  # noqa: F401, PLC0415
+
+
 @lru_cache(maxsize=64)
 def _savgol_maps(window: int, degree: int, deriv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The filter's taps (for ``np.convolve``) and the edge maps of :func:`savgol`, delta 1.

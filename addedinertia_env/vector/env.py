@@ -51,6 +51,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..envs.config import EnvConfig
 from ..identify import IdentificationError, identify
+from ..identify.common import prepare as prepare_identification
 from ..metrics import episode_metrics
 from ..rig import forces
 from ..scenarios import load_ranges
@@ -142,6 +143,8 @@ class ReverseStrokeVectorEnv(VectorEnv):
             raise ValueError("ReverseStrokeVectorEnv option score_episodes=False: the accuracy reward needs each "
                              "episode identified; set reward_weights={'accuracy': 0} too, or keep score_episodes=True")
         self.score_episodes = score_episodes
+        if score_episodes:
+            prepare_identification()  # its one-time imports now, not at the first episode's end
         self.num_envs = num_envs
         self.n_spare = max(2, int(math.ceil(spare_fraction * num_envs)))
         self.n_slots = num_envs + self.n_spare
