@@ -292,7 +292,8 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   "for it; the shards' sampling halves also differ from step to step (resets waiting for spare slots), "
                   "and the machine was shared. "
                   + (f"Per sample the {head.get('workers', 1)} processes used "
-                     f"{100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1):.0f} % more CPU than one: each "
+                     f"{abs(100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1)):.0f} % "
+                     f"{'more' if b['samples_per_cpu_s'] > head['samples_per_cpu_s'] else 'less'} CPU than one: each "
                      "shard pays the fixed cost of the numpy calls of every rig sample (about 0.2 ms for some 200 "
                      "calls, whatever the number of slots) and the parent process relays actions, results and moved "
                      "records. " if head.get("workers", 1) > 1 else "")
