@@ -382,18 +382,24 @@ class BatchedRig:
         paused = None if active is None or np.all(active) else ~np.asarray(active, dtype=bool)
         h = self.physics_dt
         memory = forces.has_radiation_memory(p)
+        water = forces.has_water_memory(p)
+        # the same in every substep: which terminals are open and which environments run
+        open_circuit = not np.all(driven)
+        not_driven = None if np.isscalar(driven) else ~driven
+        running = None if paused is None else ~paused
+        clock_step = h if paused is None else np.where(paused, 0.0, h)
         for _ in range(p.physics_substeps):
             X = self._X
-            if not np.all(driven):  # open circuit: the terminals show the back-EMF
-                if np.isscalar(driven):
+            if open_circuit:  # open circuit: the terminals show the back-EMF
+                if not_driven is None:
                     np.multiply(self.k_t, X[OMEGA], out=X[U])
                 else:
-                    np.copyto(X[U], self.k_t * X[OMEGA], where=~driven)
+                    np.copyto(X[U], self.k_t * X[OMEGA], where=not_driven)
             w_mid = forces.centred_rate(X[W], self._w_prev)
             if paused is None:
                 self._w_prev[...] = X[W]
             else:
-                np.copyto(self._w_prev, X[W], where=~paused)
+                np.copyto(self._w_prev, X[W], where=running)
             q_hull = forces.hull_extra_torque(X[PHI], w_mid, self.water_rate, p)
             if memory:  # radiation memory: the hull feels -mu over the step
                 x_new, mu = forces.radiation_memory_step(self.radiation_x, w_mid, p)
@@ -403,7 +409,7 @@ class BatchedRig:
                 self.radiation_x[...] = x_new
             np.add(q_hull, self._spring_offset, out=X[F1])
             X[F2] = forces.flywheel_friction_torque(X[OMEGA], p)
-            if forces.has_water_memory(p):
+            if water:
                 dw = h * forces.water_rate_derivative(X[W], self.water_rate, p)
                 if paused is not None:
                     dw = np.where(paused, 0.0, dw)
@@ -416,9 +422,7 @@ class BatchedRig:
             Xn[U] = X[U]
             if paused is not None:
                 np.copyto(Xn[:N_OUT], X[:N_OUT], where=paused)
-                self.t += np.where(paused, 0.0, h)
-            else:
-                self.t += h
+            self.t += clock_step
             self._X, self._Xn = Xn, X
 
     def _set_terminal_voltage(self, code, value) -> None:
