@@ -158,7 +158,7 @@ def mode_codes(mode, n: int) -> np.ndarray | int:
     codes = codes.astype(np.int64).reshape(-1)
     if codes.shape != (n,) or codes.min() < 0 or codes.max() > 2:
         raise ValueError(f"motor modes: expected {n} codes in 0..2, got shape {codes.shape}")
-    if np.all(codes == codes[0]):
+    if (codes == codes[0]).all():
         return int(codes[0])
     return codes
 
@@ -368,24 +368,28 @@ class BatchedRig:
         code = mode_codes(mode, self.n)
         X = self._X
         driven = code != PASSIVE  # bool, or array of bools
-        if np.any(driven):
+        scalar = not isinstance(driven, np.ndarray)
+        all_driven = bool(driven) if scalar else bool(driven.all())
+        if (bool(driven) if scalar else bool(driven.any())):
             self._set_terminal_voltage(code, np.asarray(value, dtype=self.dtype))
-        if not np.all(driven):
-            X[I, ~driven if not np.isscalar(driven) else slice(None)] = 0.0
-        kind = 2 * self.brake + driven
-        one_kind = np.isscalar(kind) or bool(np.all(kind == kind[0]))
+        if not all_driven:
+            X[I, slice(None) if scalar else ~driven] = 0.0
+        kind = 2 * self.brake + driven  # one kind per environment (the brake is per environment)
+        one_kind = bool((kind == kind[0]).all())
         G = None
         if one_kind and self._shared:
-            G = self._G_table[int(kind if np.isscalar(kind) else kind[0]), :, :, 0]
+            G = self._G_table[int(kind[0]), :, :, 0]
         else:
-            self._select_maps(np.broadcast_to(kind, (self.n,)))
-        paused = None if active is None or np.all(active) else ~np.asarray(active, dtype=bool)
+            self._select_maps(kind)
+        if active is not None:
+            active = np.asarray(active, dtype=bool)
+        paused = None if active is None or active.all() else ~active
         h = self.physics_dt
         memory = forces.has_radiation_memory(p)
         water = forces.has_water_memory(p)
         # the same in every substep: which terminals are open and which environments run
-        open_circuit = not np.all(driven)
-        not_driven = None if np.isscalar(driven) else ~driven
+        open_circuit = not all_driven
+        not_driven = None if scalar else ~driven
         running = None if paused is None else ~paused
         clock_step = h if paused is None else np.where(paused, 0.0, h)
         for _ in range(p.physics_substeps):
@@ -435,9 +439,9 @@ class BatchedRig:
             return
         for c in (CURRENT, VOLTAGE):
             mask = code == c
-            if np.any(mask):
+            if mask.any():
                 u = terminal_voltage(_Command(mode=MODES[c], value=value), X[I], X[OMEGA], **kw)
-                np.copyto(X[U], np.broadcast_to(u, (self.n,)), where=mask, casting="unsafe")
+                np.copyto(X[U], u, where=mask, casting="unsafe")  # u broadcasts to the batch
 
     def _select_maps(self, kind: np.ndarray) -> None:
         """Per-environment maps for this sample's kinds (only changed columns are rebuilt)."""

@@ -257,8 +257,8 @@ class ExperimentPool:
         if controlled.any():
             out = self._controlled_sample(r, value, controlled, energy_before)
         if freeing.any():
-            self._free_sample(np.nonzero(freeing)[0])
-        settle = np.nonzero(settling)[0]
+            self._free_sample(freeing.nonzero()[0])
+        settle = settling.nonzero()[0]
         if len(settle):
             self.settle_left[settle] -= 1
             done = settle[self.settle_left[settle] <= 0]
@@ -278,13 +278,13 @@ class ExperimentPool:
         # phi_ref at this sample from the slot's table (MirroredReferences.phi at the stroke's sample times)
         idx = self._flushed + self._stage_cnt - 1 - self._ref_first
         in_stroke = controlled & (idx >= 0) & (idx < self._ref_len)
-        e = self._ref_table[self._cols, np.clip(idx, 0, self._ref_table.shape[1] - 1)] - r.phi
+        e = self._ref_table[self._cols, np.minimum(np.maximum(idx, 0), self._ref_table.shape[1] - 1)] - r.phi
         e_sq = np.where(in_stroke, e * e, 0.0)
         # phase changes (Experiment.step)
         hold = controlled & (self.stage == HOLD)
         rev = controlled & (self.stage == REVERSE)
-        to_rev = np.nonzero(hold & (t >= refs.t_begin - 0.5 * self.dt))[0]
-        ended = np.nonzero(rev & (t >= refs.t_end - 0.5 * self.dt))[0]
+        to_rev = (hold & (t >= refs.t_begin - 0.5 * self.dt)).nonzero()[0]
+        ended = (rev & (t >= refs.t_end - 0.5 * self.dt)).nonzero()[0]
         if len(to_rev):
             self.rig.set_brake(False, envs=to_rev)
             self.stage[to_rev] = REVERSE
@@ -382,7 +382,7 @@ class ExperimentPool:
         """RateEstimator's value for the newest sample of slots ``cols`` (their ring must be current)."""
         rate = self._w_rate @ self._window(j, cols)
         count = (self._flushed + self._stage_cnt)[cols]
-        short = np.nonzero(count < self.n_rate)[0]
+        short = (count < self.n_rate).nonzero()[0]
         if len(short):  # before the window has filled: end-point difference (0 for one sample)
             c = count[short]
             top = self._g + RING + 1
@@ -401,7 +401,7 @@ class ExperimentPool:
 
     def _log(self, r, value, controlled, active) -> None:
         g = self._g = (self._g + 1) % RING
-        resumed = np.nonzero(active & ~self._was_active)[0]
+        resumed = (active & ~self._was_active).nonzero()[0]
         if len(resumed):
             self._restore_ring(resumed)
         for j, x in ((0, r.phi), (1, r.psi)):
@@ -416,13 +416,13 @@ class ExperimentPool:
         else:
             block[4], block[5] = 0.0, cmd
         cnt = self._stage_cnt
-        broken = np.nonzero(active & (cnt > 0) & (self._stage_from + cnt != row))[0]
+        broken = (active & (cnt > 0) & (self._stage_from + cnt != row)).nonzero()[0]
         if len(broken):
             self._flush(broken)
         self._stage_from[active & (cnt == 0)] = row
         cnt += active
         if row == STAGE - 1:
-            self._flush(np.nonzero(cnt)[0])
+            self._flush(cnt.nonzero()[0])
             self._stage_row = 0
         else:
             self._stage_row = row + 1
