@@ -94,6 +94,7 @@ class SensorModel:
         self._z = np.zeros((2, NOISE_BLOCK, n))
         self._z_base = np.full(n, np.iinfo(np.int64).max // 2, dtype=np.int64)
         self._hist = None
+        self._cols: np.ndarray | None = None  # 0..n-1, kept (every environment's column)
         self._update_params()
 
     # --- per-environment state ----------------------------------------------------------
@@ -176,8 +177,14 @@ class SensorModel:
         When some environment's block is used up, every environment past half of its block
         draws anew too, so that the batch's blocks stay in step (few draws per sample)."""
         n = self.p.n
-        cols = np.arange(n) if envs is None else np.asarray(envs)
-        offset = counters.astype(np.int64) - self._z_base[cols]
+        if envs is None:
+            if self._cols is None or len(self._cols) != n:
+                self._cols = np.arange(n)
+            cols, z_base = self._cols, self._z_base
+        else:
+            cols = np.asarray(envs)
+            z_base = self._z_base[cols]
+        offset = counters.astype(np.int64) - z_base
         stale = (offset < 0) | (offset >= NOISE_BLOCK)
         if stale.any():
             redo_sel = np.nonzero(stale | (offset >= NOISE_BLOCK // 2))[0]

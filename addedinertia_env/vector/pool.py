@@ -297,17 +297,19 @@ class ExperimentPool:
 
     def _free_sample(self, free: np.ndarray) -> None:
         """Crossing, peak and stop prediction of the free strokes (Experiment.start)."""
-        self.free_n[free] += 1
-        self.hull_rate[free] = self._rate(0, free)
+        free_n = self.free_n[free] + 1
+        self.free_n[free] = free_n
+        rate = self.hull_rate[free] = self._rate(0, free)
         sign = self.sign[free]
-        w = sign * self.hull_rate[free]
-        self.peak[free] = np.maximum(self.peak[free], w)
-        crossed = np.isnan(self.t_cross[free]) & (sign * (self.phi[free] - self.phi_n[free]) >= 0)
+        w = sign * rate
+        peak = self.peak[free] = np.maximum(self.peak[free], w)
+        t_cross = self.t_cross[free]
+        crossed = np.isnan(t_cross) & (sign * (self.phi[free] - self.phi_n[free]) >= 0)
         if crossed.any():
-            self.t_cross[free[crossed]] = self.t[free[crossed]]
-        cand = free[~np.isnan(self.t_cross[free]) & (w < 0.3 * self.peak[free])]
+            self.t_cross[free[crossed]] = t_cross[crossed] = self.t[free[crossed]]
+        cand = free[~np.isnan(t_cross) & (w < 0.3 * peak)]
         stops = cand[self._stop_due(cand)] if len(cand) else cand
-        over = free[(self.free_n[free] >= self.free_max[free])]
+        over = free[free_n >= self.free_max[free]]
         if len(over):
             over = np.setdiff1d(over, stops)
         if len(over):
