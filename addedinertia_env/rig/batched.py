@@ -209,6 +209,7 @@ class BatchedRig:
         self.k_t = forces.true_torque_constant(p)  # N m/A, true (scalar when shared)
         self._k_t_env = p.per_env(self.k_t)
         self._spring_offset = p.spring.c * forces.true_neutral(p)  # c phi_n, N m
+        self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)  # motor.terminal_voltage's, per sample
         table = np.stack([substep_matrix(h, kind, *self._map_args(p)) for kind in range(4)])
         # (kind, out, in, n) in float64, then cast; one column when the physics is shared.
         self._G_table = table.astype(self.dtype)
@@ -252,6 +253,7 @@ class BatchedRig:
         self.k_t = forces.true_torque_constant(p)
         self._k_t_env = p.per_env(self.k_t)
         self._spring_offset = p.spring.c * forces.true_neutral(p)
+        self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)
         if self._G_env is not None:  # refresh those columns of the per-environment maps
             k = self._kind_env[idx]
             self._G_env[:, :, idx] = np.moveaxis(self._G_table[k, :, :, idx], 0, -1)
@@ -433,7 +435,8 @@ class BatchedRig:
         """The drive's voltage for the coming sample (motor.terminal_voltage), into row U."""
         m = self.params.motor
         X = self._X
-        kw = dict(R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max, i_max=m.i_max, sample_dt=self.dt)
+        kw = dict(R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max, i_max=m.i_max, sample_dt=self.dt,
+                  decay=self._drive_decay)
         if np.isscalar(code):
             X[U] = terminal_voltage(_Command(mode=MODES[code], value=value), X[I], X[OMEGA], **kw)
             return

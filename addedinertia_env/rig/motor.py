@@ -44,13 +44,14 @@ class MotorCommand:
             raise ValueError(f"motor command {self.value!r}: expected a finite number")
 
 
-def terminal_voltage(cmd: MotorCommand, i0, omega, *, R, L, k_e, u_max, i_max, sample_dt):
-    """Voltage the drive holds over the next sample, V (works on arrays)."""
+def terminal_voltage(cmd: MotorCommand, i0, omega, *, R, L, k_e, u_max, i_max, sample_dt, decay=None):
+    """Voltage the drive holds over the next sample, V (works on arrays). ``decay``: the current's
+    decay over a sample, ``exp(-sample_dt R / L)``, when the caller keeps it (else computed here)."""
     if cmd.mode == "voltage":
         return np.clip(cmd.value, -u_max, u_max)
     if cmd.mode == "current":
         target = np.clip(cmd.value, -i_max, i_max)
-        a = np.exp(-sample_dt * R / L)
+        a = np.exp(-sample_dt * R / L) if decay is None else decay
         i_ss = (target - a * i0) / (1.0 - a)
         return np.clip(R * i_ss + k_e * omega, -u_max, u_max)
     return k_e * omega  # passive: open circuit, the terminals show the back-EMF
