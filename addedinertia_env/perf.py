@@ -290,7 +290,7 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   "share the identification of the episodes that ended in a step (records move to the shard with less "
                   "to do), but a record is identified in one piece, so a step with one ended episode keeps one core busy "
                   "for it; the shards' sampling halves also differ from step to step (resets waiting for spare slots), "
-                  "and the machine was shared. "
+                  "and other jobs on the machine take turns (load average above). "
                   + (f"Per sample the {head.get('workers', 1)} processes used "
                      f"{abs(100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1)):.0f} % "
                      f"{'more' if b['samples_per_cpu_s'] > head['samples_per_cpu_s'] else 'less'} CPU than one: each "
