@@ -39,7 +39,6 @@ Cost is CPU time of this process (``time.process_time``; BLAS and torch on one t
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
 import sys
@@ -54,7 +53,6 @@ from ..task import OBSERVATION_FIELDS
 from .ars_residual import base_params, _base_factory, _score
 from .paired_batch import run_batch
 
-OPSET = 17
 CLIP_X = 5.0  # normalised observations are clipped to +-5
 GATES = {"reverse": "is_reverse", "hold": "is_hold", "none": None}  # where the correction acts
 TRAIN_SEED_STRIDE = 1_000_003  # training scenario numbers of run ``seed``: disjoint streams per seed
@@ -282,20 +280,16 @@ def load_student(path: Path) -> MLPStudent:
 def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None = None) -> dict[str, Any]:
     """Write the student of ``run`` (``policy.npz``, ``training_card.json``) as ONNX with its metadata
     (``agents/onnx_policy.py``: a residual on ``base`` acting at ``policy_rate_hz``, board mode
-    ``zoh``, the base deciding with the correction once per action) and the card ``<stem>.json``;
-    returns the card."""
-    import onnx  # noqa: PLC0415
-    import torch  # noqa: PLC0415
+    ``zoh``, the base deciding with the correction once per action) and the card ``<stem>.json``
+    (:func:`.residual_export.export_residual`); returns the card."""
+    import torch  # noqa: PLC0415 - torch is heavy
     from torch import nn  # noqa: PLC0415
 
-    from .. import __version__  # noqa: PLC0415
-    from ..machine import machine_info  # noqa: PLC0415
-    from .callbacks import write_json_atomic  # noqa: PLC0415
-    from .export import measure_latency_us, random_observations, save_with_metadata  # noqa: PLC0415
+    from .export import random_observations  # noqa: PLC0415
+    from .residual_export import export_residual  # noqa: PLC0415
 
     train_card = json.loads((run / "training_card.json").read_text())
     student = load_student(run / "policy.npz")
-    n_obs = len(OBSERVATION_FIELDS)
 
     class Student(nn.Module):
         def __init__(self):
@@ -314,54 +308,13 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
                 r = r * obs[:, student.gate:student.gate + 1]
             return r
 
-    onnx_path = Path(onnx_path)
-    onnx_path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = onnx_path.with_name(onnx_path.name + ".tmp")
-    with torch.no_grad():
-        torch.onnx.export(Student().eval(), (torch.zeros(1, n_obs),), str(tmp), input_names=["obs"],
-                          output_names=["action"], dynamic_axes={"obs": {0: "batch"}, "action": {0: "batch"}},
-                          opset_version=OPSET, dynamo=False)
-    graph = onnx.load(str(tmp))
-    tmp.unlink()
-    repeat = int(train_card["action_repeat"])
-    sample_rate = 1000.0
-    cost = train_card["cost"]
-    meta = {
-        "version": __version__, "algo": "dagger", "env_id": "AddedInertia/ReverseStroke-v0",
-        "suite": train_card["suite"], "action_repeat": str(repeat), "sample_rate_hz": repr(sample_rate),
-        "policy_rate_hz": repr(sample_rate / repeat), "board_mode": "zoh",
-        "residual_base": train_card["base"], "residual_scale": str(float(train_card["scale"])),
-        "residual_base_params": json.dumps(train_card.get("base_params") or {}),
-        "residual_base_rate": "policy",  # the base decides with the correction, once per action (as trained)
-        "obs_fields": json.dumps(list(OBSERVATION_FIELDS)),
-        "train_env_steps": str(cost["env_steps"]), "train_cpu_minutes": str(cost["cpu_minutes"]),
-    }
-    save_with_metadata(graph, meta, onnx_path)
-    import onnxruntime as ort  # noqa: PLC0415
-
     obs = random_observations(1000)
-    gate_col = list(OBSERVATION_FIELDS).index(GATES[student.gate_name]) if student.gate is not None else None
-    if gate_col is not None:  # the gate field is 0 or 1 on the rig: check both
+    if student.gate is not None:  # the gate field is 0 or 1 on the rig: check both
+        gate_col = list(OBSERVATION_FIELDS).index(GATES[student.gate_name])
         obs[:, gate_col] = (np.arange(len(obs)) % 2).astype(np.float32)
-    session = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])
-    parity = float(np.max(np.abs(session.run(None, {"obs": obs})[0].reshape(-1) - student(obs))))
-    blob = onnx_path.read_bytes()
-    card = {
-        "kind": "addedinertia policy card", "onnx": onnx_path.name, "size_bytes": len(blob),
-        "sha256": hashlib.sha256(blob).hexdigest(), "opset": OPSET, "metadata": meta,
-        "action_repeat": repeat, "policy_rate_hz": sample_rate / repeat, "board_mode": "zoh",
-        "sample_rate_hz": sample_rate,
-        "residual": {"enabled": True, "base": train_card["base"], "scale": float(train_card["scale"]),
-                     "base_params": train_card.get("base_params") or {}, "base_rate": "policy",
-                     "gate": student.gate_name},
-        "observation_fields": list(OBSERVATION_FIELDS), "parity_max_abs_diff": parity,
-        "n_parameters": student.n_parameters(),
-        "latency_us": measure_latency_us(onnx_path),
-        "training": {**train_card, "machine": machine_info()},
-        **(extra_card or {}),
-    }
-    write_json_atomic(onnx_path.with_suffix(".json"), card)
-    return card
+    return export_residual(Student(), student, train_card, onnx_path, algo="dagger", parity_obs=obs,
+                           residual_extra={"gate": student.gate_name},
+                           card_extra={"n_parameters": student.n_parameters()}, extra_card=extra_card)
 
 
 def main(argv: list[str] | None = None) -> int:
