@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 
-from ..atomic import atomic_write_text
+from ..atomic import atomic_target, atomic_write_text
 from ..task import OBSERVATION_FIELDS
 from .paired_batch import run_batch
 
@@ -196,7 +196,8 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
             f"(paired {row['paired_mean_diff'] * 100:+.4f} %), median ce base {row['base_median_ce'] * 100:.4f} % "
             f"policy {row['policy_median_ce'] * 100:.4f} %, |theta| {row['theta_norm']:.3f}, "
             f"cpu {row['cpu_s']:.0f} s, steps {env_steps}")
-        np.savez(out / "policy.npz", mean=policy.mean, std=policy.std, theta=policy.theta)
+        with atomic_target(out / "policy.npz", suffix=".npz") as tmp:
+            np.savez(tmp, mean=policy.mean, std=policy.std, theta=policy.theta)
         write_card()
         if time.process_time() - cpu0 > 60.0 * cpu_minutes:
             break

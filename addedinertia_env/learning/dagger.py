@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write_text
+from ..atomic import atomic_target, atomic_write_text
 from ..task import OBSERVATION_FIELDS
 from .ars_residual import base_params, _base_factory, _score
 from .paired_batch import run_batch
@@ -259,14 +259,20 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pd", seed: int
             f"{val['val_mean_cost'] * 100:.4f} % (base {np.mean(base_cost) * 100:.4f} %), median ce "
             f"{val['val_median_ce'] * 100:.4f} %, paired median diff {val['val_paired_median_diff'] * 100:+.4f} %, "
             f"fails {val['val_failures']} | cpu {row['cpu_s']:.0f} s, steps {env_steps}")
-        np.savez(out / f"policy_it{it}.npz", mean=student.mean, std=student.std, gate=student.gate_name, *student.weights)
+        save_student(student, out / f"policy_it{it}.npz")
         if val["val_median_ce"] < best[0]:  # the leaderboard ranks by the median control error
             best = (val["val_median_ce"], it)
-            np.savez(out / "policy.npz", mean=student.mean, std=student.std, gate=student.gate_name, *student.weights)
+            save_student(student, out / "policy.npz")
         write_card()
         if time.process_time() - cpu0 > 60.0 * cpu_minutes:
             break
     return write_card()
+
+
+def save_student(student: MLPStudent, path: Path) -> None:
+    """Write ``student`` to ``path`` (``.npz``) atomically; :func:`load_student` reads it back."""
+    with atomic_target(path, suffix=".npz") as tmp:
+        np.savez(tmp, *student.weights, mean=student.mean, std=student.std, gate=student.gate_name)
 
 
 def load_student(path: Path) -> MLPStudent:
