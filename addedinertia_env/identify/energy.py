@@ -77,6 +77,8 @@ CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md se
 # (~5e-4) and the flywheel inertia's own calibration, assumed 0.2 %
 CALIBRATED_TORQUE_UNCERTAINTY = 0.002
 MAX_LAG_S = 0.012  # s, the longest current-channel lag the flywheel calibration looks for
+MAX_SATURATED_FRACTION = 0.02  # an angle is rejected when the current sat at its limit over more of k3..k4
+MAX_SPEED_MISMATCH = 0.2  # ... or when its reverse speed differs from the forward speed by more than this
 LAG_PRECISION = 0.02  # the current lag must be fitted to this fraction of a sample period to be used
 RATE_HALF_WIDTH = 0.1  # s, window of the local quintic that gives crossing instants and rates
 RATE_DEGREE = 5
@@ -476,9 +478,9 @@ class RunBalance:
                          rate_kernel_f=fit["f"]["kernel"][row], rate_kernel_r=fit["r"]["kernel"][row],
                          speed_mismatch=float(mismatch[row]))
             iv.terms = terms
-            if sat[row] > 0.02:
+            if sat[row] > MAX_SATURATED_FRACTION:
                 iv.rejected = f"current at its limit for {sat[row]:.0%} of the reverse stroke"
-            elif mismatch[row] > 0.2:
+            elif mismatch[row] > MAX_SPEED_MISMATCH:
                 iv.rejected = f"reverse speed at phi1 differs by {mismatch[row]:.0%} from the forward speed"
         return out
 
@@ -507,7 +509,7 @@ class RunBalance:
         T = got["terms"]
         lam = inertia_from_terms(T, self.J_h)
         sat, mismatch = self._saturation_and_mismatch(T, got["k4s"])
-        keep = ~((sat > 0.02) | (mismatch > 0.2))  # the angles intervals() does not reject
+        keep = ~((sat > MAX_SATURATED_FRACTION) | (mismatch > MAX_SPEED_MISMATCH))  # not rejected by intervals()
         if not keep.any():
             return float("nan")
         g = np.asarray(weights, dtype=float)[good[keep]]
