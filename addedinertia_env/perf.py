@@ -295,8 +295,8 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                      f"{abs(100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1)):.0f} % "
                      f"{'more' if b['samples_per_cpu_s'] > head['samples_per_cpu_s'] else 'less'} CPU than one: each "
                      "shard pays the fixed cost of the numpy calls of every rig sample (about 0.2 ms for some 200 "
-                     "calls, whatever the number of slots) and the parent process relays actions, results and moved "
-                     "records. " if head.get("workers", 1) > 1 else "")
+                     "calls, whatever the number of slots), and the parent process, which steps shard 0 itself, also "
+                     "relays the other shards' actions, results and moved records. " if head.get("workers", 1) > 1 else "")
                   + "Per episode "
                   f"the identification ({ident_ms:,.1f} CPU-ms) costs "
                   f"{'more' if ident_ms > per_episode / e['samples_per_cpu_s'] * 1e3 else 'less'} than stepping its "
@@ -305,7 +305,8 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   f"{ident_ms * 1e3 / per_episode:.2f} CPU-us of end-of-episode work; 1 M samples/s on "
                   f"{head.get('workers', 1)} cores needs at most {head.get('workers', 1):g} CPU-us per sample all in.", "",
                   "`gym.make_vec(\"AddedInertia/ReverseStroke-v0\", num_envs=N)` gives the batched env (its",
-                  "`vector_entry_point`; `workers=W` runs it in W processes); `vectorization_mode=\"sync\"` gives N single",
+                  "`vector_entry_point`; `workers=W` runs it in W processes: shard 0 in the calling one, the others in",
+                  "workers); `vectorization_mode=\"sync\"` gives N single",
                   "envs.", "",
                   "**GPU / torch backend**: none. No GPU machine was available to this work, and a torch backend that",
                   "was never run on a GPU would be an untested claim, so there is none; the batched env is numpy on",

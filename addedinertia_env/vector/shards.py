@@ -1,10 +1,11 @@
 """The batched task over several processes: ``num_envs`` split into shards, one per CPU core.
 
 ``gym.make_vec("AddedInertia/ReverseStroke-v0", num_envs=N, workers=W)`` with ``W`` > 1
-gives :class:`ShardedVectorEnv`: ``W`` worker processes, each running a
+gives :class:`ShardedVectorEnv`: ``W`` shards, each a
 :class:`~addedinertia_env.vector.env.ReverseStrokeVectorEnv` of about ``N / W``
-environments, stepped at the same time (the actions go out to every shard, then every
-shard's results come back and are joined in environment order). Each shard is the
+environments, stepped at the same time: shard 0 in this process, the others in ``W - 1``
+worker processes (the actions go out to the workers, this process steps its own shard
+meanwhile, then every shard's results are joined in environment order). Each shard is the
 one-process vector env, so its episodes, rewards and records are exactly that env's; the
 shard holding environments ``a..b`` is reset with ``seed + a``, so environment ``e``'s first
 episode after ``reset(seed=s)`` is still the single environment's ``reset(seed=s + e)``.
@@ -20,6 +21,10 @@ the most identification work to the one with the least, each shard identifies wh
 every shard finishes its step (:meth:`~.env.ReverseStrokeVectorEnv.finish`). The numbers are the
 same wherever a record is identified; only the wall time changes (the step waits for the
 slowest shard, so without this the shard that happens to have more episodes ending sets it).
+
+Why shard 0 lives in this process rather than in a worker of its own: this process would
+otherwise sit idle while the workers step and then relay their results with the workers idle,
+and on a machine with as many cores as shards a third process only takes turns with them.
 
 Use it when the machine has idle cores: on one busy core it only adds the transfers.
 """
@@ -74,18 +79,19 @@ def _expect(conn, kind: str):
 
 def _settle(conn, env: ReverseStrokeVectorEnv, pending, export: list[int], n_import: int):
     """The second half of a sharded step in a worker (module docstring): send the ``export``
-    records, identify the rest, identify ``n_import`` records of other shards and send their
-    estimates back, take the estimates of the exported records, finish the step."""
+    records, take ``n_import`` records of other shards, identify those and its own others, send
+    the foreign estimates back, take the estimates of the exported records, finish the step.
+    Foreign records are read before any identification, so the shard sending them never waits."""
     records = pending.records
     if export:
         conn.send(("ok", [records[i] for i in export]))
+    foreign = _expect(conn, "foreign") if n_import else []
     moved = set(export)
     estimates: list = [None] * len(records)
     for i, record in enumerate(records):
         if i not in moved:
             estimates[i] = estimate_lambda66(record)
     if n_import:
-        foreign = _expect(conn, "foreign")
         conn.send(("ok", [estimate_lambda66(r) for r in foreign]))
     if export:
         for i, estimate in zip(export, _expect(conn, "estimates")):
@@ -150,8 +156,9 @@ def _join(parts: list, sizes: list[int]) -> Any:
 
 
 class ShardedVectorEnv(VectorEnv):
-    """``num_envs`` reverse-stroke environments in ``workers`` processes (module docstring);
-    the other keyword arguments are those of :class:`~addedinertia_env.vector.env.ReverseStrokeVectorEnv`."""
+    """``num_envs`` reverse-stroke environments in ``workers`` processes, shard 0 in this one
+    (module docstring); the other keyword arguments are those of
+    :class:`~addedinertia_env.vector.env.ReverseStrokeVectorEnv`."""
 
     def __init__(self, num_envs: int, workers: int = 2, **kwargs: Any):
         if not (isinstance(workers, int) and 2 <= workers <= num_envs):
@@ -161,21 +168,25 @@ class ShardedVectorEnv(VectorEnv):
         self.sizes = [base + (k < extra) for k in range(workers)]
         self.offsets = np.concatenate([[0], np.cumsum(self.sizes)])
         self.num_envs = num_envs
+        self._closed = False
         ctx = mp.get_context()
-        self._conns, self._procs = [], []
-        for n in self.sizes:
+        self._conns, self._procs = [], []  # workers: shards 1 .. W-1
+        for n in self.sizes[1:]:
             parent, child = ctx.Pipe()
             proc = ctx.Process(target=_worker, args=(child, n, kwargs), daemon=True)
             proc.start()
             child.close()
             self._conns.append(parent)
             self._procs.append(proc)
-        self._closed = False
-        self._gather()
+        try:
+            self.local = ReverseStrokeVectorEnv(self.sizes[0], **kwargs)  # shard 0, built while the workers build theirs
+        finally:
+            self._gather()
         (self.single_observation_space, self.single_action_space, self.observation_space, self.action_space,
          self.metadata) = ReverseStrokeVectorEnv.spaces(num_envs, **kwargs)
 
     def _gather(self) -> list:
+        """Every worker's next answer, in shard order (shard 1 first); the first error is raised after all are read."""
         out = []
         error = None
         for conn in self._conns:
@@ -188,86 +199,134 @@ class ShardedVectorEnv(VectorEnv):
             raise RuntimeError(f"a shard of the vector env failed: {name}: {message}\n{trace}")
         return out
 
-    def _all(self, command: str, args_per_shard: list) -> list:
-        for conn, args in zip(self._conns, args_per_shard):
+    def _send_all(self, command: str, args_per_worker: list) -> None:
+        for conn, args in zip(self._conns, args_per_worker):
             conn.send((command, args))
+
+    def _all(self, command: str, args_per_worker: list) -> list:
+        self._send_all(command, args_per_worker)
         return self._gather()
+
+    def _rows(self, values) -> list:
+        """``values`` (one row per environment) cut into the shards' parts."""
+        return [values[lo:hi] for lo, hi in zip(self.offsets[:-1], self.offsets[1:])]
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         """Reset every shard (``seed`` an int: the shard holding environments ``a..b`` gets ``seed + a``; or a list, one per environment); returns the joined ``(obs, info)``."""
         if seed is None or isinstance(seed, (int, np.integer)):
             seeds = [None if seed is None else int(seed) + int(a) for a in self.offsets[:-1]]
         else:
-            seeds = [list(seed)[a:b] for a, b in zip(self.offsets[:-1], self.offsets[1:])]
-        out = self._all("reset", [{"seed": s, "options": options} for s in seeds])
+            seeds = self._rows(list(seed))
+        self._send_all("reset", [{"seed": s, "options": options} for s in seeds[1:]])
+        try:
+            mine = self.local.reset(seed=seeds[0], options=options)
+        finally:
+            out = [None] + self._gather()
+        out[0] = mine
         return np.concatenate([o for o, _ in out]), _join([i for _, i in out], self.sizes)
 
     def step(self, actions):
         """Step every shard with its rows of ``actions`` at the same time; returns ``(obs, rewards, terminated, truncated, info)`` joined in environment order."""
-        a = np.asarray(actions).reshape(self.num_envs, -1)
-        loads = self._all("advance", [a[lo:hi] for lo, hi in zip(self.offsets[:-1], self.offsets[1:])])
-        moves = self._plan(loads)
+        parts = self._rows(np.asarray(actions).reshape(self.num_envs, -1))
+        self._send_all("advance", parts[1:])
+        try:
+            pending = self.local.advance(parts[0])
+        finally:
+            loads = [None] + self._gather()
+        loads[0] = [len(r) for r in pending.records]
+        estimates = self._settle(pending, self._plan(loads))
+        mine = self.local.finish(pending, estimates)
+        outs = [mine] + self._gather()
+        obs, rew, term, trunc, infos = zip(*outs)
+        return (np.concatenate(obs), np.concatenate(rew), np.concatenate(term), np.concatenate(trunc),
+                _join(list(infos), self.sizes))
+
+    def _settle(self, pending, moves: list[tuple[int, int, int]]) -> list:
+        """The identification half of a step (module docstring): tell each worker what it sends and
+        takes, relay the moved records, identify shard 0's share here while the workers identify
+        theirs, and route the moved records' estimates back. Returns shard 0's estimates, in the
+        order of ``pending.records``; the workers then finish their steps on their own."""
         exports: dict[int, list[int]] = {}
         imports: dict[int, list[tuple[int, int]]] = {}  # importer -> (exporter, position in its export list)
         for src, i, dst in moves:
             exports.setdefault(src, []).append(i)
             imports.setdefault(dst, []).append((src, len(exports[src]) - 1))
-        for k, conn in enumerate(self._conns):
-            conn.send(("settle", (exports.get(k, []), len(imports.get(k, [])))))
-        sent = {k: self._gather_one(k) for k in exports}
+        self._send_all("settle", [(exports.get(k, []), len(imports.get(k, []))) for k in range(1, len(self.sizes))])
+        sent = {k: self._gather_one(k) for k in exports if k}
+        if 0 in exports:
+            sent[0] = [pending.records[i] for i in exports[0]]
         for dst, items in imports.items():
-            self._conns[dst].send(("foreign", [sent[src][pos] for src, pos in items]))
+            if dst:
+                self._conns[dst - 1].send(("foreign", [sent[src][pos] for src, pos in items]))
+        moved = set(exports.get(0, []))
+        estimates: list = [None] * len(pending.records)
+        for i, record in enumerate(pending.records):
+            if i not in moved:
+                estimates[i] = estimate_lambda66(record)
         back = {k: [None] * len(v) for k, v in exports.items()}
+        for src, pos in imports.get(0, []):
+            back[src][pos] = estimate_lambda66(sent[src][pos])
         for dst, items in imports.items():
-            for (src, pos), estimate in zip(items, self._gather_one(dst)):
-                back[src][pos] = estimate
-        for k, estimates in back.items():
-            self._conns[k].send(("estimates", estimates))
-        out = self._gather()
-        obs, rew, term, trunc, infos = zip(*out)
-        return (np.concatenate(obs), np.concatenate(rew), np.concatenate(term), np.concatenate(trunc),
-                _join(list(infos), self.sizes))
+            if dst:
+                for (src, pos), estimate in zip(items, self._gather_one(dst)):
+                    back[src][pos] = estimate
+        for k, values in back.items():
+            if k:
+                self._conns[k - 1].send(("estimates", values))
+        for i, estimate in zip(exports.get(0, []), back.get(0, [])):
+            estimates[i] = estimate
+        return estimates
 
     def _plan(self, loads: list[list[int]]) -> list[tuple[int, int, int]]:
         """The records to identify in another shard this step (:func:`balance_plan`)."""
         return balance_plan(loads)
 
+    def _shard_of(self, env: int) -> int:
+        return int(np.searchsorted(self.offsets, env, side="right") - 1)
+
     def record(self, env: int = 0, run_id: str = "run"):
         """Environment ``env``'s current (or just finished) episode as a run record (no tail)."""
-        k = int(np.searchsorted(self.offsets, env, side="right") - 1)
-        self._conns[k].send(("record", (env - int(self.offsets[k]), run_id)))
+        k = self._shard_of(env)
+        if k == 0:
+            return self.local.record(env, run_id)
+        self._conns[k - 1].send(("record", (env - int(self.offsets[k]), run_id)))
         return self._gather_one(k)
 
     def _gather_one(self, k: int):
-        status, value = self._conns[k].recv()
+        """Worker shard ``k``'s (k >= 1) next answer; raises its error."""
+        status, value = self._conns[k - 1].recv()
         if status == "error":
             raise RuntimeError(f"a shard of the vector env failed: {value[0]}: {value[1]}\n{value[2]}")
         return value
 
     def worker_cpu_s(self) -> float:
-        """CPU time used so far by the worker processes together, s (``time.process_time`` in each)."""
+        """CPU time used so far by the worker processes together, s (``time.process_time`` in each;
+        shard 0's is this process's own)."""
         return float(sum(self._all("cpu", [None] * len(self._conns))))
 
     @property
     def episodes_ended(self) -> int:
         """Episodes ended so far, summed over the shards."""
-        return int(sum(self._all("get", ["episodes_ended"] * len(self._conns))))
+        return self.local.episodes_ended + int(sum(self._all("get", ["episodes_ended"] * len(self._conns))))
 
     @property
     def score_episodes(self) -> bool:
         """Whether ended episodes are identified and scored (set on every shard at once)."""
-        return bool(self._all("get", ["score_episodes"] * len(self._conns))[0])
+        return bool(self.local.score_episodes)
 
     @score_episodes.setter
     def score_episodes(self, value: bool) -> None:
-        if hasattr(self, "_conns"):
+        if hasattr(self, "local"):
+            self.local.score_episodes = value
             self._all("set", [("score_episodes", value)] * len(self._conns))
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Tell every worker to stop and wait for it (10 s, then terminate); safe to call twice."""
+        """Close shard 0, tell every worker to stop and wait for it (10 s, then terminate); safe to call twice."""
         if self._closed:
             return
         self._closed = True
+        if hasattr(self, "local"):
+            self.local.close()
         for conn in self._conns:
             try:
                 conn.send(("close", None))
