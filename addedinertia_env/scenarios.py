@@ -20,7 +20,7 @@ from .experiment.protocol import ExperimentPlan
 from .rig.control_loop import ControlLoop, LoopRig
 from .rig.effects import Effects
 from .rig.params import RigParams
-from .rig.presets import CONFIG_DIR, ConfigError, load_preset, rig_from_mapping, sensors_for_quality
+from .rig.presets import CONFIG_DIR, ConfigError, load_preset, rig_from_mapping, rig_path, sensors_for_quality
 from .experiment.protocol import plan_from_preset
 
 RANGE_KEYS = {"lambda_ratio", "drag_coefficient", "b1", "period_s", "J_flywheel", "k_t", "alpha", "hold_s",
@@ -74,6 +74,26 @@ def load_ranges(path: str | Path | None = None) -> dict[str, Any]:
     return data
 
 
+_BASE_CACHE: dict[tuple, tuple[dict[str, Any], RigParams]] = {}
+
+
+def _preset_base(preset: str, hydrodynamics: str | dict | None) -> tuple[dict[str, Any], RigParams]:
+    """Preset ``preset``'s mapping (read only: callers must not change it) and its rig, built once
+    per file version and hydrodynamic model (environments draw a scenario per episode; the rig's
+    parameter blocks are frozen dataclasses, so sharing them is safe)."""
+    if isinstance(hydrodynamics, dict):  # not hashable: built each time
+        data = load_preset(preset)
+        return data, rig_from_mapping(data, hydrodynamics=hydrodynamics)
+    path = rig_path(preset)
+    key = (str(path.resolve()), path.stat().st_mtime_ns, hydrodynamics)
+    if key not in _BASE_CACHE:
+        if len(_BASE_CACHE) >= 64:  # a bounded cache: many presets or file versions start it afresh
+            _BASE_CACHE.clear()
+        data = load_preset(preset)
+        _BASE_CACHE[key] = (data, rig_from_mapping(data, hydrodynamics=hydrodynamics))
+    return _BASE_CACHE[key]
+
+
 def make_scenario(seed: int, preset: str = "wigley-2m", ranges: dict[str, Any] | None = None,
                   fixed: dict[str, Any] | None = None, effects: Effects | None = None,
                   name: str | None = None, hydrodynamics: str | dict | None = None) -> Scenario:
@@ -94,8 +114,7 @@ def make_scenario(seed: int, preset: str = "wigley-2m", ranges: dict[str, Any] |
             lo, hi = ranges.get(key, [math.nan, math.nan])
             pick = float(rng.uniform(lo, hi)) if math.isfinite(lo) else None
         draw[key] = fixed.get(key, pick)
-    preset_data = load_preset(preset)
-    base = rig_from_mapping(preset_data, hydrodynamics=hydrodynamics)
+    preset_data, base = _preset_base(preset, hydrodynamics)
     hull, motor, spring = base.hull, base.motor, base.spring
     if draw["lambda_ratio"] is not None:
         hull = dataclasses.replace(hull, lambda66=draw["lambda_ratio"] * hull.J_hull)
