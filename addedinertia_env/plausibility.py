@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .run_record import RecordError, RunRecord
+from .series_stats import median
 
 MARGIN = 1.5  # how far a measured value may exceed a limit derived from physics (sensor gain, noise)
 LIMIT_MARGIN = 2.0  # how far |i| or |u| may exceed the rig's stated i_max / u_max
@@ -149,16 +150,7 @@ def _noise(x: np.ndarray) -> float:
     if x.size < 3:
         return 0.0
     d2 = np.diff(x, 2)
-    return float(1.4826 * _median(np.abs(d2 - _median(d2))) / math.sqrt(6.0))
-
-
-def _median(x: np.ndarray) -> float:
-    """``np.median`` of a non-empty 1-D float array, by sorting (the same number, faster on these sizes)."""
-    s = np.sort(x)
-    if np.isnan(s[-1]):  # NaNs sort last; np.median returns nan then
-        return math.nan
-    k = len(s) // 2
-    return s[k] if len(s) % 2 else (s[k - 1] + s[k]) / 2.0
+    return float(1.4826 * median(np.abs(d2 - median(d2))) / math.sqrt(6.0))
 
 
 def _robust_max_rate(t: np.ndarray, x: np.ndarray) -> float:

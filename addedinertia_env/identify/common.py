@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..record import RunRecord
+from ..series_stats import median_step
 
 
 class IdentificationError(ValueError):
@@ -140,16 +141,20 @@ def smooth_angles(t: np.ndarray, angles, window_s: float = 0.04, degree: int = 3
     """:func:`smooth_angle` of several angle series sampled at the same instants ``t``."""
     if len(t) < 2:  # a block of one sample (a bench's sensed brake a sample off the phase change)
         return [np.asarray(a, dtype=float) for a in angles]
-    dt = float(np.median(np.diff(t)))
+    dt = float(median_step(t))
     n = max(degree + 2, int(round(window_s / dt)) | 1)
     return [a.astype(float) if len(a) <= n else savgol(a, n, degree) for a in angles]
 
 
 def prepare() -> None:
-    """Load now what the methods load on first use (``scipy.signal``, about a second of imports),
+    """Load now what the methods load on first use (``scipy.signal``, about a second of imports; numba's kernels),
     so that a process's first identification costs what the others do (the batched env calls this
-    when it is built to score episodes)."""
+    when it is built to score episodes); the compiled kernels are loaded (or compiled) here too."""
     from scipy.signal import savgol_coeffs  # noqa: F401, PLC0415
+
+    from ..series_kernels import warm_up  # noqa: PLC0415
+
+    warm_up()
 
 
 @lru_cache(maxsize=64)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..series_kernels import fit_windows, polynomial_roots_near_zero
 from .common import IdentificationError
 
 SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
@@ -47,20 +48,6 @@ def _first_crossings_plain(phi: np.ndarray, a: int, b: int, levels: np.ndarray, 
     return np.where(hit.any(axis=1), a + first + 1, -1) if hit.shape[1] else np.full(len(levels), -1)
 
 
-def _windows(t: np.ndarray, tc: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
-    """First and one-past-last sample with ``|t - tc| <= half_width`` (``t`` ascending)."""
-    n = len(t)
-    lo = np.clip(np.searchsorted(t, tc - half_width, side="left") - 2, 0, n)
-    hi = np.clip(np.searchsorted(t, tc + half_width, side="right") + 2, 0, n)
-    # the exact test on the candidates (a couple of samples past each end)
-    idx = lo[:, None] + np.arange(int(np.max(hi - lo, initial=0)))[None, :]
-    inside = (idx < hi[:, None]) & (np.abs(t[np.minimum(idx, n - 1)] - tc[:, None]) <= half_width)
-    any_inside = inside.any(axis=1)
-    first = lo + np.argmax(inside, axis=1)
-    stop = lo + inside.shape[1] - np.argmax(inside[:, ::-1], axis=1)
-    return np.where(any_inside, first, lo), np.where(any_inside, stop, lo)
-
-
 def _polyval(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Power series with per-row coefficients ``coef`` (fits x terms) at ``x`` (Horner, as ``polyval``)."""
     out = coef[:, -1] + x * 0
@@ -88,7 +75,7 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     tc = t[ks]
     ascending = bool(np.all(np.diff(t) >= 0))
     if ascending:
-        first, stop = _windows(t, tc, half_width)
+        first, stop = fit_windows(t, tc, float(half_width))
     else:  # not sorted: the plain test over the whole record
         sels = [np.nonzero(np.abs(t - c) <= half_width)[0] for c in tc]
         first = np.array([s[0] if len(s) else 0 for s in sels], dtype=np.int64)
@@ -125,14 +112,9 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
             P = np.linalg.pinv(X)
             coef[g] = np.matmul(P, y[:, :, None])[:, :, 0]  # (fits, degree + 1)
             groups.append((g, idx, y, X, P, False))
-    # Newton on poly(x) = level for every fit at once (element by element, as fit by fit)
+    # Newton on poly(x) = level for every fit (8 steps at most; a fit stops at its fixed point)
     dcoef = coef[:, 1:] * powers[1:]
-    x = np.zeros(n_fit)
-    for _ in range(8):
-        x_next = x - (_polyval(coef, x) - levels) / _polyval(dcoef, x)
-        if np.array_equal(x_next, x):  # a fixed point: the remaining steps would not move it
-            break
-        x = x_next
+    x = polynomial_roots_near_zero(coef, dcoef, levels, 8)
     rate[:] = _polyval(dcoef, x) / half_width
     out_t[:] = tc + x * half_width
     grad_all = np.where(powers > 0, powers * x[:, None] ** np.maximum(powers - 1, 0), 0.0) / half_width

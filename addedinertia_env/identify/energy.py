@@ -62,6 +62,8 @@ from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
 from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol, segment,
                      smooth_angle, smooth_angles)
+from ..series_kernels import twice_integrated
+from ..series_stats import median_step
 from .crossings import crossing_fits, first_crossings
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
@@ -323,7 +325,7 @@ class RunBalance:
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         if work == "reaction" and FLYWHEEL_CALIBRATION:
-            dt_median = float(np.median(np.diff(t)))
+            dt_median = float(median_step(t))
             start = max(self.k3 - _n_samples(dt_median, 1.0), hold.start if hold is not None else self.k3) + 1
             # The fit stays inside the reverse stroke with its lag grid (the record may end there).
             end = rev.stop - 1 - _n_samples(dt_median, MAX_LAG_S) - 2
@@ -749,14 +751,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     half_dtt = 0.5 * np.diff(tt)
 
     def twice(x):  # trapezoid integral of the integral, from 0, along the last axis
-        out = x
-        for _ in range(2):
-            step = out[..., 1:] + out[..., :-1]
-            step *= half_dtt  # 0.5 (exact) times the interval: the trapezoid
-            out = np.empty(x.shape)
-            out[..., 0] = 0.0
-            np.cumsum(step, axis=-1, out=out[..., 1:])
-        return out
+        return twice_integrated(np.atleast_2d(x), half_dtt).reshape(np.shape(x))
 
     y = target = th + twice(friction) / J_f  # the angle the fit explains (kept for the final fit)
     lags = np.arange(-2e-3, MAX_LAG_S + 1e-9, 2.5e-4)
@@ -778,7 +773,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     den = rss[j - 1] - 2 * rss[j] + rss[j + 1]
     step = lags[1] - lags[0]
     sigma_lag = float(np.sqrt(2.0 * rss[j] / (len(tt) - 3) * step**2 / den)) if den > 0 else np.inf
-    if sigma_lag > LAG_PRECISION * float(np.median(np.diff(tt))):
+    if sigma_lag > LAG_PRECISION * float(median_step(tt)):
         return None  # a smooth current: lag and scale trade off against each other
     frac = 0.5 * (rss[j - 1] - rss[j + 1]) / den if den > 0 else 0.0
     lag = float(lags[j] + frac * (lags[1] - lags[0]))
@@ -916,7 +911,7 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c
     """
     t, phi = rec.t, rec["phi"]
     a = free.start + (k2 - free.start) // 3
-    dt = float(np.median(np.diff(t[free])))
+    dt = float(median_step(t[free]))
     win = max(7, int(round(DAMPING_FIT_WINDOW_S / dt)) | 1)
     if k2 - a < 2 * win:
         return None
@@ -944,7 +939,7 @@ class _DissipationMismatch:
     def __init__(self, t, phi, free, k2, k3, rev, law, direction):
         def speed_over_angle(a: int, b: int):
             lo, hi = max(a, 0), min(b, len(t) - 1)
-            dt = float(np.median(np.diff(t[lo:hi])))
+            dt = float(median_step(t[lo:hi]))
             win = max(7, int(round(DAMPING_FIT_WINDOW_S / dt)) | 1)
             speed = np.abs(savgol(phi[lo:hi + 1], win, 3, deriv=1, delta=dt))
             ang = phi[lo:hi + 1]

@@ -1,0 +1,89 @@
+"""Compiled loops over sample series (numba), for the energy method's identification.
+
+Each kernel is the one implementation of its computation (the numpy code it replaced is
+gone); its docstring says which numpy expression it equals and whether bit for bit (same
+operations in the same order) or to float rounding. ``tests/test_series_kernels.py``
+holds every kernel to an independent reference (numpy, scipy). Compiled with
+``cache=True`` (the machine code is kept in ``__pycache__``), never ``fastmath``: IEEE
+operations in source order, so sequential sums are those of ``np.cumsum``, and
+``error_model="numpy"``: a division by zero gives inf or nan as in numpy, never an exception.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, error_model="numpy")
+def twice_integrated(x, half_dt):
+    """Per row of ``x`` (rows, m): the trapezoid integral of the trapezoid integral from 0, for
+    sample intervals ``2 half_dt`` (m - 1). Equals, bit for bit, twice
+    ``out = concatenate([0], cumsum((out[1:] + out[:-1]) * half_dt))`` along each row."""
+    rows, m = x.shape
+    out = np.empty((rows, m))
+    for r in range(rows):
+        first_prev = 0.0  # the first integral at sample k
+        second = 0.0
+        out[r, 0] = 0.0
+        for k in range(m - 1):
+            first_next = first_prev + (x[r, k + 1] + x[r, k]) * half_dt[k]
+            second = second + (first_next + first_prev) * half_dt[k]
+            out[r, k + 1] = second
+            first_prev = first_next
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def fit_windows(t, tc, half_width):
+    """First and one-past-last sample with ``|t - tc[j]| <= half_width`` for each ``tc[j]`` (``t``
+    ascending; both the first candidate when none is inside). Exact: the candidates a couple of samples
+    past ``searchsorted`` of ``tc -+ half_width`` are tested with ``abs(t - tc) <= half_width``."""
+    n = len(t)
+    first = np.empty(len(tc), dtype=np.int64)
+    stop = np.empty(len(tc), dtype=np.int64)
+    for j in range(len(tc)):
+        lo = min(max(np.searchsorted(t, tc[j] - half_width, side="left") - 2, 0), n)
+        hi = min(max(np.searchsorted(t, tc[j] + half_width, side="right") + 2, 0), n)
+        a, b = lo, lo
+        for k in range(lo, hi):
+            if abs(t[k] - tc[j]) <= half_width:
+                if b == a:
+                    a = k
+                b = k + 1
+        first[j], stop[j] = a, b
+    return first, stop
+
+
+@njit(cache=True, error_model="numpy")
+def polynomial_roots_near_zero(coef, dcoef, levels, steps):
+    """For each row ``j``: Newton's iterate for ``p_j(x) = levels[j]`` from ``x = 0``, at most ``steps``
+    steps, stopping at a fixed point; ``p_j`` the power series ``coef[j]`` (increasing powers) and
+    ``dcoef[j]`` its derivative's. Horner as ``np.polynomial.polynomial.polyval`` (``c[-1] + x * 0``, then
+    ``c[k] + y * x``), bit for bit the vectorised iteration over all rows."""
+    rows, terms = coef.shape
+    out = np.empty(rows)
+    for j in range(rows):
+        x = 0.0
+        for _ in range(steps):
+            p = coef[j, terms - 1] + x * 0.0
+            for k in range(terms - 2, -1, -1):
+                p = coef[j, k] + p * x
+            dp = dcoef[j, terms - 2] + x * 0.0
+            for k in range(terms - 3, -1, -1):
+                dp = dcoef[j, k] + dp * x
+            x_next = x - (p - levels[j]) / dp
+            if x_next == x:
+                break
+            x = x_next
+        out[j] = x
+    return out
+
+
+def warm_up() -> None:
+    """Load every kernel's machine code now (from the cache, or compiled: a few seconds once), so that
+    the first identification in a process costs what the others do."""
+    t = np.arange(8) * 1e-3
+    twice_integrated(np.ones((1, 8)), 0.5 * np.diff(t))
+    fit_windows(t, t[:2], 2e-3)
+    polynomial_roots_near_zero(np.ones((1, 3)), np.ones((1, 2)), np.zeros(1), 8)

@@ -1,0 +1,92 @@
+"""The compiled series kernels (addedinertia_env/series_kernels.py) against independent references:
+numpy's own routines, written out here the way the identification computed them before."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addedinertia_env.series_kernels import fit_windows, polynomial_roots_near_zero, twice_integrated
+from addedinertia_env.series_stats import median, median_step
+
+
+def _twice_by_cumsum(x, half_dt):
+    out = x
+    for _ in range(2):
+        step = (out[..., 1:] + out[..., :-1]) * half_dt
+        nxt = np.empty(x.shape)
+        nxt[..., 0] = 0.0
+        np.cumsum(step, axis=-1, out=nxt[..., 1:])
+        out = nxt
+    return out
+
+
+@pytest.mark.parametrize("rows, m", [(1, 2), (1, 500), (16, 3001), (3, 7)])
+def test_twice_integrated_equals_two_cumulative_trapezoids(rows, m):
+    rng = np.random.default_rng(m)
+    t = np.cumsum(1e-3 * (1.0 + 0.3 * rng.random(m)))
+    x = rng.normal(size=(rows, m)) * 10.0 ** rng.uniform(-3, 3, size=(rows, 1))
+    half_dt = 0.5 * np.diff(t)
+    np.testing.assert_array_equal(twice_integrated(x, half_dt), _twice_by_cumsum(x, half_dt))
+    # and it is the double integral: of a constant 1 it is t^2 / 2 (the trapezoid is exact for it)
+    ones = twice_integrated(np.ones((1, m)), half_dt)[0]
+    np.testing.assert_allclose(ones, 0.5 * (t - t[0]) ** 2, rtol=1e-12, atol=1e-18)
+
+
+def test_fit_windows_equal_the_plain_test():
+    rng = np.random.default_rng(3)
+    for case in range(300):
+        n = int(rng.integers(1, 400))
+        t = np.cumsum(rng.choice([0.0, 1e-3, 1e-3, 1e-3, 2.5e-3, 0.05], size=n) + rng.normal(size=n) * 1e-6 * (case % 2))
+        t = np.maximum.accumulate(t)
+        tc = np.concatenate([t[rng.integers(0, n, size=5)], rng.uniform(t[0] - 0.2, t[-1] + 0.2, size=3)])
+        h = float(rng.choice([0.0, 1e-3, 0.01, 0.1]))
+        first, stop = fit_windows(t, tc, h)
+        for j, c in enumerate(tc):
+            sel = np.nonzero(np.abs(t - c) <= h)[0]
+            if len(sel):
+                assert (first[j], stop[j]) == (sel[0], sel[-1] + 1)
+            else:
+                assert stop[j] == first[j]
+
+
+def _polyval_rows(coef, x):
+    out = coef[:, -1] + x * 0
+    for j in range(2, coef.shape[1] + 1):
+        out = coef[:, -j] + out * x
+    return out
+
+
+def test_newton_roots_equal_the_vectorised_iteration_and_the_roots():
+    rng = np.random.default_rng(5)
+    rows = 400
+    coef = rng.normal(size=(rows, 6)) * [1.0, 1.0, 0.3, 0.1, 0.05, 0.02]
+    coef[:, 1] = np.where(np.abs(coef[:, 1]) < 0.3, 0.3, coef[:, 1])  # a slope that a root near 0 needs
+    levels = coef[:, 0] + rng.uniform(-0.2, 0.2, size=rows) * coef[:, 1]
+    dcoef = coef[:, 1:] * np.arange(1, 6)
+    x = np.zeros(rows)
+    for _ in range(8):  # the iteration as crossing_fits ran it on every row at once
+        x_next = x - (_polyval_rows(coef, x) - levels) / _polyval_rows(dcoef, x)
+        if np.array_equal(x_next, x):
+            break
+        x = x_next
+    got = polynomial_roots_near_zero(coef, dcoef, levels, 8)
+    np.testing.assert_array_equal(got, x)
+    converged = np.abs(_polyval_rows(coef, got) - levels) < 1e-12
+    assert converged.mean() > 0.9  # a few random polynomials send Newton away in 8 steps
+    for j in np.nonzero(converged)[0]:  # a root of p(x) - level (numpy's companion-matrix roots)
+        roots = np.polynomial.Polynomial(coef[j] - np.r_[levels[j], 0, 0, 0, 0, 0]).roots()
+        real = roots[np.abs(roots.imag) < 1e-6].real
+        assert np.min(np.abs(real - got[j])) < 1e-9
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 101, 1000, 5001])
+def test_median_equals_numpys(n):
+    rng = np.random.default_rng(n)
+    for x in (rng.normal(size=n), np.round(rng.normal(size=n), 1), np.full(n, 0.25)):
+        assert median(x) == np.median(x)
+        if n >= 2:
+            assert median_step(np.cumsum(x)) == np.median(np.diff(np.cumsum(x)))
+    x = rng.normal(size=n)
+    x[n // 2] = np.nan
+    assert np.isnan(median(x)) and np.isnan(np.median(x))
