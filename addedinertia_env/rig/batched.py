@@ -21,9 +21,11 @@ exact current update is linear in ``(i0, u, Omega)`` for a fixed step, the mean-
 correction is an acceleration, and RK4 applied to a linear system is a fixed linear map.
 So the whole step is a matrix ``G`` (5 x 8 per environment and kind of step), obtained
 by running :func:`reference_substep` on the unit vectors once (:func:`substep_matrix`).
-A physics step is then: the nonlinear torques from :mod:`.forces`, and one product
-``G x`` (a BLAS matrix product when the whole batch shares its parameters). It equals
-stage-by-stage evaluation to rounding (about 1e-15; tests/test_batched.py checks it).
+A physics step is then: the nonlinear torques from :mod:`.forces` (numpy, on the whole
+batch), and one product ``G x`` per environment in the compiled loop
+:func:`~.kernels.linear_substep` (which also applies the open-circuit rule and pauses
+inactive environments). It equals stage-by-stage evaluation to rounding (about 1e-15;
+tests/test_batched.py checks it).
 
 Kinds of step: motor passive (open circuit: no current, ``u`` shows the back-EMF) or
 driven (current or voltage mode; the drive's voltage is set once per sample by
@@ -50,6 +52,7 @@ import numpy as np
 
 from . import forces
 from .integrator import rk4_step
+from .kernels import linear_substep
 from .batched_params import BatchedParams
 from .motor import MODES, current_step, terminal_voltage
 from .noise import batch_keys
@@ -189,14 +192,14 @@ class BatchedRig:
         self.sensors = SensorModel(params, keys=batch_keys(seed, n))
         self._build(params)
         self._X = np.zeros((len(STATE), n), dtype=dtype)  # the state block (rows: STATE)
-        self._Xn = np.zeros_like(self._X)  # the next one (double buffer)
         self.water_rate = np.zeros(n, dtype=dtype)
         # radiation-memory state (rad), one column per environment (no rows without memory)
         self.radiation_x = np.zeros((forces.radiation_state_size(params), n), dtype=dtype)
         self._w_prev = np.zeros(n, dtype=dtype)  # hull rate one physics step ago (forces.centred_rate)
         self.t = np.zeros(n)  # s, float64 always (phase timing)
         self.brake = np.zeros(n, dtype=bool)
-        self._tmp = np.zeros(n, dtype=dtype)
+        self._all = np.ones(n, dtype=bool)  # every environment (driven / running)
+        self._none = np.zeros(n, dtype=bool)
         if initial_reading:  # as MujocoRig: reset and read (takes the first noise sample)
             self.reset()
         else:
@@ -208,15 +211,13 @@ class BatchedRig:
         self.physics_dt = h = p.physics_dt
         self.k_t = forces.true_torque_constant(p)  # N m/A, true (scalar when shared)
         self._k_t_env = p.per_env(self.k_t)
-        self._spring_offset = p.spring.c * forces.true_neutral(p)  # c phi_n, N m
+        self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))  # c phi_n, N m
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)  # motor.terminal_voltage's, per sample
         table = np.stack([substep_matrix(h, kind, *self._map_args(p)) for kind in range(4)])
-        # (kind, out, in, n) in float64, then cast; one column when the physics is shared.
-        self._G_table = table.astype(self.dtype)
+        # (n, kind, out, in) in float64, then cast: one environment's maps contiguous (one
+        # environment, index 0, when the physics is shared).
+        self._G_table = np.ascontiguousarray(np.moveaxis(table, -1, 0)).astype(self.dtype)
         self._shared = table.shape[-1] == 1  # one map for the whole batch
-        self._terms = [[j for j in range(len(STATE)) if np.any(table[:, i, j] != 0)] for i in range(N_OUT)]
-        self._G_env = None  # (5, 8, n) per-environment map for mixed kinds / parameters
-        self._kind_env = None
         self.sensors.p = p
         self.sensors._update_params()
 
@@ -240,23 +241,18 @@ class BatchedRig:
         idx = self._envs(envs)
         p = self.params
         p.set_envs(idx, rigs)
-        if self._shared or self._G_table.shape[-1] != self.n:  # from now on one map per environment
+        if self._shared or self._G_table.shape[0] != self.n:  # from now on one map per environment
             # a copy (writeable) even for one environment, where broadcast_to changes no shape
-            self._G_table = np.broadcast_to(self._G_table, self._G_table.shape[:3] + (self.n,)).copy()
+            self._G_table = np.broadcast_to(self._G_table, (self.n,) + self._G_table.shape[1:]).copy()
             self._shared = False
         h = self.physics_dt
         args = self._map_args(p, idx)
         for kind in range(4):
-            self._G_table[kind][:, :, idx] = substep_matrix(h, kind, *args)
-        terms = [[j for j in range(len(STATE)) if np.any(self._G_table[:, i, j] != 0)] for i in range(N_OUT)]
-        self._terms = terms
+            self._G_table[idx, kind] = np.moveaxis(substep_matrix(h, kind, *args), -1, 0)
         self.k_t = forces.true_torque_constant(p)
         self._k_t_env = p.per_env(self.k_t)
-        self._spring_offset = p.spring.c * forces.true_neutral(p)
+        self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)
-        if self._G_env is not None:  # refresh those columns of the per-environment maps
-            k = self._kind_env[idx]
-            self._G_env[:, :, idx] = np.moveaxis(self._G_table[k, :, :, idx], 0, -1)
         self.sensors.set_envs(idx, batch_keys(list(seeds), len(idx)))
 
     def set_env_params(self, k: int, rig: RigParams, seed=None) -> None:
@@ -369,43 +365,20 @@ class BatchedRig:
         p = self.params
         code = mode_codes(mode, self.n)
         X = self._X
-        driven = code != PASSIVE  # bool, or array of bools
-        scalar = not isinstance(driven, np.ndarray)
-        all_driven = bool(driven) if scalar else bool(driven.all())
-        if (bool(driven) if scalar else bool(driven.any())):
-            self._set_terminal_voltage(code, np.asarray(value, dtype=self.dtype))
-        if not all_driven:
-            X[I, slice(None) if scalar else ~driven] = 0.0
-        kind = 2 * self.brake + driven  # one kind per environment (the brake is per environment)
-        one_kind = bool((kind == kind[0]).all())
-        G = None
-        if one_kind and self._shared:
-            G = self._G_table[int(kind[0]), :, :, 0]
+        if np.isscalar(code):
+            driven = self._none if code == PASSIVE else self._all
         else:
-            self._select_maps(kind)
-        if active is not None:
-            active = np.asarray(active, dtype=bool)
-        paused = None if active is None or active.all() else ~active
+            driven = code != PASSIVE
+        if code != PASSIVE if np.isscalar(code) else driven.any():
+            self._set_terminal_voltage(code, np.asarray(value, dtype=self.dtype))
+        running = self._all if active is None else np.asarray(active, dtype=bool)
+        paused = None if active is None or running.all() else ~running
         h = self.physics_dt
         memory = forces.has_radiation_memory(p)
         water = forces.has_water_memory(p)
-        # the same in every substep: which terminals are open and which environments run
-        open_circuit = not all_driven
-        not_driven = None if scalar else ~driven
-        running = None if paused is None else ~paused
-        clock_step = h if paused is None else np.where(paused, 0.0, h)
         for _ in range(p.physics_substeps):
-            X = self._X
-            if open_circuit:  # open circuit: the terminals show the back-EMF
-                if not_driven is None:
-                    np.multiply(self.k_t, X[OMEGA], out=X[U])
-                else:
-                    np.copyto(X[U], self.k_t * X[OMEGA], where=not_driven)
+            # the held torques (forces.py, on arrays), then the linear step (kernels.linear_substep)
             w_mid = forces.centred_rate(X[W], self._w_prev)
-            if paused is None:
-                self._w_prev[...] = X[W]
-            else:
-                np.copyto(self._w_prev, X[W], where=running)
             q_hull = forces.hull_extra_torque(X[PHI], w_mid, self.water_rate, p)
             if memory:  # radiation memory: the hull feels -mu over the step
                 x_new, mu = forces.radiation_memory_step(self.radiation_x, w_mid, p)
@@ -413,23 +386,20 @@ class BatchedRig:
                 if paused is not None:
                     x_new = np.where(paused, self.radiation_x, x_new)
                 self.radiation_x[...] = x_new
-            np.add(q_hull, self._spring_offset, out=X[F1])
-            X[F2] = forces.flywheel_friction_torque(X[OMEGA], p)
+            f2 = forces.flywheel_friction_torque(X[OMEGA], p)
             if water:
                 dw = h * forces.water_rate_derivative(X[W], self.water_rate, p)
                 if paused is not None:
                     dw = np.where(paused, 0.0, dw)
                 self.water_rate += dw
-            Xn = self._Xn
-            if G is not None:
-                np.matmul(G, X, out=Xn[:N_OUT])
-            else:
-                np.einsum("ijm,jm->im", self._G_env, X, out=Xn[:N_OUT])
-            Xn[U] = X[U]
-            if paused is not None:
-                np.copyto(Xn[:N_OUT], X[:N_OUT], where=paused)
-            self.t += clock_step
-            self._X, self._Xn = Xn, X
+            linear_substep(X, self._G_table, self.brake, driven, running, self._k_t_env, self._per_env(q_hull),
+                           self._spring_offset, self._per_env(f2), self._w_prev, self.t, h)
+
+    def _per_env(self, value) -> np.ndarray:
+        """``value`` as a contiguous array of the batch's dtype and length ``n`` (no copy if it is one)."""
+        if isinstance(value, np.ndarray) and value.shape == (self.n,) and value.dtype == self.dtype:
+            return value
+        return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=self.dtype), (self.n,)))
 
     def _set_terminal_voltage(self, code, value) -> None:
         """The drive's voltage for the coming sample (motor.terminal_voltage), into row U."""
@@ -446,27 +416,12 @@ class BatchedRig:
                 u = terminal_voltage(_Command(mode=MODES[c], value=value), X[I], X[OMEGA], **kw)
                 np.copyto(X[U], u, where=mask, casting="unsafe")  # u broadcasts to the batch
 
-    def _select_maps(self, kind: np.ndarray) -> None:
-        """Per-environment maps for this sample's kinds (only changed columns are rebuilt)."""
-        table = self._G_table  # (4, 5, 8, n or 1)
-        if self._G_env is None:
-            cols = np.arange(self.n) if table.shape[-1] == self.n else np.zeros(self.n, dtype=np.int64)
-            self._G_env = np.ascontiguousarray(np.moveaxis(table[kind, :, :, cols], 0, -1))
-            self._kind_env = kind.copy()
-            return
-        changed = np.nonzero(kind != self._kind_env)[0]
-        if len(changed):
-            cols = changed if table.shape[-1] == self.n else np.zeros(len(changed), dtype=np.int64)
-            self._G_env[:, :, changed] = np.moveaxis(table[kind[changed], :, :, cols], 0, -1)
-            self._kind_env[changed] = kind[changed]
-
     # --- bookkeeping ----------------------------------------------------------------------
     def state_nbytes(self) -> int:
         """Bytes of the per-environment state and work arrays (maps included)."""
-        arrays = [self._X, self._Xn, self.water_rate, self.radiation_x, self._w_prev, self.t, self.brake, self._tmp, self._k_t_env]
+        arrays = [self._X, self.water_rate, self.radiation_x, self._w_prev, self.t, self.brake, self._all, self._none,
+                  self._k_t_env, self._spring_offset]
         total = sum(a.nbytes for a in arrays) + self._G_table.nbytes
-        if self._G_env is not None:
-            total += self._G_env.nbytes + self._kind_env.nbytes
         if self.sensors.delay_samples is not None:
             total += self.sensors._hist.nbytes + self.sensors._pos.nbytes + self.sensors._count.nbytes
         return total

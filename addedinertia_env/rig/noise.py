@@ -53,11 +53,22 @@ def batch_keys(seed, n: int) -> np.ndarray:
     return _mix(base + np.arange(n, dtype=np.uint64) * _GOLDEN)
 
 
-def normal_pairs(keys: np.ndarray, counters: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two independent standard normals per element for readings ``counters`` of ``keys``."""
+def uniform_pairs(keys: np.ndarray, counters: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two uniforms in (0, 1) of readings ``counters`` of ``keys`` (the high and low 32 bits of
+    one SplitMix64 hash each; :func:`~.kernels.noise_uniforms` is the same per element)."""
     z = _mix(keys + (counters.astype(np.uint64) + np.uint64(1)) * _GOLDEN)
     u1 = ((z >> np.uint64(32)).astype(np.float64) + 0.5) * _INV_2_32  # in (0, 1)
     u2 = ((z & _LOW32).astype(np.float64) + 0.5) * _INV_2_32
+    return u1, u2
+
+
+def box_muller(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two independent standard normals per element from two uniforms in (0, 1) (Box-Muller)."""
     r = np.sqrt(-2.0 * np.log(u1))
     angle = _TWO_PI * u2
     return r * np.cos(angle), r * np.sin(angle)
+
+
+def normal_pairs(keys: np.ndarray, counters: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two independent standard normals per element for readings ``counters`` of ``keys``."""
+    return box_muller(*uniform_pairs(keys, counters))

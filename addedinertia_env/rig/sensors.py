@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import forces
-from .noise import batch_keys, normal_pairs
+from .kernels import encoder_readings, noise_uniforms, sensor_readings
+from .noise import batch_keys, box_muller
 
 
 @dataclass(frozen=True)
@@ -65,15 +66,13 @@ def encoder_step(counts: np.ndarray) -> tuple[np.ndarray, bool]:
 
 def quantise_array(x: np.ndarray, counts: np.ndarray, step: tuple[np.ndarray, bool] | None = None) -> np.ndarray:
     """Encoder reading of angles ``x`` (rad) for ``counts`` counts per turn (0: exact);
-    ``step``: :func:`encoder_step` of ``counts``, if already known."""
-    q, all_count = step if step is not None else encoder_step(counts)
-    y = np.floor(x / q + 0.5) * q
-    if all_count:
-        return y.astype(x.dtype, copy=False)
-    return np.where(counts > 0, y, x).astype(x.dtype, copy=False)
-
-
-NOISE_BLOCK = 32  # readings of noise drawn at a time per environment (one vectorised hash call)
+    ``step``: :func:`encoder_step` of ``counts``, if already known (:func:`~.kernels.encoder_reading`)."""
+    q, _ = step if step is not None else encoder_step(counts)
+    x = np.asarray(x)
+    out = np.empty(x.shape, dtype=x.dtype)
+    q = np.broadcast_to(np.where(np.asarray(counts) > 0, q, 0.0), x.shape).reshape(-1)
+    encoder_readings(x.reshape(-1), np.ascontiguousarray(q), out.reshape(-1))
+    return out
 
 
 class SensorModel:
@@ -90,11 +89,9 @@ class SensorModel:
         if self.keys.shape != (n,):
             raise ValueError(f"SensorModel: {self.keys.shape} noise keys for {n} environments")
         self.counters = np.zeros(n, dtype=np.uint64)  # readings taken so far
-        # Noise drawn NOISE_BLOCK readings ahead per environment: z[channel, k - base, env].
-        self._z = np.zeros((2, NOISE_BLOCK, n))
-        self._z_base = np.full(n, np.iinfo(np.int64).max // 2, dtype=np.int64)
         self._hist = None
-        self._cols: np.ndarray | None = None  # 0..n-1, kept (every environment's column)
+        self._cols = np.arange(n)  # every environment's column
+        self._all = np.ones(n, dtype=bool)
         self._update_params()
 
     # --- per-environment state ----------------------------------------------------------
@@ -102,9 +99,13 @@ class SensorModel:
         """Encoder quanta and delay (in samples) per environment from the parameters; allocates the delay line."""
         s = self.p.sensors
         self._phi_step, self._psi_step = encoder_step(s.phi_counts), encoder_step(s.psi_counts)
+        # the quanta as the compiled reading takes them: 0 where an encoder reads exactly
+        self._phi_q = np.where(s.phi_counts > 0, self._phi_step[0], 0.0)
+        self._psi_q = np.where(s.psi_counts > 0, self._psi_step[0], 0.0)
         n = self.p.n
         if not forces.has_channel_delay(self.p):
             self.delay_samples = None
+            self._hist = None
             return
         self.delay_samples = self.p.per_env(forces.channel_delay(self.p)).astype(float) * self.p.sample_rate  # samples
         size = max(16, int(math.ceil(float(np.max(self.delay_samples)))) + 2)
@@ -122,7 +123,6 @@ class SensorModel:
         noise keys, counters at 0, empty delay lines."""
         self.keys[envs] = keys
         self.counters[envs] = 0
-        self._z_base[envs] = np.iinfo(np.int64).max // 2
         self._update_params()
         self.reset(envs)
 
@@ -154,87 +154,45 @@ class SensorModel:
         self._pos[k] = len(entries) % size
 
     # --- readings -----------------------------------------------------------------------
-    def _delayed(self, u, i, cols: np.ndarray):
-        """Push (u, i) into the histories of ``cols`` and return the lagged values."""
-        size = self._hist.shape[1]
-        pos = self._pos[cols]
-        self._hist[0, pos, cols] = u
-        self._hist[1, pos, cols] = i
-        self._pos[cols] = (pos + 1) % size
-        count = np.minimum(self._count[cols] + 1, size)
-        self._count[cols] = count
-        back = np.minimum(self.delay_samples[cols], count - 1)
-        k = np.floor(back).astype(np.int64)
-        frac = back - k
-        newer = (pos - k) % size
-        older = (pos - np.minimum(k + 1, count - 1)) % size
-        lag = self._hist[:, newer, cols] * (1 - frac) + self._hist[:, older, cols] * frac
-        return lag[0], lag[1]
+    _NO_DELAY = (np.zeros((2, 1, 1)), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(0))
 
-    def _normals(self, counters: np.ndarray, envs: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """The pairs of normals of readings ``counters`` (of ``envs``), from the blocks drawn ahead.
-
-        When some environment's block is used up, every environment past half of its block
-        draws anew too, so that the batch's blocks stay in step (few draws per sample)."""
-        n = self.p.n
-        if envs is None:
-            if self._cols is None or len(self._cols) != n:
-                self._cols = np.arange(n)
-            cols, z_base = self._cols, self._z_base
-        else:
-            cols = np.asarray(envs)
-            z_base = self._z_base[cols]
-        offset = counters.astype(np.int64) - z_base
-        stale = (offset < 0) | (offset >= NOISE_BLOCK)
-        if stale.any():
-            redo_sel = np.nonzero(stale | (offset >= NOISE_BLOCK // 2))[0]
-            redo = cols[redo_sel]
-            base = counters[redo_sel].astype(np.int64)
-            k = base[None, :] + np.arange(NOISE_BLOCK)[:, None]
-            z_i, z_u = normal_pairs(np.broadcast_to(self.keys[redo], k.shape), k)
-            self._z[0][:, redo], self._z[1][:, redo] = z_i, z_u
-            self._z_base[redo] = base
-            offset[redo_sel] = 0
-        flat = offset * n + cols
-        return self._z[0].ravel().take(flat), self._z[1].ravel().take(flat)
+    def _normals(self, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pair of normals (current, voltage) of the next reading of environments ``cols``
+        (:func:`~.noise.normal_pairs` at their counters: the hash compiled, Box-Muller in numpy)."""
+        u1, u2 = np.empty(len(cols)), np.empty(len(cols))
+        noise_uniforms(self.keys, self.counters, cols, u1, u2)
+        return box_muller(u1, u2)
 
     def read(self, t, phi, psi, u, i, brake, envs: np.ndarray | None = None,
              active: np.ndarray | None = None) -> BatchedReading:
         """Readings of the given true values: arrays over ``envs`` (indices), or over all.
 
         ``active`` (bool over the same environments): only those take a reading (their
-        noise counter and delay line advance); the others' values are computed but stale.
+        noise counter and delay line advance); the others' values are computed from the
+        undelayed ``u``, ``i`` and their next noise (stale). The arithmetic is
+        :func:`~.kernels.sensor_readings`.
         """
         s = self.p.sensors
-        sel = slice(None) if envs is None else envs
-        if self.delay_samples is not None:
-            cols = np.arange(self.p.n) if envs is None else np.asarray(envs)
-            u_lag, i_lag = u.copy(), i.copy()
-            take = cols if active is None else cols[active]
-            if len(take):
-                ul, il = self._delayed(u if active is None else u[active], i if active is None else i[active], take)
-                if active is None:
-                    u_lag, i_lag = ul, il
-                else:
-                    u_lag[active], i_lag[active] = ul, il
-        else:
-            u_lag, i_lag = u, i
-        counters = self.counters[sel]
-        z_i, z_u = self._normals(counters, envs)
-        if active is None:
-            self.counters[sel] = counters + np.uint64(1)
-        else:
-            self.counters[sel] = counters + active.astype(np.uint64)
-        i_meas = (1.0 + s.current_gain_error[sel]) * i_lag + s.current_offset[sel] + s.current_noise[sel] * z_i
-        u_meas = (1.0 + s.voltage_gain_error[sel]) * u_lag + s.voltage_offset[sel] + s.voltage_noise[sel] * z_u
-        dtype = np.asarray(phi).dtype
         if envs is None:
-            phi_q = quantise_array(phi, s.phi_counts, self._phi_step)
-            psi_q = quantise_array(psi, s.psi_counts, self._psi_step)
+            cols = self._cols
         else:
-            phi_q, psi_q = quantise_array(phi, s.phi_counts[sel]), quantise_array(psi, s.psi_counts[sel])
-        return BatchedReading(t=np.array(t, dtype=float), phi=phi_q, psi=psi_q, u=u_meas.astype(dtype, copy=False),
-                              i=i_meas.astype(dtype, copy=False), brake=np.array(brake, dtype=bool))
+            cols = np.asarray(envs, dtype=np.int64).reshape(-1)
+        m = len(cols)
+        active = (self._all if m == self.p.n else np.ones(m, dtype=bool)) if active is None \
+            else np.asarray(active, dtype=bool)
+        dtype = np.asarray(phi).dtype
+        z_i, z_u = self._normals(cols)
+        out = [np.empty(m, dtype=dtype) for _ in range(4)]
+        if self.delay_samples is None:
+            hist, pos, count, delay = self._NO_DELAY
+        else:
+            hist, pos, count, delay = self._hist, self._pos, self._count, self.delay_samples
+        sensor_readings(cols, active, *(np.asarray(x).reshape(-1) for x in (phi, psi, u, i)), z_i, z_u,
+                        self.counters, s.current_gain_error, s.current_offset, s.current_noise,
+                        s.voltage_gain_error, s.voltage_offset, s.voltage_noise, self._phi_q, self._psi_q,
+                        hist, pos, count, delay, *out)
+        return BatchedReading(t=np.array(t, dtype=float), phi=out[0], psi=out[1], u=out[2], i=out[3],
+                              brake=np.array(brake, dtype=bool))
 
 
 class Sensors:
