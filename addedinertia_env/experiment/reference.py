@@ -17,6 +17,24 @@ from numpy.polynomial import chebyshev as C
 DEFAULT_DEGREE = 11
 
 
+def chebyshev_derivative(coef: np.ndarray) -> np.ndarray:
+    """The derivative's coefficients of a Chebyshev series ``coef`` (1-D, on [-1, 1]): what
+    ``numpy.polynomial.chebyshev.chebder(coef)`` returns, the same numbers (its recurrence, on
+    Python floats: a dozen coefficients cost less than numpy's per-call overhead)."""
+    c = [float(v) for v in coef]
+    n = len(c) - 1
+    if n < 1:
+        return np.zeros(1)  # chebder of a constant: c[:1] * 0
+    der = [0.0] * n
+    for j in range(n, 2, -1):
+        der[j - 1] = (2 * j) * c[j]
+        c[j - 2] += (j * c[j]) / (j - 2)
+    if n > 1:
+        der[1] = 4 * c[2]
+    der[0] = c[1]
+    return np.array(der)
+
+
 @dataclass(frozen=True)
 class StrokeLaw:
     """Smooth fit ``phi = f(t)`` of the decelerating free stroke."""
@@ -28,8 +46,9 @@ class StrokeLaw:
 
     def __post_init__(self) -> None:
         # Derivative series, computed once (the reference is evaluated every control step).
-        object.__setattr__(self, "_d1", C.chebder(self.coef))
-        object.__setattr__(self, "_d2", C.chebder(self.coef, 2))
+        d1 = chebyshev_derivative(self.coef)
+        object.__setattr__(self, "_d1", d1)
+        object.__setattr__(self, "_d2", chebyshev_derivative(d1))
 
     def _x(self, t):
         return (2.0 * np.asarray(t, dtype=float) - (self.t_start + self.t_stop)) / (self.t_stop - self.t_start)
@@ -118,10 +137,10 @@ def fit_stroke(t: np.ndarray, phi: np.ndarray, t_start: float, t_stop_guess: flo
     x = (2.0 * ts - (a + b)) / (b - a)
     coef = C.chebfit(x, ps, degree)
     rms = float(np.sqrt(np.mean((C.chebval(x, coef) - ps) ** 2)))
-    provisional = StrokeLaw(coef=coef, t_start=a, t_stop=b, fit_rms=rms)
-    # Rate zero near the brake time: solve on a fine grid over the last 20 % of the stroke.
+    # Rate zero near the brake time: solve on a fine grid over the last 20 % of the stroke
+    # (the rate of the law on [a, b], StrokeLaw(coef, a, b).rate, without building that law).
     tt = np.linspace(a + 0.8 * (b - a), b, 2001)
-    rr = provisional.rate(tt)
+    rr = C.chebval((2.0 * tt - (a + b)) / (b - a), chebyshev_derivative(coef)) * (2.0 / (b - a))
     sign_change = np.nonzero(np.signbit(rr[:-1]) != np.signbit(rr[1:]))[0]
     if len(sign_change):
         k = sign_change[-1]
