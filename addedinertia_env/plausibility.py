@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .run_record import RecordError, RunRecord
-from .series_stats import median
+from .series_stats import median, quantile
 
 MARGIN = 1.5  # how far a measured value may exceed a limit derived from physics (sensor gain, noise)
 LIMIT_MARGIN = 2.0  # how far |i| or |u| may exceed the rig's stated i_max / u_max
@@ -92,7 +92,7 @@ def check_plausible(rec: RunRecord) -> Limits:
 
     dt = np.diff(t)
     # Flywheel rate, robustly: a single bad sample must not raise the limits it is tested by.
-    omega = _robust_max_rate(t, psi)
+    omega = _robust_max_rate(t, psi, dt)
     hull_amp = float(np.max(np.abs(phi - phi_n)))
 
     # Voltage.
@@ -153,12 +153,13 @@ def _noise(x: np.ndarray) -> float:
     return float(1.4826 * median(np.abs(d2 - median(d2))) / math.sqrt(6.0))
 
 
-def _robust_max_rate(t: np.ndarray, x: np.ndarray) -> float:
-    """A high quantile of ``|dx/dt|`` that a few bad samples cannot raise (rad/s)."""
+def _robust_max_rate(t: np.ndarray, x: np.ndarray, dt: np.ndarray | None = None) -> float:
+    """A high quantile of ``|dx/dt|`` that a few bad samples cannot raise (rad/s); ``dt``: ``np.diff(t)``
+    when already computed."""
     if x.size < 2:
         return 0.0
-    rate = np.abs(np.diff(x) / np.diff(t))
-    return float(np.quantile(rate, 0.99)) if rate.size >= 100 else float(np.median(rate))
+    rate = np.abs(np.diff(x) / (np.diff(t) if dt is None else dt))
+    return quantile(rate, 0.99) if rate.size >= 100 else median(rate)
 
 
 def _line(k: int) -> int:

@@ -19,3 +19,23 @@ def median(x: np.ndarray) -> float:
 def median_step(x: np.ndarray) -> float:
     """``np.median(np.diff(x))`` of a 1-D float array with at least two samples, the same number."""
     return median(x[1:] - x[:-1])
+
+
+def quantile(x: np.ndarray, q: float) -> float:
+    """``np.quantile(x, q)`` (method ``linear``) of a non-empty 1-D float array, the same number, by
+    sorting: the two order statistics around ``(n - 1) q`` blended as numpy's ``_lerp`` does
+    (from below when the fraction is under 0.5, from above otherwise); nan when ``x`` holds a nan."""
+    s = np.sort(x)
+    n = len(s)
+    if np.isnan(s[-1]):
+        return float("nan")
+    v = (n - 1) * q
+    if v >= n - 1:
+        return float(s[-1])
+    if v < 0:
+        return float(s[0])
+    lo = int(np.floor(v))
+    gamma = v - lo
+    a, b = float(s[lo]), float(s[lo + 1])
+    d = b - a
+    return b - d * (1 - gamma) if gamma >= 0.5 else a + d * gamma

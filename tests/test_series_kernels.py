@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from addedinertia_env.series_kernels import fit_windows, polynomial_roots_near_zero, twice_integrated
-from addedinertia_env.series_stats import median, median_step
+from addedinertia_env.series_stats import median, median_step, quantile
 
 
 def _twice_by_cumsum(x, half_dt):
@@ -90,3 +90,15 @@ def test_median_equals_numpys(n):
     x = rng.normal(size=n)
     x[n // 2] = np.nan
     assert np.isnan(median(x)) and np.isnan(np.median(x))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 100, 1001, 5000])
+def test_quantile_equals_numpys(n):
+    rng = np.random.default_rng(n + 7)
+    for q in (0.0, 0.01, 0.5, 0.9, 0.99, 0.995, 1.0):
+        for x in (np.abs(rng.normal(size=n)) * 10.0 ** rng.uniform(-3, 3), np.round(rng.normal(size=n), 1),
+                  np.full(n, 1.5)):
+            assert quantile(x, q) == np.quantile(x, q)
+    x = rng.normal(size=n)
+    x[0] = np.nan
+    assert np.isnan(quantile(x, 0.99)) and np.isnan(np.quantile(x, 0.99))

@@ -60,10 +60,10 @@ import numpy as np
 from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
-from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol, segment,
-                     smooth_angle, smooth_angles)
 from ..series_kernels import twice_integrated
 from ..series_stats import median_step
+from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol,
+                     smooth_angle, smooth_angles)
 from .crossings import crossing_fits, first_crossings
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
@@ -287,7 +287,7 @@ class RunBalance:
     """
 
     def __init__(self, rec: RunRecord, work: str = "reaction", asymmetry_correction: bool = True):
-        rig = rec.known
+        rig = self.known = rec.known
         self.rec, self.work = rec, work
         self.J_h, self.J_f, self.c = rig.J_hull, rig.J_flywheel, rig.c_torsion
         self.phi_n, self.k_t, self.R = rig.phi_neutral, rig.k_t, rig.R
@@ -307,7 +307,8 @@ class RunBalance:
                                           f"(winding inductance, H); the record gives {self.L!r}; use work='reaction'")
         t, phi, psi = rec.t, rec["phi"], rec["psi"]
         self.t, self.phi, self.psi = t, phi, psi
-        free, hold, rev = segment(rec, "free"), segment(rec, "hold"), segment(rec, "reverse")
+        first_blocks, phase_change = _first_blocks(rec)
+        free, hold, rev = first_blocks.get("free"), first_blocks.get("hold"), first_blocks.get("reverse")
         if free is None or rev is None:
             raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
         self.free, self.rev = free, rev
@@ -321,7 +322,7 @@ class RunBalance:
         self.direction = float(np.sign(self.phi2 - self.phi_n))
         # Smoothed angles for the work increments, smoothed phase by phase: a window across the
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
-        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi, psi)
+        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec, phase_change))
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         if work == "reaction" and FLYWHEEL_CALIBRATION:
@@ -345,7 +346,8 @@ class RunBalance:
             sat = current_at_limit(rec["i_cmd"], rig.current_limit)
         self.saturated = sat
         self._sat_count: np.ndarray | None = None  # cumulative count of saturated samples (built once)
-        w2 = self._fit_before.deriv()(0.0) if self._fit_before is not None else self._rest_rate(self.k2, free.start)
+        w2 = (_power_series(_power_series_derivative(self._fit_before), 0.0) if self._fit_before is not None
+              else self._rest_rate(self.k2, free.start))
         w3 = w2 if hold is None else self._rest_rate(self.k3, hold.start)
         self.rest_w2, self.rest_w3 = float(w2), float(w3)  # hull rates at t2 and t3, rad/s
         self.rest_rates_sq = float(w2**2 + w3**2)
@@ -470,20 +472,23 @@ class RunBalance:
         sat, mismatch = self._saturation_and_mismatch(T, k4s)
         names = list(BalanceTerms.__dataclass_fields__)
         columns = [np.asarray(getattr(T, name), dtype=float).tolist() for name in names]  # Python floats, as float()
-        for row, j in enumerate(good.tolist()):
+        # per-row Python floats (tolist: the numbers float() gives), then one pass over the rows
+        rows = zip(good.tolist(), zip(*columns), np.asarray(lam, dtype=float).tolist(), T.w1f.tolist(),
+                   T.w1r.tolist(), s_independent.tolist(), s_common.tolist(), sigma.tolist(),
+                   np.asarray(sat, dtype=float).tolist(), s_current.tolist(), mismatch.tolist(),
+                   fit["f"]["kernel"], fit["r"]["kernel"])
+        for j, values, lam_j, w1f, w1r, s_ind, s_com, sig, sat_j, s_cur, mis, kern_f, kern_r in rows:
             iv = out[j]
-            iv.lambda66, iv.w1f, iv.w1r = float(lam[row]), float(T.w1f[row]), float(T.w1r[row])
-            iv.sigma_independent, iv.sigma_common = float(s_independent[row]), float(s_common[row])
-            iv.sigma = float(sigma[row])
-            terms = {name: col[row] for name, col in zip(names, columns)}
-            terms.update(saturated_frac=float(sat[row]), s_current=float(s_current[row]),
-                         rate_kernel_f=fit["f"]["kernel"][row], rate_kernel_r=fit["r"]["kernel"][row],
-                         speed_mismatch=float(mismatch[row]))
+            iv.lambda66, iv.w1f, iv.w1r = lam_j, w1f, w1r
+            iv.sigma_independent, iv.sigma_common, iv.sigma = s_ind, s_com, sig
+            terms = dict(zip(names, values))
+            terms.update(saturated_frac=sat_j, s_current=s_cur, rate_kernel_f=kern_f, rate_kernel_r=kern_r,
+                         speed_mismatch=mis)
             iv.terms = terms
-            if sat[row] > MAX_SATURATED_FRACTION:
-                iv.rejected = f"current at its limit for {sat[row]:.0%} of the reverse stroke"
-            elif mismatch[row] > MAX_SPEED_MISMATCH:
-                iv.rejected = f"reverse speed at phi1 differs by {mismatch[row]:.0%} from the forward speed"
+            if sat_j > MAX_SATURATED_FRACTION:
+                iv.rejected = f"current at its limit for {sat_j:.0%} of the reverse stroke"
+            elif mis > MAX_SPEED_MISMATCH:
+                iv.rejected = f"reverse speed at phi1 differs by {mis:.0%} from the forward speed"
         return out
 
     def _saturation_and_mismatch(self, T: BalanceTerms, k4s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -527,17 +532,21 @@ class RunBalance:
         lambda66 over the angles is, to first order, one combination of them, whose noise
         is the angle noise times the combined kernel's norm.
         """
-        idxs, parts = [], []
+        idxs, kerns, factors = [], [], []
         for gk, iv in zip(g, ivs):
             denom = 0.5 * (iv.w1f**2 + iv.w1r**2)
             J_total = iv.lambda66 + self.J_h
             for key, w in (("rate_kernel_f", iv.w1f), ("rate_kernel_r", iv.w1r)):
                 idx, kern = iv.terms[key]
                 idxs.append(idx)
-                parts.append(gk * (-J_total * w / denom) * kern)
+                kerns.append(kern)
+                factors.append(gk * (-J_total * w / denom))  # this kernel's weight in the average
         # summed sample by sample in the order above (as adding the kernels one after another)
-        combined = (np.bincount(np.concatenate(idxs), weights=np.concatenate(parts), minlength=len(self.t))
-                    if idxs else np.zeros(len(self.t)))
+        if idxs:
+            parts = np.repeat(np.array(factors, dtype=float), [len(k) for k in kerns]) * np.concatenate(kerns)
+            combined = np.bincount(np.concatenate(idxs), weights=parts, minlength=len(self.t))
+        else:
+            combined = np.zeros(len(self.t))
         for iv in ivs:  # the kernels are bulky; keep the JSON small
             iv.terms.pop("rate_kernel_f", None)
             iv.terms.pop("rate_kernel_r", None)
@@ -563,14 +572,14 @@ class RunBalance:
         """
         phi, k2, k3 = self.phi, self.k2, self.k3
         self._fit_before = None
-        if not self.rec.known.phi_counts:  # an encoder without stated counts: take the readings
+        if not self.known.phi_counts:  # an encoder without stated counts: take the readings
             return float(phi[k2]), float(phi[k3])
-        q = 2.0 * np.pi / self.rec.known.phi_counts
+        q = 2.0 * np.pi / self.known.phi_counts
         fit_before = _crossings_fit(self.t, phi, k2, -REST_FIT_S, q)
         fit_after = _crossings_fit(self.t, phi, k3, REST_FIT_S, q)
         self._fit_before = fit_before
-        before = fit_before(0.0) if fit_before is not None else None
-        after = fit_after(0.0) if fit_after is not None else None
+        before = _power_series(fit_before, 0.0) if fit_before is not None else None
+        after = _power_series(fit_after, 0.0) if fit_after is not None else None
         r2 = before if before is not None else float(phi[k2])
         r3 = after if after is not None else float(phi[k3])
         held = hold is not None and abs(phi[k3] - phi[k2]) <= 1.5 * q
@@ -580,7 +589,7 @@ class RunBalance:
             self._anchor_reverse_start(fit_after, r3)
         return float(r2), float(r3)
 
-    def _anchor_reverse_start(self, fit, rest: float) -> None:
+    def _anchor_reverse_start(self, fit: np.ndarray, rest: float) -> None:
         """Replace the smoothed angle over the reverse stroke's first :data:`REST_FIT_S` by the
         rest-angle fit (blended out over its second half).
 
@@ -591,7 +600,7 @@ class RunBalance:
         end = int(np.searchsorted(t, t[k3] + REST_FIT_S, side="right"))
         tau = t[k3:end] - t[k3]
         blend = np.clip(2.0 - 2.0 * tau / REST_FIT_S, 0.0, 1.0)
-        curve = fit(tau) - fit(0.0) + rest
+        curve = _power_series(fit, tau) - _power_series(fit, 0.0) + rest
         self.phi_s[k3:end] = blend * curve + (1.0 - blend) * self.phi_s[k3:end]
 
     def _rest_rate(self, k: int, start: int, window_s: float = 0.05, angle: np.ndarray | None = None) -> float:
@@ -692,16 +701,18 @@ def interval_mean_current(t: np.ndarray, i: np.ndarray, R: float, L: float,
     return i_ss + (i0 - i1) * tau / h
 
 
-def _smooth_by_phase(rec: RunRecord, *angles: np.ndarray) -> list[np.ndarray]:
+def _smooth_by_phase(rec: RunRecord, *angles: np.ndarray, cuts: np.ndarray | None = None) -> list[np.ndarray]:
     """Encoder angles smoothed within each contiguous block of one phase and brake state.
 
     The work sum ``sum(torque_k * dphi_k)`` is biased where the torque reacts to the same
     quantisation errors as the increments (a controller's feedback does): the smoothing
     must reject the quantisation's high frequencies well. A quintic over 0.2 s leaves
     about 1e-6 J of that correlation on the reverse stroke (a cubic over 40 ms: 3e-5 J,
-    0.03 % of lambda66), while following the stroke itself (period 3-6 s) exactly.
+    0.03 % of lambda66), while following the stroke itself (period 3-6 s) exactly. ``cuts``: the
+    record's :func:`phase_blocks` when already known.
     """
-    cuts = phase_blocks(rec)
+    if cuts is None:
+        cuts = phase_blocks(rec)
     out = [np.empty(len(angle), dtype=float) for angle in angles]
     for a, b in zip(cuts[:-1], cuts[1:]):
         smoothed = smooth_angles(rec.t[a:b], [angle[a:b] for angle in angles], window_s=WORK_SMOOTHING_S, degree=5)
@@ -710,15 +721,33 @@ def _smooth_by_phase(rec: RunRecord, *angles: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def phase_blocks(rec: RunRecord) -> np.ndarray:
+def phase_blocks(rec: RunRecord, phase_change: np.ndarray | None = None) -> np.ndarray:
     """Boundaries of the record's contiguous blocks of one phase and one brake state: sample
-    indices ``[0, ..., len]`` (block ``j`` is ``cuts[j]:cuts[j + 1]``)."""
-    phase = np.asarray(rec.phase)
-    change = phase[1:] != phase[:-1]
+    indices ``[0, ..., len]`` (block ``j`` is ``cuts[j]:cuts[j + 1]``). ``phase_change``: the
+    mask ``phase[1:] != phase[:-1]`` when already computed (it is not changed)."""
+    if phase_change is None:
+        phase = np.asarray(rec.phase)
+        change = phase[1:] != phase[:-1]
+    else:
+        change = phase_change.copy()
     if "brake" in rec.samples:
         b = np.asarray(rec["brake"], dtype=float)
         change |= (b[1:] != b[:-1]) & ~(np.isnan(b[1:]) & np.isnan(b[:-1]))
-    return np.concatenate([[0], np.nonzero(change)[0] + 1, [len(phase)]])
+    return np.concatenate([[0], np.nonzero(change)[0] + 1, [len(rec.phase)]])
+
+
+def _first_blocks(rec: RunRecord) -> tuple[dict[str, slice], np.ndarray]:
+    """The first contiguous block of each phase (what :func:`~.common.segment` gives, for every
+    phase from one comparison), and the phase-change mask ``phase[1:] != phase[:-1]``."""
+    phase = np.asarray(rec.phase)
+    change = phase[1:] != phase[:-1]
+    if not len(phase):
+        return {}, change
+    starts = [0] + (np.nonzero(change)[0] + 1).tolist()
+    first: dict[str, slice] = {}
+    for a, b, label in zip(starts, starts[1:] + [len(phase)], phase[starts].tolist()):
+        first.setdefault(str(label), slice(a, b))
+    return first, change
 
 
 def _n_samples(dt_median: float, span_s: float) -> int:
@@ -858,8 +887,24 @@ def _lagged_twice(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray
     return linear(np.interp(t[a:b + 1][None, :] + lags[:, None], t, i))
 
 
+def _power_series(coef: np.ndarray, x):
+    """``sum(coef[j] x**j)`` at ``x`` (float or array) by Horner's rule, as ``np.polynomial.Polynomial(coef)(x)``
+    computes it (``coef[-1] + x * 0``, then ``coef[j] + y * x``), the same numbers."""
+    y = coef[-1] + x * 0
+    for c in coef[-2::-1]:
+        y = c + y * x
+    return y
+
+
+def _power_series_derivative(coef: np.ndarray) -> np.ndarray:
+    """Coefficients of the derivative of the power series ``coef`` (``Polynomial(coef).deriv().coef``)."""
+    if len(coef) < 2:
+        return coef[:1] * 0
+    return np.array([j * coef[j] for j in range(1, len(coef))])
+
+
 def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float):
-    """The angle (rad) as a function of time from sample ``k`` (s), fitted to the instants where a quantised reading steps, within
+    """The angle (rad) as a function of time from sample ``k`` (s) (power-series coefficients), fitted to the instants where a quantised reading steps, within
     ``span_s`` seconds before (negative) or after (positive) it: a quadratic in time through
     (step instant, midpoint of the two readings), without a linear term after ``k`` (the hull
     starts from rest there). None when fewer than four steps."""
@@ -886,8 +931,8 @@ def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: flo
     X = np.column_stack([np.ones_like(tau), tau, tau**2]) if span_s < 0 else np.column_stack([np.ones_like(tau), tau**2])
     coef, *_ = np.linalg.lstsq(X, levels, rcond=None)
     if span_s < 0:
-        return np.polynomial.Polynomial(coef)
-    return np.polynomial.Polynomial([coef[0], 0.0, coef[1]])
+        return coef
+    return np.array([coef[0], 0.0, coef[1]])
 
 
 def _quantum(angle: np.ndarray, counts: int) -> float:
