@@ -80,6 +80,36 @@ def polynomial_roots_near_zero(coef, dcoef, levels, steps):
     return out
 
 
+
+@njit(cache=True, error_model="numpy")
+def gradient(f, x):
+    """``np.gradient(f, x)`` of a 1-D series ``f`` at the abscissae ``x`` (at least two samples; first-order
+    edges), bit for bit: centred differences ``(f[k+1] - f[k-1]) / (2 dx)`` when every interval equals the
+    first, otherwise numpy's second-order weights for uneven intervals."""
+    n = len(f)
+    out = np.empty(n)
+    dx = x[1:] - x[:-1]
+    uniform = True
+    for k in range(1, n - 1):
+        if dx[k] != dx[0]:
+            uniform = False
+            break
+    if uniform:
+        two_dx = 2.0 * dx[0]
+        for k in range(1, n - 1):
+            out[k] = (f[k + 1] - f[k - 1]) / two_dx
+    else:
+        for k in range(1, n - 1):
+            dx1, dx2 = dx[k - 1], dx[k]
+            a = -(dx2) / (dx1 * (dx1 + dx2))
+            b = (dx2 - dx1) / (dx1 * dx2)
+            c = dx1 / (dx2 * (dx1 + dx2))
+            out[k] = a * f[k - 1] + b * f[k] + c * f[k + 1]
+    out[0] = (f[1] - f[0]) / dx[0]
+    out[n - 1] = (f[n - 1] - f[n - 2]) / dx[n - 2]
+    return out
+
+
 def warm_up() -> None:
     """Load every kernel's machine code now (from the cache, or compiled: a few seconds once), so that
     the first identification in a process costs what the others do."""
@@ -87,3 +117,5 @@ def warm_up() -> None:
     twice_integrated(np.ones((1, 8)), 0.5 * np.diff(t))
     fit_windows(t, t[:2], 2e-3)
     polynomial_roots_near_zero(np.ones((1, 3)), np.ones((1, 2)), np.zeros(1), 8)
+    gradient(t, t)
+    twice_integrated(np.lib.stride_tricks.sliding_window_view(t, 4), 0.5 * np.diff(t[:4]))

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.series_kernels import fit_windows, polynomial_roots_near_zero, twice_integrated
+from addedinertia_env.series_kernels import fit_windows, gradient, polynomial_roots_near_zero, twice_integrated
 from addedinertia_env.series_stats import median, median_step, quantile
 
 
@@ -102,3 +102,12 @@ def test_quantile_equals_numpys(n):
     x = rng.normal(size=n)
     x[0] = np.nan
     assert np.isnan(quantile(x, 0.99)) and np.isnan(np.quantile(x, 0.99))
+
+
+def test_gradient_equals_numpys():
+    rng = np.random.default_rng(11)
+    for n in (2, 3, 4, 50, 3001):
+        f = np.cumsum(rng.normal(size=n))
+        for x in (np.arange(n) * 1e-3, np.cumsum(1e-3 * (1 + 0.2 * rng.random(n))),
+                  np.cumsum(np.where(rng.random(n) < 0.01, 5e-3, 1e-3))):
+            np.testing.assert_array_equal(gradient(f, x), np.gradient(f, x))

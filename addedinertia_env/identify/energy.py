@@ -60,7 +60,7 @@ import numpy as np
 from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
-from ..series_kernels import twice_integrated
+from ..series_kernels import gradient, twice_integrated
 from ..series_stats import median_step
 from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol,
                      smooth_angle, smooth_angles)
@@ -774,7 +774,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     if b - a < 200:
         return None
     tt, th = t[a:b + 1], theta[a:b + 1]
-    om = np.gradient(psi[a:b + 1], tt)  # psi already smoothed phase by phase
+    om = gradient(psi[a:b + 1], tt)  # psi already smoothed phase by phase
     friction = f_visc * om + f_coul * np.sign(om)
 
     half_dtt = 0.5 * np.diff(tt)
@@ -789,10 +789,14 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     # each lag's column is then a one-column fit; the residuals are formed explicitly.
     Q, _ = np.linalg.qr(np.column_stack([np.ones_like(tt), tt - tt[0]]))
 
-    def projected(x):  # the rows with the first two columns projected out
+    def projected(x):  # the rows with the first two columns projected out: x - (x @ Q) @ Q.T, twice
+        out, fit = np.empty(np.shape(x)), np.empty(np.shape(x))  # written in place (no fresh temporaries)
+        src = x
         for _ in range(2):
-            x = x - (x @ Q) @ Q.T
-        return x
+            np.matmul(src @ Q, Q.T, out=fit)
+            np.subtract(src, fit, out=out)
+            src = out
+        return out
 
     y = projected(y)
     rss = _lag_rss(t, i, a, b, lags, lambda x: projected(twice(x)), y)  # k_t / J_f leaves the residuals
@@ -843,7 +847,8 @@ def _lag_rss(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray, lin
         Z = g[rows, None] * base[k[rows]] + frac[rows, None] * base[k[rows] + 1]
         rss[rows] = _explicit_rss(Z, y)
         j = int(np.argmin(rss))
-        if np.all(np.isin([max(j - 1, 0), j, min(j + 1, len(lags) - 1)], rows)):
+        formed = set(rows.tolist())
+        if all(r in formed for r in (max(j - 1, 0), j, min(j + 1, len(lags) - 1))):
             return rss
     return _explicit_rss(_lagged_twice(t, i, a, b, lags, linear), y)
 
@@ -877,7 +882,8 @@ def _lagged_twice(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray
         d = np.diff(t[lo:hi + 1])
         if np.max(np.abs(d - dt)) <= 1e-9 * dt:
             shifts = np.arange(int(n.min()), int(n.max()) + 2)
-            base = linear(np.stack([i[a + s:a + s + m] for s in shifts]))
+            # the shifted copies as one strided view: row r is i[a + shifts[r]:a + shifts[r] + m]
+            base = linear(np.lib.stride_tricks.sliding_window_view(i[a + shifts[0]:a + shifts[-1] + m], m))
             k = n - shifts[0]
             if not blend:
                 return base, k, frac
