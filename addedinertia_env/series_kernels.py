@@ -23,15 +23,52 @@ def twice_integrated(x, half_dt):
     rows, m = x.shape
     out = np.empty((rows, m))
     for r in range(rows):
-        first_prev = 0.0  # the first integral at sample k
+        first = 0.0  # the first integral at sample k
         second = 0.0
         out[r, 0] = 0.0
         for k in range(m - 1):
-            first_next = first_prev + (x[r, k + 1] + x[r, k]) * half_dt[k]
-            second = second + (first_next + first_prev) * half_dt[k]
+            first_next = first + (x[r, k + 1] + x[r, k]) * half_dt[k]
+            second = second + (first_next + first) * half_dt[k]
             out[r, k + 1] = second
-            first_prev = first_next
+            first = first_next
     return out
+
+
+@njit(cache=True, error_model="numpy")
+def lag_ranking(by, gram, k, frac, yy):
+    """The flywheel calibration's ranking of its lags (``energy._lag_rss``): for lag ``j``, the
+    blended column ``z = (1 - f) B[k] + f B[k + 1]`` (``f = frac[j]``, ``k = k[j]``) leaves
+    ``yy - (z.y)^2 / z.z`` (``z.y``, ``z.z`` from ``by = B y`` and ``gram = B B^T``; ``yy`` when
+    ``z.z <= 0``). Returns ``(rss, rows)``: that bound raised by ``2 tol`` plus its spread
+    (``tol = 1e-9 yy``), and the sorted lags within ``tol`` of the smallest bound and their
+    neighbours (the rows to form explicitly). Bit for bit the numpy expressions (nan-propagating
+    min and max)."""
+    n = len(k)
+    bound = np.empty(n)
+    for j in range(n):
+        f = frac[j]
+        g = 1.0 - f
+        a = k[j]
+        zy = g * by[a] + f * by[a + 1]
+        zz = g * g * gram[a, a] + 2.0 * g * f * gram[a, a + 1] + f * f * gram[a + 1, a + 1]
+        bound[j] = yy - (zy * zy / zz if zz > 0 else 0.0)
+    lo, hi = bound[0], bound[0]
+    for j in range(n):
+        v = bound[j]
+        if np.isnan(v) or np.isnan(lo):
+            lo = hi = np.nan
+        else:
+            lo, hi = min(lo, v), max(hi, v)
+    tol = 1e-9 * yy
+    mark = np.zeros(n, dtype=np.bool_)
+    for j in range(n):
+        if bound[j] <= lo + tol:
+            for r in (j - 1, j, j + 1):
+                mark[min(max(r, 0), n - 1)] = True
+    rss = np.empty(n)
+    for j in range(n):
+        rss[j] = bound[j] + 2.0 * tol + (hi - lo)
+    return rss, np.nonzero(mark)[0]
 
 
 @njit(cache=True, error_model="numpy")
@@ -118,4 +155,5 @@ def warm_up() -> None:
     fit_windows(t, t[:2], 2e-3)
     polynomial_roots_near_zero(np.ones((1, 3)), np.ones((1, 2)), np.zeros(1), 8)
     gradient(t, t)
+    lag_ranking(np.ones(3), np.eye(3), np.zeros(2, dtype=np.int64), np.zeros(2), 1.0)
     twice_integrated(np.lib.stride_tricks.sliding_window_view(t, 4), 0.5 * np.diff(t[:4]))

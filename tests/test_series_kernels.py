@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.series_kernels import fit_windows, gradient, polynomial_roots_near_zero, twice_integrated
+from addedinertia_env.series_kernels import (fit_windows, gradient, lag_ranking, polynomial_roots_near_zero,
+                                             twice_integrated)
 from addedinertia_env.series_stats import median, median_step, quantile
 
 
@@ -111,3 +112,29 @@ def test_gradient_equals_numpys():
         for x in (np.arange(n) * 1e-3, np.cumsum(1e-3 * (1 + 0.2 * rng.random(n))),
                   np.cumsum(np.where(rng.random(n) < 0.01, 5e-3, 1e-3))):
             np.testing.assert_array_equal(gradient(f, x), np.gradient(f, x))
+
+
+def test_lag_ranking_equals_the_numpy_expressions():
+    rng = np.random.default_rng(13)
+    for case in range(50):
+        shifts, m = 17, 200
+        base = rng.normal(size=(shifts, m)) * (1.0 if case % 5 else 0.0)  # all-zero rows: z.z = 0
+        y = rng.normal(size=m)
+        lags = np.arange(57)
+        steps = lags * (shifts - 2) / 56.0
+        k = np.floor(steps + 1e-9).astype(np.int64)
+        frac = np.clip(steps - k, 0.0, 1.0)
+        by, gram, yy = base @ y, base @ base.T, float(y @ y)
+        if case % 7 == 0:  # a tie at the smallest bound
+            by[:] = by[0]
+        rss, rows = lag_ranking(by, gram, k, frac, yy)
+        g = 1.0 - frac
+        zy = g * by[k] + frac * by[k + 1]
+        zz = g * g * gram[k, k] + 2.0 * g * frac * gram[k, k + 1] + frac * frac * gram[k + 1, k + 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bound = yy - np.where(zz > 0, zy * zy / zz, 0.0)
+        tol = 1e-9 * yy
+        near = np.nonzero(bound <= np.min(bound) + tol)[0]
+        expect_rows = np.unique(np.clip(np.concatenate([near - 1, near, near + 1]), 0, len(lags) - 1))
+        np.testing.assert_array_equal(rows, expect_rows)
+        np.testing.assert_array_equal(rss, bound + 2.0 * tol + (np.max(bound) - np.min(bound)))

@@ -60,7 +60,7 @@ import numpy as np
 from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
-from ..series_kernels import gradient, twice_integrated
+from ..series_kernels import gradient, lag_ranking, twice_integrated
 from ..series_stats import median_step
 from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol,
                      smooth_angle, smooth_angles)
@@ -833,17 +833,11 @@ def _lag_rss(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray, lin
     blended = _lagged_twice(t, i, a, b, lags, linear, blend=False)
     if blended is not None:
         base, k, frac = blended
-        by, gram = base @ y, base @ base.T
+        # the bound |y|^2 - (z.y)^2 / z.z per lag, and the lags within tol = 1e-9 |y|^2 of the smallest
+        # (far above the bound's rounding, far below a step of rss between lags) with their neighbours;
+        # rss starts above every explicit one
+        rss, rows = lag_ranking(base @ y, base @ base.T, k, frac, float(y @ y))
         g = 1.0 - frac
-        zy = g * by[k] + frac * by[k + 1]
-        zz = g * g * gram[k, k] + 2.0 * g * frac * gram[k, k + 1] + frac * frac * gram[k + 1, k + 1]
-        yy = float(y @ y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            bound = yy - np.where(zz > 0, zy * zy / zz, 0.0)
-        tol = 1e-9 * yy  # far above the rounding of the bound, far below a step of rss between lags
-        near = np.nonzero(bound <= np.min(bound) + tol)[0]
-        rows = np.unique(np.clip(np.concatenate([near - 1, near, near + 1]), 0, len(lags) - 1))
-        rss = bound + 2.0 * tol + (np.max(bound) - np.min(bound))  # above every explicit one
         Z = g[rows, None] * base[k[rows]] + frac[rows, None] * base[k[rows] + 1]
         rss[rows] = _explicit_rss(Z, y)
         j = int(np.argmin(rss))
