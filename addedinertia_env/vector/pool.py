@@ -46,19 +46,22 @@ import numpy as np
 from ..experiment.filters import endpoint_slope_weights
 from ..experiment.reference import MirroredReference, fit_stroke
 from ..experiment.sample_log import make_record
-from ..metrics import current_at_limit, voltage_at_limit
 from ..rig import forces
 from ..rig.batched import CURRENT, PASSIVE, VOLTAGE, BatchedRig
 from ..rig.control_loop import LoopState
 from ..rig.interface import SimulatedRigBase
 from ..rig.sensors import BatchedReading
 from ..scenarios import Scenario
+from .pool_kernels import (BROKEN, ENDED_NOW, EVENTS, OVER, RELEASE, STOP, TO_REVERSE, slot_bookkeeping,
+                           slot_rates)
 from .reference import MirroredReferences
 
 EMPTY, SETTLE, FREE, READY, HOLD, REVERSE, ENDED = range(7)
 STAGE_NAMES = ("empty", "settle", "free", "ready", "hold", "reverse", "ended")
 RING = 64  # samples of encoder history kept for the rate filters and the stop fit
 STAGE = 256  # samples staged before they are copied to the slots' logs
+PAD = 8  # extra positions per ring row (cache sets; see __init__)
+LANES = 8  # slots side by side in the staging block (one 64-byte cache line of float64)
 COLUMNS = ("phi", "psi", "u", "i", "i_cmd", "u_cmd")
 RATE_WINDOW_S = 0.04  # s, as RateEstimator's default
 
@@ -135,15 +138,21 @@ class ExperimentPool:
         self.t = f()
         self.hull_rate, self.fly_rate = f(), f()
         # Encoder history (doubled ring: the last RING samples are one contiguous slice)
-        self._ring = np.zeros((2, 2 * RING, n))  # (phi, psi) x rows x slots
+        # slot x (phi, psi) x position: a slot's history contiguous (rows padded off a power of two,
+        # so that one sample's writes to every slot do not all fall into the same cache sets)
+        self._ring = np.zeros((n, 2, RING + PAD))[:, :, :RING]
         self._g = 0  # ring position of the newest sample
         self.n_rate = max(3, int(round(RATE_WINDOW_S / self.dt)))
         if self.n_rate > RING:
             raise ValueError(f"rate window of {self.n_rate} samples exceeds the ring of {RING}")
         self._w_rate = endpoint_slope_weights(self.n_rate, self.dt)
         self._was_active = np.zeros(n, dtype=bool)
+        self._events = np.zeros((len(EVENTS), n), dtype=np.int64)  # slot_bookkeeping's event lists
+        self._n_events = np.zeros(len(EVENTS), dtype=np.int64)
         # Logs
-        self._stage_block = np.zeros((STAGE, len(COLUMNS), n))  # row x column x slot: one sample's writes contiguous
+        # tile x row x column x lane, slot k in tile k // LANES, lane k % LANES: one sample's writes
+        # fill whole cache lines, and the tiles are one row longer than STAGE (cache sets, as the ring)
+        self._stage_block = np.zeros((-(-n // LANES), STAGE + 1, len(COLUMNS), LANES))
         self._stage_row = 0
         self._stage_from = np.zeros(n, dtype=np.int64)
         self._stage_cnt = np.zeros(n, dtype=np.int64)
@@ -237,54 +246,56 @@ class ExperimentPool:
         """
         stage = self.stage
         settling, freeing = stage == SETTLE, stage == FREE
-        running = settling | freeing
-        active = running | controlled
+        active = settling | freeing | controlled
         mode = np.where(controlled, self.mode_code, PASSIVE)
-        energy_before = self.energy.copy()
         applied = self.loop.command(value, controlled, active & ~controlled, self.mode_code == CURRENT)
         r = self.rig.step(mode, np.where(controlled, applied, 0.0), active=active)
         if not self.loop.ideal:  # what the hosts receive: readings through the loops' delay lines
             phi, psi, u, i = self.loop.arrive([r.phi, r.psi, r.u, r.i], active)
             r = BatchedReading(t=r.t, phi=phi, psi=psi, u=u, i=i, brake=r.brake)
-        self._log(r, value, controlled, active)
-        # electric energy over hold and reverse (Experiment._log_reading)
-        e_inc = np.abs(r.u * r.i) * (r.t - self.last_t)
-        np.add(self.energy, e_inc, out=self.energy, where=controlled)
-        np.copyto(self.last_t, r.t, where=active)
-        for name, value_now in (("phi", r.phi), ("psi", r.psi), ("u", r.u), ("i", r.i), ("t", r.t)):
-            np.copyto(getattr(self, name), value_now, where=active)
+        g = self._g = (self._g + 1) % RING
+        resumed = (active & ~self._was_active).nonzero()[0]
+        if len(resumed):
+            self._restore_ring(resumed)
+        n = self.n
+        e_sq, d_energy, limit = np.empty(n), np.empty(n), np.empty(n, dtype=bool)
+        events, counts = self._events, self._n_events
+        while True:  # the log, energy, tracking, stage changes, free strokes and settling (pool_kernels.py)
+            slot_bookkeeping(g, self._stage_row, self._ring, self._stage_block, self._stage_from,
+                             self._stage_cnt, self._flushed, active, controlled, settling, freeing,
+                             np.asarray(value, dtype=float), self.mode_code == CURRENT, r.phi, r.psi, r.u, r.i, r.t,
+                             self.energy, self.last_t, self.phi, self.psi, self.u, self.i, self.t,
+                             self.i_max, self.u_max, self._ref_table, self._ref_first, self._ref_len, stage,
+                             self.refs.t_begin, self.refs.t_end, self.dt, self.free_n, self.free_max,
+                             self.hull_rate, self.sign, self.peak, self.t_cross, self.phi_n, self.n_rate,
+                             self._w_rate, self.window, *self._stop_rows(), self.settle_left,
+                             e_sq, d_energy, limit, events, counts)
+            if not counts[BROKEN]:
+                break
+            self._flush(events[BROKEN, :counts[BROKEN]].copy())  # staged samples before a pause: to the logs
+        lists = [events[e, :counts[e]].copy() for e in range(len(EVENTS))]
+        if self._stage_row == STAGE - 1:
+            self._flush(self._stage_cnt.nonzero()[0])
+            self._stage_row = 0
+        else:
+            self._stage_row += 1
+        self._was_active = active
         out: dict[str, np.ndarray] = {}
         if controlled.any():
-            out = self._controlled_sample(r, value, controlled, energy_before)
-        if freeing.any():
-            self._free_sample(freeing.nonzero()[0])
-        settle = settling.nonzero()[0]
-        if len(settle):
-            self.settle_left[settle] -= 1
-            done = settle[self.settle_left[settle] <= 0]
-            if len(done):
-                self._release(done)
-        self._was_active = active
+            out = {"tracking_sq": e_sq, "energy": d_energy, "limit": limit,
+                   "ended": self._phase_changes(lists[TO_REVERSE], lists[ENDED_NOW])}
+        over = lists[OVER]
+        if len(over):
+            raise RuntimeError(f"the hull did not stop within max_free_s in slot(s) {over.tolist()} "
+                               f"(scenario {self.scenarios[int(over[0])].name})")
+        if len(lists[STOP]):
+            self._brake_at_stop(lists[STOP])
+        if len(lists[RELEASE]):
+            self._release(lists[RELEASE])
         return out
 
-    def _controlled_sample(self, r, value, controlled, energy_before) -> dict[str, np.ndarray]:
-        t = r.t
-        refs = self.refs
-        if self.mode_code == CURRENT:  # the one saturation rule (metrics.py), as the task's reward
-            at_limit = current_at_limit(value, self.i_max)
-        else:
-            at_limit = voltage_at_limit(value, r.i, self.u_max, self.i_max)
-        at_limit &= controlled
-        # phi_ref at this sample from the slot's table (MirroredReferences.phi at the stroke's sample times)
-        idx = self._flushed + self._stage_cnt - 1 - self._ref_first
-        in_stroke = controlled & (idx >= 0) & (idx < self._ref_len)
-        e = self._ref_table[self._cols, np.minimum(np.maximum(idx, 0), self._ref_table.shape[1] - 1)] - r.phi
-        e_sq = np.where(in_stroke, e * e, 0.0)
-        # phase changes (Experiment.step)
-        hold = controlled & (self.stage == HOLD)
-        rev = controlled & (self.stage == REVERSE)
-        to_rev = (hold & (t >= refs.t_begin - 0.5 * self.dt)).nonzero()[0]
-        ended = (rev & (t >= refs.t_end - 0.5 * self.dt)).nonzero()[0]
+    def _phase_changes(self, to_rev: np.ndarray, ended: np.ndarray) -> np.ndarray:
+        """Hold -> reverse (brake off) in ``to_rev``, reverse -> ended in ``ended`` (Experiment.step); returns ``ended``."""
         if len(to_rev):
             self.rig.set_brake(False, envs=to_rev)
             self.stage[to_rev] = REVERSE
@@ -293,44 +304,16 @@ class ExperimentPool:
             self.hull_rate[ended] = self._rate(0, ended)  # the terminal observation's
             self.fly_rate[ended] = self._rate(1, ended)
             self.stage[ended] = ENDED
-        return {"tracking_sq": e_sq, "energy": self.energy - energy_before, "limit": at_limit, "ended": ended}
+        return ended
 
-    def _free_sample(self, free: np.ndarray) -> None:
-        """Crossing, peak and stop prediction of the free strokes (Experiment.start)."""
-        free_n = self.free_n[free] + 1
-        self.free_n[free] = free_n
-        rate = self.hull_rate[free] = self._rate(0, free)
-        sign = self.sign[free]
-        w = sign * rate
-        peak = self.peak[free] = np.maximum(self.peak[free], w)
-        t_cross = self.t_cross[free]
-        crossed = np.isnan(t_cross) & (sign * (self.phi[free] - self.phi_n[free]) >= 0)
-        if crossed.any():
-            self.t_cross[free[crossed]] = t_cross[crossed] = self.t[free[crossed]]
-        cand = free[~np.isnan(t_cross) & (w < 0.3 * peak)]
-        stops = cand[self._stop_due(cand)] if len(cand) else cand
-        over = free[free_n >= self.free_max[free]]
-        if len(over):
-            over = np.setdiff1d(over, stops)
-        if len(over):
-            raise RuntimeError(f"the hull did not stop within max_free_s in slot(s) {over.tolist()} "
-                               f"(scenario {self.scenarios[int(over[0])].name})")
-        if len(stops):
-            self._brake_at_stop(stops)
-
-    def _stop_due(self, cand: np.ndarray) -> np.ndarray:
-        """The quadratic over the last ``window`` samples predicts the stop within half a sample."""
-        n = self.window
-        top = self._g + RING + 1
-        phi = self._ring[0, top - n:top][:, cand]
+    def _stop_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """The rows of the stop fit's pseudo-inverse giving ``c2`` and ``c1`` of the quadratic over the
+        last ``window`` samples (``np.polyfit``'s order), newest at time 0."""
+        n = max(self.window, 3)
         if self._stop_fit is None or self._stop_fit.shape[1] != n:
             tt = (np.arange(n) - (n - 1)) * self.dt
-            self._stop_fit = np.linalg.pinv(np.vander(tt, 3))  # rows: c2, c1, c0 (np.polyfit's order)
-        c2 = self._stop_fit[0] @ phi
-        c1 = self._stop_fit[1] @ phi
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_stop = -c1 / (2.0 * c2)
-        return (c2 != 0.0) & (t_stop <= 0.5 * self.dt)
+            self._stop_fit = np.ascontiguousarray(np.linalg.pinv(np.vander(tt, 3)))  # rows: c2, c1, c0
+        return self._stop_fit[0], self._stop_fit[1]
 
     def _brake_at_stop(self, slots: np.ndarray) -> None:
         self.fly_rate[slots] = self._rate(1, slots)  # the first observation's (ring current now)
@@ -375,24 +358,14 @@ class ExperimentPool:
         self.stage[slots] = np.where(self.hold_s[slots] > 0, HOLD, REVERSE)
 
     # --- rates and logs --------------------------------------------------------------------
-    def _window(self, j: int, cols) -> np.ndarray:
-        """The last ``n_rate`` samples of encoder ``j`` (0: hull, 1: motor) of slots ``cols``."""
-        top = self._g + RING + 1
-        return self._ring[j, top - self.n_rate:top][:, cols]
-
     def _rate(self, j: int, cols: np.ndarray) -> np.ndarray:
-        """RateEstimator's value for the newest sample of slots ``cols`` (their ring must be current)."""
-        rate = self._w_rate @ self._window(j, cols)
-        count = (self._flushed + self._stage_cnt)[cols]
-        short = (count < self.n_rate).nonzero()[0]
-        if len(short):  # before the window has filled: end-point difference (0 for one sample)
-            c = count[short]
-            top = self._g + RING + 1
-            newest = self._ring[j, top - 1, cols[short]]
-            oldest = self._ring[j, top - c, cols[short]]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                rate[short] = np.where(c >= 2, (newest - oldest) / ((c - 1) * self.dt), 0.0)
-        return rate
+        """RateEstimator's value for the newest sample of slots ``cols`` (their ring must be current;
+        :func:`~.pool_kernels.slot_rates`)."""
+        cols = np.asarray(cols, dtype=np.int64)
+        out = np.empty(len(cols))
+        slot_rates(self._ring, j, self._g, cols, (self._flushed + self._stage_cnt)[cols], self.n_rate,
+                   self._w_rate, self.dt, out)
+        return out
 
     def refresh_rates(self, slots: np.ndarray) -> None:
         """Hull and flywheel rate estimates of ``slots`` that took the last sample (others keep theirs)."""
@@ -401,56 +374,15 @@ class ExperimentPool:
             self.hull_rate[cols] = self._rate(0, cols)
             self.fly_rate[cols] = self._rate(1, cols)
 
-    def _log(self, r, value, controlled, active) -> None:
-        g = self._g = (self._g + 1) % RING
-        resumed = (active & ~self._was_active).nonzero()[0]
-        if len(resumed):
-            self._restore_ring(resumed)
-        for j, x in ((0, r.phi), (1, r.psi)):
-            self._ring[j, g] = x
-            self._ring[j, g + RING] = x
-        row = self._stage_row
-        block = self._stage_block[row]
-        block[0], block[1], block[2], block[3] = r.phi, r.psi, r.u, r.i
-        cmd = np.where(controlled, value, 0.0)
-        if self.mode_code == CURRENT:
-            block[4], block[5] = cmd, 0.0
-        else:
-            block[4], block[5] = 0.0, cmd
-        cnt = self._stage_cnt
-        broken = (active & (cnt > 0) & (self._stage_from + cnt != row)).nonzero()[0]
-        if len(broken):
-            self._flush(broken)
-        self._stage_from[active & (cnt == 0)] = row
-        cnt += active
-        if row == STAGE - 1:
-            self._flush(cnt.nonzero()[0])
-            self._stage_row = 0
-        else:
-            self._stage_row = row + 1
-
     def _restore_ring(self, slots: np.ndarray) -> None:
         """Slots that run again after a pause: their encoder history back into the ring (newest
-        at the row before the current one)."""
+        at the position before the current one)."""
         self._flush(slots)
         g = self._g
-        n = self._flushed[slots]
-        m = np.minimum(n, RING - 1)
-        depth = int(m.max()) if len(m) else 0
-        if not depth:
-            return
-        # history[r, j, s]: sample n - depth + r of slot s (rows before a slot's first sample stay unused)
-        history = np.zeros((depth, 2, len(slots)))
-        for s, (k, nk, mk) in enumerate(zip(slots.tolist(), n.tolist(), m.tolist())):
+        for k, nk in zip(slots.tolist(), self._flushed[slots].tolist()):
+            mk = min(nk, RING - 1)  # positions before a slot's first sample stay unused
             if mk:
-                history[depth - mk:, :, s] = self._logs[k][:2, nk - mk:nk].T
-        rows = (g - depth + np.arange(depth)) % RING
-        keep = np.arange(depth)[:, None] >= depth - m[None, :]  # rows that hold a slot's own samples
-        for j in (0, 1):
-            current = self._ring[j][np.ix_(rows, slots)]
-            values = np.where(keep, history[:, j, :], current)
-            self._ring[j][np.ix_(rows, slots)] = values
-            self._ring[j][np.ix_(rows + RING, slots)] = values
+                self._ring[k, :, (g - mk + np.arange(mk)) % RING] = self._logs[k][:2, nk - mk:nk].T
 
     def _flush(self, slots) -> None:
         """Copy the staged samples of ``slots`` to their own logs."""
@@ -459,26 +391,14 @@ class ExperimentPool:
         if not len(slots):
             return
         counts, starts, n0s = (a[slots].tolist() for a in (self._stage_cnt, self._stage_from, self._flushed))
-        staged, lo = None, 0
-        if len(slots) > 64:  # many slots: one transposing copy of the staged rows, then contiguous copies
-            lo, hi = min(starts), max(s + c for s, c in zip(starts, counts))
-            rows = self._stage_block[lo:hi]
-            if 2 * len(slots) > self.n:  # most slots: every column, no gather (slot x column x row)
-                staged = np.ascontiguousarray(rows.transpose(2, 1, 0))
-                pick = slots.tolist()
-            else:
-                staged = np.ascontiguousarray(rows[:, :, slots].transpose(2, 1, 0))
-                pick = range(len(slots))
-        for j, (k, cnt, start, n0) in enumerate(zip(slots.tolist(), counts, starts, n0s)):
+        block = self._stage_block
+        for k, cnt, start, n0 in zip(slots.tolist(), counts, starts, n0s):
             log = self._logs[k]
             if n0 + cnt > log.shape[1]:
                 grown = np.zeros((len(COLUMNS), max(2 * log.shape[1], n0 + cnt)))
                 grown[:, :n0] = log[:, :n0]
                 log = self._logs[k] = grown
-            if staged is not None:
-                log[:, n0:n0 + cnt] = staged[pick[j], :, start - lo:start - lo + cnt]
-            else:
-                log[:, n0:n0 + cnt] = self._stage_block[start:start + cnt, :, k].T
+            log[:, n0:n0 + cnt] = block[k // LANES, start:start + cnt, :, k % LANES].T
         self._flushed[slots] += self._stage_cnt[slots]
         self._stage_cnt[slots] = 0
 
