@@ -384,15 +384,16 @@ class RunBalance:
         t, phi = self.t, self.phi
         k1 = first_crossings(phi, self.free.start, self.k2, phi1, self.direction)
         k4 = first_crossings(phi, self.rev.start, self.rev.stop - 1, phi1, -self.direction)
-        reason = ["" if a >= 0 and b >= 0 else "boundary angle not passed on both strokes" for a, b in zip(k1, k4)]
+        passed = (k1 >= 0) & (k4 >= 0)
+        reason = ["" if p else "boundary angle not passed on both strokes" for p in passed.tolist()]
         # the work sums and rate fits assume the stroke was sampled throughout
         period = 1.0 / float(self.rec.rig["sample_rate"])
         big = np.concatenate([[0], np.cumsum(np.diff(t) > MAX_GAP_PERIODS * period * (1 + 1e-6))])
-        for j in np.nonzero((k1 >= 0) & (k4 >= 0))[0]:
-            if big[self.k2] - big[k1[j]] or big[k4[j]] - big[self.k3]:  # a long gap: the message names it
-                gap = largest_gap(self.rec, int(k1[j]), self.k2) or largest_gap(self.rec, self.k3, int(k4[j]))
-                reason[j] = (f"a gap of {gap[1]:.4g} s in 't' after t = {gap[0]:.4f} s inside the integrated "
-                             f"stroke ({MAX_GAP_PERIODS:g} sample periods allowed)")
+        gapped = passed & (((big[self.k2] - big[k1]) != 0) | ((big[k4] - big[self.k3]) != 0))
+        for j in np.nonzero(gapped)[0].tolist():  # a long gap: the message names it
+            gap = largest_gap(self.rec, int(k1[j]), self.k2) or largest_gap(self.rec, self.k3, int(k4[j]))
+            reason[j] = (f"a gap of {gap[1]:.4g} s in 't' after t = {gap[0]:.4f} s inside the integrated "
+                         f"stroke ({MAX_GAP_PERIODS:g} sample periods allowed)")
         ok = np.array([not r for r in reason], dtype=bool)
         good = np.nonzero(ok)[0]
         # forward and reverse fit of each angle in turn (the first short window raises, as angle by angle)
