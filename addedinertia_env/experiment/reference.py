@@ -147,7 +147,10 @@ def fit_stroke(t: np.ndarray, phi: np.ndarray, t_start: float, t_stop_guess: flo
         t_stop = float(tt[k] - rr[k] * (tt[k + 1] - tt[k]) / (rr[k + 1] - rr[k]))
     else:
         t_stop = float(tt[np.argmin(np.abs(rr))])
-    # Re-express the same polynomial on [a, t_stop] so that t_stop is the law's end.
-    x_new = (2.0 * ts[ts <= t_stop] - (a + t_stop)) / (t_stop - a)
-    coef_new = C.chebfit(x_new, C.chebval((2.0 * ts[ts <= t_stop] - (a + b)) / (b - a), coef), degree)
+    # Re-express the same polynomial on [a, t_stop] so that t_stop is the law's end: interpolated at
+    # degree + 1 Chebyshev points of [a, t_stop], which a polynomial of this degree meets exactly.
+    def on_old_interval(x_new):
+        return C.chebval((2.0 * (a + 0.5 * (x_new + 1.0) * (t_stop - a)) - (a + b)) / (b - a), coef)
+
+    coef_new = C.chebinterpolate(on_old_interval, degree)
     return StrokeLaw(coef=coef_new, t_start=a, t_stop=t_stop, fit_rms=rms)
