@@ -115,3 +115,36 @@ def test_linear_substep_equals_the_map_per_environment():
     assert np.allclose(X, want, rtol=1e-14, atol=1e-14)
     assert np.array_equal(w_prev, w_prev_want)
     assert np.array_equal(t, np.where(running, 5e-4, 0.0))
+
+
+def test_whole_sample_kernel_equals_the_step_by_step_path(monkeypatch):
+    """BatchedRig.step in one rig_sample call (a batch without hull-torque effects) equals the
+    numpy forces + linear_substep + sensor_readings path, mixed modes, brakes, pauses and delays."""
+    from addedinertia_env.rig.batched import BatchedRig
+    from addedinertia_env.rig.params import HullParams, MotorParams
+
+    rigs = [RigParams(), RigParams(hull=HullParams(J_hull=3.0, lambda66=4.0, b1=0.5, b2=10.0),
+                                   motor=MotorParams(J_flywheel=0.05, k_t=0.2),
+                                   effects=E.Effects(sensor_delay=E.SensorDelay(0.0031),
+                                                     neutral_offset=E.NeutralOffset(0.01),
+                                                     torque_constant=E.TorqueConstant(1.05))),
+            RigParams(hull=HullParams(lambda66=20.0))]
+    fast, slow = (BatchedRig(rigs, seed=[1, 2, 3]) for _ in range(2))
+    assert fast._plain()
+    monkeypatch.setattr(slow, "_plain", lambda: False)
+    for rig in (fast, slow):
+        rig.reset(phi0=np.array([-0.1, 0.05, 0.2]), brake=False)
+    rng = np.random.default_rng(9)
+    for k in range(400):
+        mode = rng.integers(0, 3, 3)
+        value = rng.uniform(-3, 3, 3)
+        active = rng.random(3) < 0.8
+        if k % 50 == 0:
+            brake = rng.random(3) < 0.5
+            for rig in (fast, slow):
+                rig.set_brake(brake)
+        a, b = fast.step(mode, value, active=active), slow.step(mode, value, active=active)
+        for name in ("phi", "psi", "u", "i", "t"):
+            assert np.allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-12), (k, name)
+    assert np.allclose(fast._X[:6], slow._X[:6], rtol=1e-12, atol=1e-12)
+    assert np.array_equal(fast.sensors.counters, slow.sensors.counters)

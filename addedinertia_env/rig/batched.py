@@ -21,11 +21,15 @@ exact current update is linear in ``(i0, u, Omega)`` for a fixed step, the mean-
 correction is an acceleration, and RK4 applied to a linear system is a fixed linear map.
 So the whole step is a matrix ``G`` (5 x 8 per environment and kind of step), obtained
 by running :func:`reference_substep` on the unit vectors once (:func:`substep_matrix`).
-A physics step is then: the nonlinear torques from :mod:`.forces` (numpy, on the whole
-batch), and one product ``G x`` per environment in the compiled loop
-:func:`~.kernels.linear_substep` (which also applies the open-circuit rule and pauses
-inactive environments). It equals stage-by-stage evaluation to rounding (about 1e-15;
-tests/test_batched.py checks it).
+A physics step is then: the nonlinear torques from :mod:`.forces`, and one product
+``G x`` per environment, in compiled loops (:mod:`.kernels`; they also apply the
+open-circuit rule and pause inactive environments). A batch whose only extra torques are
+the damping and the rotor friction (no hull-torque effect, no water or radiation memory)
+runs a whole sample in one :func:`~.kernels.rig_sample` call, with the laws of
+:mod:`.forces` and :func:`~.motor.drive_voltage` compiled from their one definition;
+any other batch computes the torques with :mod:`.forces` on arrays and steps with
+:func:`~.kernels.linear_substep` (tests/test_kernels.py holds the two paths equal). It
+equals stage-by-stage evaluation to rounding (about 1e-15; tests/test_batched.py checks it).
 
 Kinds of step: motor passive (open circuit: no current, ``u`` shows the back-EMF) or
 driven (current or voltage mode; the drive's voltage is set once per sample by
@@ -52,8 +56,9 @@ import numpy as np
 
 from . import forces
 from .integrator import rk4_step
-from .kernels import linear_substep
+from .kernels import CONSTANTS, linear_substep, rig_sample
 from .batched_params import BatchedParams
+from .effects.registry import active_params
 from .motor import MODES, current_step, terminal_voltage
 from .noise import batch_keys
 from .params import RigParams
@@ -213,6 +218,7 @@ class BatchedRig:
         self._k_t_env = p.per_env(self.k_t)
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))  # c phi_n, N m
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)  # motor.terminal_voltage's, per sample
+        self._constants = self._constant_table(p)
         table = np.stack([substep_matrix(h, kind, *self._map_args(p)) for kind in range(4)])
         # (n, kind, out, in) in float64, then cast: one environment's maps contiguous (one
         # environment, index 0, when the physics is shared).
@@ -220,6 +226,21 @@ class BatchedRig:
         self._shared = table.shape[-1] == 1  # one map for the whole batch
         self.sensors.p = p
         self.sensors._update_params()
+
+    def _constant_table(self, p: BatchedParams) -> np.ndarray:
+        """The per-environment constants of :func:`~.kernels.rig_sample` (columns :data:`~.kernels.CONSTANTS`), float64."""
+        m, h = p.motor, p.hull
+        values = {"k_t": self._k_t_env, "spring_offset": self._spring_offset, "b1": h.b1, "b2": h.b2,
+                  "friction_viscous": m.friction_viscous, "friction_coulomb": m.friction_coulomb, "R": m.R,
+                  "u_max": m.u_max, "i_max": m.i_max, "decay": self._drive_decay}
+        return np.ascontiguousarray(np.stack([np.broadcast_to(np.asarray(values[name], dtype=float), (p.n,))
+                                              for name in CONSTANTS], axis=1))
+
+    def _plain(self) -> bool:
+        """Whether the only extra torques are the damping and the rotor friction (no hull-torque effect,
+        no radiation or water memory): then a whole sample runs in :func:`~.kernels.rig_sample`."""
+        p = self.params
+        return not (active_params(p.effects, "hull_torque") or forces.has_radiation_memory(p) or forces.has_water_memory(p))
 
     @staticmethod
     def _map_args(p: BatchedParams, idx=None):
@@ -253,6 +274,7 @@ class BatchedRig:
         self._k_t_env = p.per_env(self.k_t)
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)
+        self._constants = self._constant_table(p)
         self.sensors.set_envs(idx, batch_keys(list(seeds), len(idx)))
 
     def set_env_params(self, k: int, rig: RigParams, seed=None) -> None:
@@ -349,7 +371,22 @@ class BatchedRig:
     def step(self, mode, value=0.0, active=None) -> BatchedReading:
         """Advance one sample period under per-environment commands; returns the readings
         (``active``: see :meth:`physics_step`; inactive environments take no reading)."""
+        if self._plain():
+            return self._sample(mode, value, active, read=True)
         self.physics_step(mode, value, active=active)
+        X = self._X
+        return self.sensors.read(self.t, X[PHI], X[PSI], X[U], X[I], self.brake, active=active)
+
+    def _sample(self, mode, value, active, read: bool) -> BatchedReading | None:
+        """:meth:`step` (``read``) or :meth:`physics_step` with the physics in one call of
+        :func:`~.kernels.rig_sample` (a batch without hull-torque effects or water memory, :meth:`_plain`)."""
+        code = mode_codes(mode, self.n)
+        modes = np.full(self.n, code, dtype=np.int64) if np.isscalar(code) else code
+        running = self._all if active is None else np.asarray(active, dtype=bool)
+        rig_sample(self._X, self._G_table, self.brake, modes, self._per_env(value), running, self._constants,
+                   self._w_prev, self.water_rate, self.t, self.physics_dt, self.params.physics_substeps)
+        if not read:
+            return None
         X = self._X
         return self.sensors.read(self.t, X[PHI], X[PSI], X[U], X[I], self.brake, active=active)
 
@@ -362,6 +399,9 @@ class BatchedRig:
         ``active``: bool per environment, or None (all); the others stay exactly as they
         are (paused; give them ``passive``).
         """
+        if self._plain():
+            self._sample(mode, value, active, read=False)
+            return
         p = self.params
         code = mode_codes(mode, self.n)
         X = self._X

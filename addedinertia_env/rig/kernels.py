@@ -5,10 +5,17 @@ view :class:`~.batched_single.BatchedSingleRig`) and every :class:`~.sensors.Sen
 (so also :class:`~.mujoco_rig.MujocoRig`'s sensors) runs these loops; there is no second
 numpy copy of them. They hold no physics law of their own:
 
-* :func:`linear_substep` applies the step map ``G`` of :func:`~.batched.substep_matrix`
-  (the linear part of the physics step, built from :func:`~.batched.reference_substep`)
-  and the open-circuit rule of :mod:`.motor`; the nonlinear torques come in as arrays,
-  computed by :mod:`.forces` before the call;
+* :func:`rig_sample` is a whole sample period (all physics steps) of a batch whose only
+  extra torques are the damping and the rotor friction (no hull-torque effect, no water
+  or radiation memory: the whole task's default): the drive's voltage, the torques and the
+  step map. The laws are compiled from their one definition (:func:`~.motor.drive_voltage`,
+  :func:`~.forces.centred_rate`, :func:`~.forces.hydrodynamic_torque`,
+  :func:`~.forces.flywheel_friction_torque`; numba jits those very functions);
+* :func:`linear_substep` is one physics step of any other batch: the nonlinear torques
+  come in as arrays, computed by :mod:`.forces` before the call; both apply the step map
+  ``G`` of :func:`~.batched.substep_matrix` (the linear part of the physics step, built
+  from :func:`~.batched.reference_substep`) with :func:`apply_map`, and the open-circuit
+  rule of :mod:`.motor`;
 * :func:`noise_uniforms` is :func:`~.noise.normal_pairs`'s integer hash (SplitMix64) and
   its two uniforms; the Box-Muller transform stays in numpy (:func:`~.noise.box_muller`)
   so that the normals equal ``normal_pairs`` bit for bit;
@@ -21,9 +28,12 @@ tests/test_kernels.py holds each loop equal to the numpy code it replaced.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
+
+from . import forces, motor
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _C1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -35,6 +45,22 @@ _S30, _S27, _S31, _S32 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(
 
 # rows of the state block (batched.STATE)
 _PHI, _W, _PSI, _OMEGA, _I, _U, _F1, _F2 = range(8)
+
+# Columns of the per-environment constants of :func:`rig_sample` (``BatchedRig._constants``).
+CONSTANTS = ("k_t", "spring_offset", "b1", "b2", "friction_viscous", "friction_coulomb", "R", "u_max", "i_max",
+             "decay")
+_K_T, _OFFSET, _B1, _B2, _FV, _FC, _R, _U_MAX, _I_MAX, _DECAY = range(len(CONSTANTS))
+
+# One environment's parameters as the force laws read them (p.hull.b1, p.motor.friction_viscous...).
+_Hull = namedtuple("_Hull", "b1 b2")
+_Motor = namedtuple("_Motor", "friction_viscous friction_coulomb")
+_Rig = namedtuple("_Rig", "hull motor")
+
+# The laws themselves, compiled from their one definition in forces.py and motor.py.
+centred_rate = njit(forces.centred_rate, cache=True)
+hydrodynamic_torque = njit(forces.hydrodynamic_torque, cache=True)
+flywheel_friction_torque = njit(forces.flywheel_friction_torque, cache=True)
+drive_voltage = njit(motor.drive_voltage, cache=True)
 
 
 @njit(cache=True)
@@ -66,13 +92,18 @@ def linear_substep(X, G, brake, driven, running, k_t, q_hull, spring_offset, f2,
         w_prev[k] = X[_W, k]
         kind = 2 * np.int64(brake[k]) + np.int64(driven[k])
         col = 0 if shared else k
-        x0, x1, x2, x3 = X[0, k], X[1, k], X[2, k], X[3, k]
-        x4, x5, x6, x7 = X[4, k], X[5, k], X[6, k], X[7, k]
-        g = G[col, kind]
-        for r in range(5):  # every input is read above, so the rows can be written in place
-            X[r, k] = (g[r, 0] * x0 + g[r, 1] * x1 + g[r, 2] * x2 + g[r, 3] * x3
-                       + g[r, 4] * x4 + g[r, 5] * x5 + g[r, 6] * x6 + g[r, 7] * x7)
+        apply_map(X, k, G[col, kind])
         t[k] += h
+
+
+@njit(cache=True, inline="always")
+def apply_map(X, k, g):  # pragma: no cover - compiled
+    """``(phi, w, psi, omega, i) = g @ X[:, k]`` in place (``g``: one 5 x 8 step map; summed j = 0..7)."""
+    x0, x1, x2, x3 = X[0, k], X[1, k], X[2, k], X[3, k]
+    x4, x5, x6, x7 = X[4, k], X[5, k], X[6, k], X[7, k]
+    for r in range(5):  # every input is read above, so the rows can be written in place
+        X[r, k] = (g[r, 0] * x0 + g[r, 1] * x1 + g[r, 2] * x2 + g[r, 3] * x3
+                   + g[r, 4] * x4 + g[r, 5] * x5 + g[r, 6] * x6 + g[r, 7] * x7)
 
 
 @njit(cache=True)
@@ -143,3 +174,39 @@ def encoder_readings(x, q, out):  # pragma: no cover - compiled
     """:func:`encoder_reading` of ``x[j]`` with quantum ``q[j]`` into ``out[j]``."""
     for j in range(len(x)):
         out[j] = encoder_reading(x[j], q[j])
+
+
+@njit(cache=True)
+def rig_sample(X, G, brake, mode, value, running, const, w_prev, water_rate, t, h, substeps):  # pragma: no cover
+    """One sample period of every environment ``k`` in place: ``BatchedRig.physics_step`` for a
+    batch whose only extra torques are the damping and the rotor friction.
+
+    Per environment: the drive's voltage (:func:`~.motor.drive_voltage`, where ``mode[k]`` is
+    1 current or 2 voltage, command ``value[k]``); then ``substeps`` physics steps of ``h`` s,
+    each the torques of :mod:`.forces` (:func:`~.forces.hydrodynamic_torque` at the centred
+    rate, :func:`~.forces.flywheel_friction_torque`) held and the step map ``G`` applied, as
+    :func:`linear_substep` does. ``const`` (n, len(CONSTANTS)): the per-environment constants
+    named by :data:`CONSTANTS`. Environments not ``running`` keep their state.
+    """
+    n = X.shape[1]
+    shared = G.shape[0] == 1
+    for k in range(n):
+        c = const[k]
+        driven = mode[k] != 0
+        if driven:
+            X[_U, k] = drive_voltage(mode[k], value[k], X[_I, k], X[_OMEGA, k], c[_R], c[_K_T], c[_U_MAX],
+                                     c[_I_MAX], c[_DECAY])
+        p = _Rig(_Hull(c[_B1], c[_B2]), _Motor(c[_FV], c[_FC]))
+        g = G[0 if shared else k, 2 * np.int64(brake[k]) + np.int64(driven)]
+        for _ in range(substeps):
+            if not driven:  # open circuit: no current, the terminals show the back-EMF
+                X[_U, k] = c[_K_T] * X[_OMEGA, k]
+                X[_I, k] = 0.0
+            if not running[k]:
+                continue
+            w = X[_W, k]
+            X[_F1, k] = hydrodynamic_torque(centred_rate(w, w_prev[k]), water_rate[k], p) + c[_OFFSET]
+            X[_F2, k] = flywheel_friction_torque(X[_OMEGA, k], p)
+            w_prev[k] = w
+            apply_map(X, k, g)
+            t[k] += h

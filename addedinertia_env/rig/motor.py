@@ -47,13 +47,23 @@ class MotorCommand:
 def terminal_voltage(cmd: MotorCommand, i0, omega, *, R, L, k_e, u_max, i_max, sample_dt, decay=None):
     """Voltage the drive holds over the next sample, V (works on arrays). ``decay``: the current's
     decay over a sample, ``exp(-sample_dt R / L)``, when the caller keeps it (else computed here)."""
-    if cmd.mode == "voltage":
-        return np.clip(cmd.value, -u_max, u_max)
-    if cmd.mode == "current":
-        target = np.clip(cmd.value, -i_max, i_max)
-        a = np.exp(-sample_dt * R / L) if decay is None else decay
-        i_ss = (target - a * i0) / (1.0 - a)
-        return np.clip(R * i_ss + k_e * omega, -u_max, u_max)
+    a = np.exp(-sample_dt * R / L) if decay is None else decay
+    return drive_voltage(MODES.index(cmd.mode), cmd.value, i0, omega, R, k_e, u_max, i_max, a)
+
+
+def drive_voltage(mode, value, i0, omega, R, k_e, u_max, i_max, decay):
+    """:func:`terminal_voltage` with the mode as its index in :data:`MODES` (0 passive, 1 current,
+    2 voltage) and the current's decay over a sample ``exp(-sample_dt R / L)`` given, V.
+
+    Plain arguments (floats or arrays), so that the batched rig's compiled loop
+    (:mod:`.kernels`) runs this very function for each environment.
+    """
+    if mode == 2:  # voltage: the command, clipped to the supply
+        return np.minimum(np.maximum(value, -u_max), u_max)
+    if mode == 1:  # current: dead-beat to the (clipped) command by the end of the sample
+        target = np.minimum(np.maximum(value, -i_max), i_max)
+        i_ss = (target - decay * i0) / (1.0 - decay)
+        return np.minimum(np.maximum(R * i_ss + k_e * omega, -u_max), u_max)
     return k_e * omega  # passive: open circuit, the terminals show the back-EMF
 
 

@@ -163,6 +163,13 @@ class SensorModel:
         noise_uniforms(self.keys, self.counters, cols, u1, u2)
         return box_muller(u1, u2)
 
+    def delay_line(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The channel delay line as the compiled reading takes it: ``(hist, pos, count, delay)``
+        (empty ``delay`` when there is none)."""
+        if self.delay_samples is None:
+            return self._NO_DELAY
+        return self._hist, self._pos, self._count, self.delay_samples
+
     def read(self, t, phi, psi, u, i, brake, envs: np.ndarray | None = None,
              active: np.ndarray | None = None) -> BatchedReading:
         """Readings of the given true values: arrays over ``envs`` (indices), or over all.
@@ -183,10 +190,7 @@ class SensorModel:
         dtype = np.asarray(phi).dtype
         z_i, z_u = self._normals(cols)
         out = [np.empty(m, dtype=dtype) for _ in range(4)]
-        if self.delay_samples is None:
-            hist, pos, count, delay = self._NO_DELAY
-        else:
-            hist, pos, count, delay = self._hist, self._pos, self._count, self.delay_samples
+        hist, pos, count, delay = self.delay_line()
         sensor_readings(cols, active, *(np.asarray(x).reshape(-1) for x in (phi, psi, u, i)), z_i, z_u,
                         self.counters, s.current_gain_error, s.current_offset, s.current_noise,
                         s.voltage_gain_error, s.voltage_offset, s.voltage_noise, self._phi_q, self._psi_q,
