@@ -183,7 +183,7 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
         f"about {result['seconds_per_measurement']} s (the least disturbed one).",
         "",
         "**GPU**: no GPU machine was available for this work, so there are no GPU figures; the",
-        "batched rig is numpy on the CPU.",
+        "batched rig is numpy and numba-compiled loops on the CPU.",
         "",
         "**Step**: one sample period (1 ms at 1 kHz) of one environment = `physics_substeps` (2) RK4",
         "physics steps with the motor current update, for both engines. `MujocoRig.step` is one",
@@ -237,9 +237,10 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                      f"{r['time_per_env_step_ns']:,.1f} | {r['bytes_per_env']:.0f} |")
     lines += [
         "",
-        "Up to a few hundred environments the time per batch step is flat: it is the fixed cost",
-        "of the numpy calls (about 40 per sample). Beyond that it grows linearly with n, and the",
-        "time per environment-step levels off at the memory-bound cost of the array arithmetic.",
+        "Up to a few hundred environments the time per batch step is flat "
+        f"({result['sweep'][0]['time_per_step_us']:,.1f} us at n = {result['sweep'][0]['n_envs']}): it is the fixed cost",
+        "of the Python and array calls of one step, whatever n. Beyond that it grows linearly with n, and the",
+        "time per environment-step levels off at the cost of the per-environment arithmetic.",
         "",
     ]
     if figure:
@@ -294,9 +295,9 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   + (f"Per sample the {head.get('workers', 1)} processes used "
                      f"{abs(100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1)):.0f} % "
                      f"{'more' if b['samples_per_cpu_s'] > head['samples_per_cpu_s'] else 'less'} CPU than one: each "
-                     "shard pays the fixed cost of the numpy calls of every rig sample (about 0.2 ms for some 200 "
-                     "calls, whatever the number of slots), and the parent process, which steps shard 0 itself, also "
-                     "relays the other shards' actions, results and moved records. " if head.get("workers", 1) > 1 else "")
+                     "shard pays the fixed cost of the Python and array calls of every rig sample, whatever its number "
+                     "of slots, and the parent process, which steps shard 0 itself, also relays the other shards' "
+                     "actions, results and moved records. " if head.get("workers", 1) > 1 else "")
                   + "Per episode "
                   f"the identification ({ident_ms:,.1f} CPU-ms) costs "
                   f"{'more' if ident_ms > per_episode / e['samples_per_cpu_s'] * 1e3 else 'less'} than stepping its "
@@ -309,8 +310,8 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   "workers); `vectorization_mode=\"sync\"` gives N single",
                   "envs.", "",
                   "**GPU / torch backend**: none. No GPU machine was available to this work, and a torch backend that",
-                  "was never run on a GPU would be an untested claim, so there is none; the batched env is numpy on",
-                  "the CPU.", ""]
+                  "was never run on a GPU would be an untested claim, so there is none; the batched env is numpy and",
+                  "numba-compiled loops on the CPU.", ""]
     lines += [
         "## What the batched rig is",
         "",
