@@ -234,3 +234,12 @@ def test_identification_does_not_depend_on_what_ran_before(records):
     crossings._DESIGNS.clear()
     backward = [identify([r], "energy").lambda66 for r in reversed(recs)][::-1]
     assert forward == backward
+
+
+def test_numbers_without_interval_records_equal_the_full_result(records):
+    """interval_details=False (the batched env's scoring) gives the same numbers as the full result."""
+    for name, rec in records.items():
+        full, lean = identify([rec], "energy"), identify([rec], "energy", interval_details=False)
+        assert (lean.lambda66, lean.ci95, lean.n_intervals) == (full.lambda66, full.ci95, full.n_intervals), name
+        assert "intervals" not in lean.details and "intervals" in full.details, name
+        assert lean.details == {k: v for k, v in full.details.items() if k != "intervals"}, name

@@ -157,21 +157,25 @@ class _RunEstimate:
     value: float
     sigma: float
     intervals: list[Interval]
+    counts: tuple[int, int] | None = None  # (usable, all) angles when ``intervals`` is not kept
 
 
 def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=DEFAULT_FRACTIONS,
-                    asymmetry_correction: bool = True) -> Result:
+                    asymmetry_correction: bool = True, interval_details: bool = True) -> Result:
     """lambda66 (kg m^2) from one or more reverse-symmetric runs, with a 95 % interval.
 
     ``fractions``: the range ``(lo, hi)`` of boundary angles as fractions of the stroke
     (dense Hann-weighted average), or a list of three or more fractions to evaluate
     separately and pool by inverse variance. A record's own ``experiment.phi1`` list wins.
+    ``interval_details=False``: the result's ``details`` leave out the per-angle ``intervals``
+    (the same lambda66, interval and counts; a caller that only needs the numbers, such as
+    the batched env scoring every episode, skips building a record per angle).
     """
     if work not in WORK_FORMS:
         raise ValueError(f"work={work!r}: expected one of {WORK_FORMS}")
     if work != "reaction":
         warnings.warn(DIAGNOSTIC_FORM_WARNING.format(work=work), stacklevel=2)
-    runs = [_run_estimate(rec, work, fractions, asymmetry_correction) for rec in records]
+    runs = [_run_estimate(rec, work, fractions, asymmetry_correction, interval_details) for rec in records]
     intervals = [iv for r in runs for iv in r.intervals]
     good = [r for r in runs if np.isfinite(r.value)]
     if not good:
@@ -181,19 +185,28 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
                                   f"({reasons}); expected a reverse-symmetric run whose strokes pass the boundary "
                                   "angles, sampled without gaps, current below its limit")
     value, lo, hi = pooled_interval(np.array([r.value for r in good]), np.array([r.sigma for r in good]))
-    n_good = sum(1 for iv in intervals if not iv.rejected)
-    return Result(method="energy", lambda66=value, ci95=(lo, hi), n_intervals=n_good,
-                  details={"work": work, "asymmetry_correction": asymmetry_correction, "n_runs": len(good),
-                           "per_run": [r.value for r in good], "rejected": len(intervals) - n_good,
-                           "intervals": [iv.__dict__ for iv in intervals]})
+    n_good = sum(1 for iv in intervals if not iv.rejected) + sum(r.counts[0] for r in runs if r.counts)
+    n_all = len(intervals) + sum(r.counts[1] for r in runs if r.counts)
+    details = {"work": work, "asymmetry_correction": asymmetry_correction, "n_runs": len(good),
+               "per_run": [r.value for r in good], "rejected": n_all - n_good}
+    if interval_details:
+        details["intervals"] = [iv.__dict__ for iv in intervals]
+    return Result(method="energy", lambda66=value, ci95=(lo, hi), n_intervals=n_good, details=details)
 
 
-def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool) -> _RunEstimate:
+def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool,
+                  interval_details: bool = True) -> _RunEstimate:
     balance, phi1_list, weights, first = prepared_balance(rec, work, fractions, asymmetry_correction,
                                                           first_value_only=True)
     if not np.isfinite(first.value):
         return first
-    return _combine(balance, balance.intervals(np.asarray(phi1_list, dtype=float)), weights)
+    phi1 = np.asarray(phi1_list, dtype=float)
+    if not interval_details and weights is not None:  # the numbers alone, from the angles' columns
+        cols = balance.interval_columns(phi1)
+        estimate = _dense_from_columns(balance, cols, weights)
+        if np.isfinite(estimate.value):
+            return estimate
+    return _combine(balance, balance.intervals(phi1), weights)
 
 
 def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_FRACTIONS,
@@ -250,24 +263,68 @@ def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> _RunE
         iv.weight = 0.0
     for gk, k in zip(g, ok):
         intervals[k].weight = float(gk)
-    value = float(g @ lam)
-    s_rate = balance.averaged_rate_sigma([intervals[k] for k in ok], g)
-    s_current = float(g @ np.array([intervals[k].terms["s_current"] for k in ok]))
-    s_common = float(g @ np.array([intervals[k].sigma_common for k in ok]))
-    # Angles further apart than the rate windows see independent noise: their scatter about
-    # a smooth trend beyond what the rate noise allows is a sign of unmodelled structure,
-    # and the interval is widened by it (a Birge ratio on the trend residuals).
-    s_trend = _trend_excess([intervals[k] for k in ok], g)
-    sigma = float(np.sqrt(s_rate**2 + s_current**2 + s_common**2 + s_trend**2))
+    used = [intervals[k] for k in ok]
+    value, sigma = _dense_estimate(balance, g, lam, [iv.phi1 for iv in used], [iv.lambda66 for iv in used],
+                                   [iv.w1f for iv in used], [iv.w1r for iv in used],
+                                   [iv.terms["s_current"] for iv in used], [iv.sigma_common for iv in used],
+                                   [iv.sigma_independent for iv in used],
+                                   [iv.terms["rate_kernel_f"] for iv in used], [iv.terms["rate_kernel_r"] for iv in used])
+    for iv in used:  # the kernels are bulky; keep the JSON small
+        iv.terms.pop("rate_kernel_f", None)
+        iv.terms.pop("rate_kernel_r", None)
     return _RunEstimate(value, sigma, intervals)
 
 
-def _trend_excess(ivs: list[Interval], g: np.ndarray) -> float:
-    """Spread of the per-angle estimates about a straight line in phi1 beyond their own noise, kg m^2."""
-    phi1 = np.array([iv.phi1 for iv in ivs])
-    lam = np.array([iv.lambda66 for iv in ivs])
-    s = np.array([iv.sigma_independent for iv in ivs])
-    if len(ivs) < 6:
+def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) -> _RunEstimate:
+    """:func:`_combine`'s Hann-weighted estimate from :meth:`RunBalance.interval_columns` (the same
+    numbers, no :class:`Interval` records; nan when no angle is usable)."""
+    good = cols["good"]
+    if not len(good):
+        return _RunEstimate(float("nan"), float("inf"), [], (0, len(cols["phi1"])))
+    rows = np.nonzero(~cols["rejected"])[0]
+    ok = good[rows].tolist()
+    counts = (len(ok), len(cols["phi1"]))
+    if not ok:
+        return _RunEstimate(float("nan"), float("inf"), [], counts)
+    g = np.array([weights[k] for k in ok])
+    if g.sum() <= 0:
+        return _RunEstimate(float("nan"), float("inf"), [], counts)
+    g = g / g.sum()
+    lam = np.asarray(cols["lam"], dtype=float)[rows]
+    lam_list = lam.tolist()  # the Python floats the Interval records hold
+
+    def pick(name):
+        return np.asarray(cols[name], dtype=float)[rows].tolist()
+
+    kern_f, kern_r = cols["fits"]["f"]["kernel"], cols["fits"]["r"]["kernel"]
+    value, sigma = _dense_estimate(balance, g, np.array(lam_list), cols["phi1"][good[rows]].tolist(), lam_list,
+                                   pick("w1f"), pick("w1r"), pick("s_current"), pick("s_common"),
+                                   pick("s_independent"), [kern_f[r] for r in rows.tolist()],
+                                   [kern_r[r] for r in rows.tolist()])
+    return _RunEstimate(value, sigma, [], counts)
+
+
+def _dense_estimate(balance: "RunBalance", g: np.ndarray, lam: np.ndarray, phi1: list, lam_list: list,
+                    w1f: list, w1r: list, s_current: list, s_common: list, s_independent: list,
+                    kernels_f: list, kernels_r: list) -> tuple[float, float]:
+    """The Hann-weighted lambda66 of a run and its 1-sigma (kg m^2) from its usable angles: normalised
+    weights ``g``, per-angle values ``lam`` (array) and, per angle, ``phi1``, ``lam_list`` (the same values
+    as Python floats), rates, uncertainty parts and rate kernels ``(indices, weights)``."""
+    value = float(g @ lam)
+    s_rate = balance.rate_sigma(g, lam_list, w1f, w1r, kernels_f, kernels_r)
+    s_cur = float(g @ np.array(s_current))
+    s_com = float(g @ np.array(s_common))
+    # Angles further apart than the rate windows see independent noise: their scatter about
+    # a smooth trend beyond what the rate noise allows is a sign of unmodelled structure,
+    # and the interval is widened by it (a Birge ratio on the trend residuals).
+    s_trend = _trend_excess(np.array(phi1), lam, np.array(s_independent), g)
+    return value, float(np.sqrt(s_rate**2 + s_cur**2 + s_com**2 + s_trend**2))
+
+
+def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarray) -> float:
+    """Spread of the per-angle estimates ``lam`` (kg m^2, at angles ``phi1``, noise ``s``) about a straight
+    line in phi1 beyond their own noise, kg m^2."""
+    if len(lam) < 6:
         return 0.0
     coef = np.polyfit(phi1, lam, 1)
     resid = lam - np.polyval(coef, phi1)
@@ -276,7 +333,7 @@ def _trend_excess(ivs: list[Interval], g: np.ndarray) -> float:
     # the estimate depends on where the boundary is taken: a quarter of the end-to-end change
     # is kept as uncertainty.
     slope_part = 0.25 * abs(coef[0]) * float(np.ptp(phi1))
-    return float(np.hypot(np.sqrt(max(excess, 0.0)) / np.sqrt(max(len(ivs) / 8.0, 1.0)), slope_part))
+    return float(np.hypot(np.sqrt(max(excess, 0.0)) / np.sqrt(max(len(lam) / 8.0, 1.0)), slope_part))
 
 
 class RunBalance:
@@ -447,16 +504,18 @@ class RunBalance:
         """One boundary angle's estimate with its uncertainty parts, or a rejected interval."""
         return self.intervals(np.array([float(phi1)]))[0]
 
-    def intervals(self, phi1: np.ndarray) -> list[Interval]:
-        """Each boundary angle's estimate with its uncertainty parts, or a rejected interval."""
+    def interval_columns(self, phi1: np.ndarray) -> dict:
+        """What :meth:`intervals` reports, as arrays over the angles both strokes pass (``good``,
+        indices into ``phi1``): ``lam``, ``w1f``, ``w1r`` and the uncertainty parts ``s_independent``,
+        ``s_common``, ``sigma``, ``s_current`` (kg m^2), the rejection tests' ``sat`` and ``mismatch`` and
+        ``rejected`` (bool), the ``terms`` and ``fits`` of :meth:`terms_many`; ``reason`` per angle of
+        ``phi1`` why it cannot be used ('' when both strokes pass it)."""
         phi1 = np.asarray(phi1, dtype=float)
         got = self.terms_many(phi1)
-        name = self.rec.name
-        out = [Interval(run=name, phi1=float(x), lambda66=float("nan"), sigma=float("inf"), w1f=0.0, w1r=0.0,
-                        rejected=why) for x, why in zip(phi1, got["reason"])]
         good = got["good"]
+        cols = {"phi1": phi1, "reason": got["reason"], "good": good, "terms": got["terms"], "fits": got["fits"]}
         if not len(good):
-            return out
+            return cols
         T, fit = got["terms"], got["fits"]
         lam = inertia_from_terms(T, self.J_h)
         denom = 0.5 * (T.w1f**2 + T.w1r**2)
@@ -471,6 +530,23 @@ class RunBalance:
         s_common = np.hypot(s_gain, got["s_dW"]) / denom
         sigma = np.hypot(s_independent, s_common)
         sat, mismatch = self._saturation_and_mismatch(T, k4s)
+        cols.update(lam=lam, w1f=T.w1f, w1r=T.w1r, s_independent=s_independent, s_common=s_common, sigma=sigma,
+                    s_current=s_current, sat=sat, mismatch=mismatch,
+                    rejected=(sat > MAX_SATURATED_FRACTION) | (mismatch > MAX_SPEED_MISMATCH))
+        return cols
+
+    def intervals(self, phi1: np.ndarray) -> list[Interval]:
+        """Each boundary angle's estimate with its uncertainty parts, or a rejected interval."""
+        cols = self.interval_columns(phi1)
+        name = self.rec.name
+        out = [Interval(run=name, phi1=float(x), lambda66=float("nan"), sigma=float("inf"), w1f=0.0, w1r=0.0,
+                        rejected=why) for x, why in zip(cols["phi1"], cols["reason"])]
+        good = cols["good"]
+        if not len(good):
+            return out
+        T, fit = cols["terms"], cols["fits"]
+        lam, s_independent, s_common, sigma = cols["lam"], cols["s_independent"], cols["s_common"], cols["sigma"]
+        s_current, sat, mismatch = cols["s_current"], cols["sat"], cols["mismatch"]
         names = list(BalanceTerms.__dataclass_fields__)
         columns = [np.asarray(getattr(T, name), dtype=float).tolist() for name in names]  # Python floats, as float()
         # per-row Python floats (tolist: the numbers float() gives), then one pass over the rows
@@ -533,12 +609,21 @@ class RunBalance:
         lambda66 over the angles is, to first order, one combination of them, whose noise
         is the angle noise times the combined kernel's norm.
         """
+        sigma = self.rate_sigma(g, [iv.lambda66 for iv in ivs], [iv.w1f for iv in ivs], [iv.w1r for iv in ivs],
+                                [iv.terms["rate_kernel_f"] for iv in ivs], [iv.terms["rate_kernel_r"] for iv in ivs])
+        for iv in ivs:  # the kernels are bulky; keep the JSON small
+            iv.terms.pop("rate_kernel_f", None)
+            iv.terms.pop("rate_kernel_r", None)
+        return sigma
+
+    def rate_sigma(self, g: np.ndarray, lam: list, w1f: list, w1r: list, kernels_f: list, kernels_r: list) -> float:
+        """:meth:`averaged_rate_sigma` from per-angle lists: weights ``g``, lambda66 (kg m^2), forward and
+        reverse rates (rad/s) and their fits' kernels ``(indices, weights)``; kg m^2."""
         idxs, kerns, factors = [], [], []
-        for gk, iv in zip(g, ivs):
-            denom = 0.5 * (iv.w1f**2 + iv.w1r**2)
-            J_total = iv.lambda66 + self.J_h
-            for key, w in (("rate_kernel_f", iv.w1f), ("rate_kernel_r", iv.w1r)):
-                idx, kern = iv.terms[key]
+        for gk, lam_k, wf, wr, kf, kr in zip(g, lam, w1f, w1r, kernels_f, kernels_r):
+            denom = 0.5 * (wf**2 + wr**2)
+            J_total = lam_k + self.J_h
+            for (idx, kern), w in ((kf, wf), (kr, wr)):
                 idxs.append(idx)
                 kerns.append(kern)
                 factors.append(gk * (-J_total * w / denom))  # this kernel's weight in the average
@@ -548,9 +633,6 @@ class RunBalance:
             combined = np.bincount(np.concatenate(idxs), weights=parts, minlength=len(self.t))
         else:
             combined = np.zeros(len(self.t))
-        for iv in ivs:  # the kernels are bulky; keep the JSON small
-            iv.terms.pop("rate_kernel_f", None)
-            iv.terms.pop("rate_kernel_r", None)
         return self.angle_noise * float(np.linalg.norm(combined))
 
     @property
