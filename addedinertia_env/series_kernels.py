@@ -147,6 +147,24 @@ def gradient(f, x):
     return out
 
 
+
+@njit(cache=True, error_model="numpy")
+def scaled_deviation(t, first, tc, half_width, canonical):
+    """``np.max(np.abs(x - canonical))`` over the rows ``x[j] = (t[first[j]:first[j] + m] - tc[j]) /
+    half_width`` (``m = len(canonical)``), without forming them: the same operations element by
+    element, so the same number (nan when any is nan, as ``np.max``)."""
+    m = len(canonical)
+    worst = 0.0 if len(first) else np.nan
+    for j in range(len(first)):
+        for k in range(m):
+            d = abs((t[first[j] + k] - tc[j]) / half_width - canonical[k])
+            if np.isnan(d):
+                return np.nan
+            if d > worst:
+                worst = d
+    return worst
+
+
 def warm_up() -> None:
     """Load every kernel's machine code now (from the cache, or compiled: a few seconds once), so that
     the first identification in a process costs what the others do."""
@@ -155,5 +173,6 @@ def warm_up() -> None:
     fit_windows(t, t[:2], 2e-3)
     polynomial_roots_near_zero(np.ones((1, 3)), np.ones((1, 2)), np.zeros(1), 8)
     gradient(t, t)
+    scaled_deviation(t, np.zeros(1, dtype=np.int64), t[:1], 1.0, t[:2])
     lag_ranking(np.ones(3), np.eye(3), np.zeros(2, dtype=np.int64), np.zeros(2), 1.0)
     twice_integrated(np.lib.stride_tricks.sliding_window_view(t, 4), 0.5 * np.diff(t[:4]))

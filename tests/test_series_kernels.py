@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from addedinertia_env.series_kernels import (fit_windows, gradient, lag_ranking, polynomial_roots_near_zero,
-                                             twice_integrated)
+                                             scaled_deviation, twice_integrated)
 from addedinertia_env.series_stats import median, median_step, quantile
 
 
@@ -138,3 +138,17 @@ def test_lag_ranking_equals_the_numpy_expressions():
         expect_rows = np.unique(np.clip(np.concatenate([near - 1, near, near + 1]), 0, len(lags) - 1))
         np.testing.assert_array_equal(rows, expect_rows)
         np.testing.assert_array_equal(rss, bound + 2.0 * tol + (np.max(bound) - np.min(bound)))
+
+
+def test_scaled_deviation_equals_the_array_expression():
+    rng = np.random.default_rng(17)
+    for case in range(100):
+        n = 600
+        t = np.cumsum(np.full(n, 1e-3) + (rng.normal(size=n) * 1e-9 if case % 2 else 0.0))
+        m = int(rng.integers(5, 200))
+        first = rng.integers(0, n - m, size=int(rng.integers(1, 20)))
+        tc = t[first + m // 2]
+        h = 0.1
+        x = (t[first[:, None] + np.arange(m)[None, :]] - tc[:, None]) / h
+        canonical = np.round(x[0] * 2.0**40) / 2.0**40
+        assert scaled_deviation(t, first, tc, h, canonical) == np.max(np.abs(x - canonical))

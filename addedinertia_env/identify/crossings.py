@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..series_kernels import fit_windows, polynomial_roots_near_zero
+from ..series_kernels import fit_windows, polynomial_roots_near_zero, scaled_deviation
 from .common import IdentificationError
 
 SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
@@ -95,15 +95,14 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     for m in np.unique(size).tolist():
         g = np.nonzero(size == m)[0]
         idx = first[g][:, None] + np.arange(m)[None, :]  # (fits, m) sample indices
-        sv = t[idx] - tc[g][:, None]
         y = phi[idx]
-        x_scaled = sv / half_width
-        shared = _shared_design(x_scaled, degree)
+        shared = _shared_design(t, first[g], tc[g], m, half_width, degree)
         if shared is not None:  # one design for the group
             X0, P0 = shared
             coef[g] = y @ P0.T
             groups.append((g, idx, y, X0, P0, True))
         else:
+            x_scaled = (t[idx] - tc[g][:, None]) / half_width
             X = np.empty((len(g), m, degree + 1))  # np.vander(sv / half_width, degree + 1, increasing=True)
             X[:, :, 0] = 1.0
             if degree:
@@ -140,17 +139,18 @@ _DESIGNS_MAX = 512
 _GRID = 2.0**40  # canonical abscissae: multiples of 2**-40 (9.1e-13; rounding moves them by at most 4.6e-13)
 
 
-def _shared_design(x_scaled: np.ndarray, degree: int):
+def _shared_design(t: np.ndarray, first: np.ndarray, tc: np.ndarray, m: int, half_width: float, degree: int):
     """The design ``X0`` and pseudo-inverse ``P0`` that every fit of a group shares, or None.
 
-    The shared design is built on canonical abscissae: the group's first row rounded to
-    multiples of 2**-40. Fits share it when every row of ``x_scaled`` (the scaled abscissae,
-    in [-1, 1]) agrees with those to :data:`SHARED_DESIGN_TOLERANCE`. The canonical row
-    depends on the group alone (not on what was computed before), so the pair is kept
-    across calls: records on one sampling grid reuse it, and every result is the same
-    whatever ran before."""
-    canonical = np.round(x_scaled[0] * _GRID) / _GRID  # exact: scaling by a power of two
-    if np.max(np.abs(x_scaled - canonical)) > SHARED_DESIGN_TOLERANCE:
+    Fit ``j`` of the group has the scaled abscissae ``(t[first[j]:first[j] + m] - tc[j]) / half_width``
+    (in [-1, 1]). The shared design is built on canonical abscissae: the group's first row rounded to
+    multiples of 2**-40. Fits share it when every row agrees with those to
+    :data:`SHARED_DESIGN_TOLERANCE`. The canonical row depends on the group alone (not on what
+    was computed before), so the pair is kept across calls: records on one sampling grid reuse
+    it, and every result is the same whatever ran before."""
+    row = (t[first[0]:first[0] + m] - tc[0]) / half_width
+    canonical = np.round(row * _GRID) / _GRID  # exact: scaling by a power of two
+    if scaled_deviation(t, first, tc, half_width, canonical) > SHARED_DESIGN_TOLERANCE:
         return None
     key = (degree, canonical.tobytes())
     hit = _DESIGNS.get(key)
