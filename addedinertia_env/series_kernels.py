@@ -165,6 +165,15 @@ def scaled_deviation(t, first, tc, half_width, canonical):
     return worst
 
 
+@njit(cache=True, error_model="numpy")
+def is_ascending(x):
+    """``bool(np.all(np.diff(x) >= 0))`` of a 1-D array (False at a nan step, as numpy)."""
+    for k in range(len(x) - 1):
+        if not x[k + 1] - x[k] >= 0:
+            return False
+    return True
+
+
 def warm_up() -> None:
     """Load every kernel's machine code now (from the cache, or compiled: a few seconds once), so that
     the first identification in a process costs what the others do."""
@@ -173,6 +182,7 @@ def warm_up() -> None:
     fit_windows(t, t[:2], 2e-3)
     polynomial_roots_near_zero(np.ones((1, 3)), np.ones((1, 2)), np.zeros(1), 8)
     gradient(t, t)
+    is_ascending(t)
     scaled_deviation(t, np.zeros(1, dtype=np.int64), t[:1], 1.0, t[:2])
     lag_ranking(np.ones(3), np.eye(3), np.zeros(2, dtype=np.int64), np.zeros(2), 1.0)
     twice_integrated(np.lib.stride_tricks.sliding_window_view(t, 4), 0.5 * np.diff(t[:4]))

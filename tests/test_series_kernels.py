@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.series_kernels import (fit_windows, gradient, lag_ranking, polynomial_roots_near_zero,
-                                             scaled_deviation, twice_integrated)
+from addedinertia_env.series_kernels import (fit_windows, gradient, is_ascending, lag_ranking,
+                                             polynomial_roots_near_zero, scaled_deviation,
+                                             twice_integrated)
 from addedinertia_env.series_stats import median, median_step, quantile
 
 
@@ -152,3 +153,9 @@ def test_scaled_deviation_equals_the_array_expression():
         x = (t[first[:, None] + np.arange(m)[None, :]] - tc[:, None]) / h
         canonical = np.round(x[0] * 2.0**40) / 2.0**40
         assert scaled_deviation(t, first, tc, h, canonical) == np.max(np.abs(x - canonical))
+
+
+def test_order_check_equals_numpys():
+    for t in (np.arange(10.0), np.array([0.0, 1.0, 1.0, 2.0]), np.array([0.0, 2.0, 1.0]), np.array([0.0, np.nan]),
+              np.array([3.0])):
+        assert is_ascending(t) == bool(np.all(np.diff(t) >= 0))

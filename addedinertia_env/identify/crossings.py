@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..series_kernels import fit_windows, polynomial_roots_near_zero, scaled_deviation
+from ..series_kernels import fit_windows, is_ascending, polynomial_roots_near_zero, scaled_deviation
 from .common import IdentificationError
 
 SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
@@ -73,7 +73,7 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     if not n_fit:
         return {"t": np.zeros(0), "rate": np.zeros(0), "sigma_rate": np.zeros(0), "kernel": []}
     tc = t[ks]
-    ascending = bool(np.all(np.diff(t) >= 0))
+    ascending = is_ascending(t)
     if ascending:
         first, stop = fit_windows(t, tc, float(half_width))
     else:  # not sorted: the plain test over the whole record
