@@ -114,3 +114,50 @@ def test_bookkeeping_equals_the_numpy_protocol_step():
     assert lists["stop"] == [2] and lists["over"] == [4]
     assert lists["release"] == [0] and np.array_equal(settle_left[:2], [0, 4])
     assert counts[STOP] + counts[OVER] + counts[RELEASE] + counts[TO_REVERSE] + counts[ENDED_NOW] == 5
+
+
+def test_reference_kernel_equals_chebval_column_by_column():
+    """MirroredReferences.phi / phi_rate_accel (compiled) against numpy's chebval of each slot's law."""
+    from numpy.polynomial import chebyshev as C
+
+    from addedinertia_env.experiment.reference import MirroredReference, fit_stroke
+    from addedinertia_env.vector.reference import MirroredReferences
+
+    refs = MirroredReferences(3)
+    singles = []
+    for k, (amp, w) in enumerate(((0.1, 6.0), (0.05, 9.0), (0.2, 4.0))):
+        t = np.arange(0.0, 0.5, DT)
+        law = fit_stroke(t, amp * np.cos(w * t), 0.02, 0.45)
+        refs.set(k, law, 1.0 + k)
+        singles.append(MirroredReference(law, t_begin=1.0 + k))
+    t = np.array([1.1, 2.05, 3.3])
+    phi, rate, accel = refs.phi_rate_accel(t)
+    for k, single in enumerate(singles):
+        assert phi[k] == single.phi(t[k])
+        law = single.law
+        x = (2.0 * (law.t_stop - (min(max(t[k], refs.t_begin[k]), refs.t_end[k]) - refs.t_begin[k]))
+             - (law.t_start + law.t_stop)) / (law.t_stop - law.t_start)
+        scale = 2.0 / (law.t_stop - law.t_start)
+        assert phi[k] == C.chebval(x, law.coef)
+        assert rate[k] == -(C.chebval(x, law._d1) * scale) and accel[k] == C.chebval(x, law._d2) * scale**2
+    many = refs.phi(np.linspace(1.9, 2.6, 7), 1)  # one slot at many times
+    assert np.array_equal(many, [singles[1].phi(x) for x in np.linspace(1.9, 2.6, 7)])
+
+
+def test_slot_masks_equal_the_numpy_masks():
+    from addedinertia_env.vector.pool_kernels import slot_masks
+
+    rng = np.random.default_rng(4)
+    n = 50
+    stage = rng.integers(0, 7, n).astype(np.int8)
+    controlled = ((stage == 4) | (stage == 5)) & (rng.random(n) < 0.8)
+    was_active = rng.random(n) < 0.5
+    value = rng.normal(size=n)
+    out = [np.empty(n, dtype=bool) for _ in range(3)] + [np.empty(n, dtype=np.int64), np.empty(n),
+                                                         np.empty(n, dtype=np.int64)]
+    m = slot_masks(stage, controlled, was_active, 2, value, *out)
+    settling, freeing = stage == 1, stage == 2
+    active = settling | freeing | controlled
+    assert np.array_equal(out[0], settling) and np.array_equal(out[1], freeing) and np.array_equal(out[2], active)
+    assert np.array_equal(out[3], np.where(controlled, 2, 0)) and np.array_equal(out[4], np.where(controlled, value, 0.0))
+    assert np.array_equal(out[5][:m], np.nonzero(active & ~was_active)[0])

@@ -224,6 +224,10 @@ class BatchedRig:
         # environment, index 0, when the physics is shared).
         self._G_table = np.ascontiguousarray(np.moveaxis(table, -1, 0)).astype(self.dtype)
         self._shared = table.shape[-1] == 1  # one map for the whole batch
+        # each environment's map of its current kind (kernels.rig_sample copies it from the table
+        # when the kind changes; -1: none yet): 5 x 8 numbers per environment stay in cache
+        self._G_now = np.zeros((p.n, N_OUT, len(STATE)), dtype=self.dtype)
+        self._kind_now = np.full(p.n, -1, dtype=np.int64)
         self.sensors.p = p
         self.sensors._update_params()
 
@@ -270,6 +274,7 @@ class BatchedRig:
         args = self._map_args(p, idx)
         for kind in range(4):
             self._G_table[idx, kind] = np.moveaxis(substep_matrix(h, kind, *args), -1, 0)
+        self._kind_now[idx] = -1  # their current maps are taken anew from the table
         self.k_t = forces.true_torque_constant(p)
         self._k_t_env = p.per_env(self.k_t)
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))
@@ -350,14 +355,14 @@ class BatchedRig:
         ``w + Omega`` through that instant (the brake's impulse acts on the hull only).
         """
         idx = self._envs(envs)
-        sel = slice(None) if idx is None else idx
-        on = np.broadcast_to(np.asarray(on, dtype=bool), self.brake[sel].shape)
-        engaging = on & ~self.brake[sel]
-        if np.any(engaging):
-            where = np.arange(self.n)[sel][engaging]
+        if idx is None:
+            idx = np.arange(self.n)
+        on = np.broadcast_to(np.asarray(on, dtype=bool), idx.shape)
+        where = idx[on & ~self.brake[idx]]  # engaging now
+        if len(where):
             self._X[OMEGA, where] += self._X[W, where]
             self._X[W, where] = 0.0
-        self.brake[sel] = on
+        self.brake[idx] = on
 
     def read(self, envs=None) -> BatchedReading:
         """Sensor readings of ``envs`` (all by default); advances their noise and delay line."""
@@ -380,10 +385,15 @@ class BatchedRig:
     def _sample(self, mode, value, active, read: bool) -> BatchedReading | None:
         """:meth:`step` (``read``) or :meth:`physics_step` with the physics in one call of
         :func:`~.kernels.rig_sample` (a batch without hull-torque effects or water memory, :meth:`_plain`)."""
-        code = mode_codes(mode, self.n)
-        modes = np.full(self.n, code, dtype=np.int64) if np.isscalar(code) else code
+        if isinstance(mode, np.ndarray) and mode.dtype == np.int64 and mode.shape == (self.n,):  # codes already
+            if mode.min() < 0 or mode.max() > 2:
+                raise ValueError(f"motor modes: expected codes in 0..2, got {mode.min()}..{mode.max()}")
+            modes = mode
+        else:
+            code = mode_codes(mode, self.n)
+            modes = np.full(self.n, code, dtype=np.int64) if np.isscalar(code) else code
         running = self._all if active is None else np.asarray(active, dtype=bool)
-        rig_sample(self._X, self._G_table, self.brake, modes, self._per_env(value), running, self._constants,
+        rig_sample(self._X, self._G_table, self._G_now, self._kind_now, self.brake, modes, self._per_env(value), running, self._constants,
                    self._w_prev, self.water_rate, self.t, self.physics_dt, self.params.physics_substeps)
         if not read:
             return None
@@ -461,7 +471,7 @@ class BatchedRig:
         """Bytes of the per-environment state and work arrays (maps included)."""
         arrays = [self._X, self.water_rate, self.radiation_x, self._w_prev, self.t, self.brake, self._all, self._none,
                   self._k_t_env, self._spring_offset]
-        total = sum(a.nbytes for a in arrays) + self._G_table.nbytes
+        total = sum(a.nbytes for a in arrays) + self._G_table.nbytes + self._G_now.nbytes + self._kind_now.nbytes
         if self.sensors.delay_samples is not None:
             total += self.sensors._hist.nbytes + self.sensors._pos.nbytes + self.sensors._count.nbytes
         return total

@@ -177,7 +177,7 @@ def encoder_readings(x, q, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def rig_sample(X, G, brake, mode, value, running, const, w_prev, water_rate, t, h, substeps):  # pragma: no cover
+def rig_sample(X, G, G_now, kind_now, brake, mode, value, running, const, w_prev, water_rate, t, h, substeps):  # pragma: no cover
     """One sample period of every environment ``k`` in place: ``BatchedRig.physics_step`` for a
     batch whose only extra torques are the damping and the rotor friction.
 
@@ -185,8 +185,10 @@ def rig_sample(X, G, brake, mode, value, running, const, w_prev, water_rate, t, 
     1 current or 2 voltage, command ``value[k]``); then ``substeps`` physics steps of ``h`` s,
     each the torques of :mod:`.forces` (:func:`~.forces.hydrodynamic_torque` at the centred
     rate, :func:`~.forces.flywheel_friction_torque`) held and the step map ``G`` applied, as
-    :func:`linear_substep` does. ``const`` (n, len(CONSTANTS)): the per-environment constants
-    named by :data:`CONSTANTS`. Environments not ``running`` keep their state.
+    :func:`linear_substep` does; ``G_now`` (n, 5, 8) holds each environment's map of kind
+    ``kind_now[k]`` (copied from ``G`` when the kind changes; -1: none). ``const`` (n,
+    len(CONSTANTS)): the per-environment constants named by :data:`CONSTANTS`.
+    Environments not ``running`` keep their state.
     """
     n = X.shape[1]
     shared = G.shape[0] == 1
@@ -197,7 +199,11 @@ def rig_sample(X, G, brake, mode, value, running, const, w_prev, water_rate, t, 
             X[_U, k] = drive_voltage(mode[k], value[k], X[_I, k], X[_OMEGA, k], c[_R], c[_K_T], c[_U_MAX],
                                      c[_I_MAX], c[_DECAY])
         p = _Rig(_Hull(c[_B1], c[_B2]), _Motor(c[_FV], c[_FC]))
-        g = G[0 if shared else k, 2 * np.int64(brake[k]) + np.int64(driven)]
+        kind = 2 * np.int64(brake[k]) + np.int64(driven)
+        if kind != kind_now[k]:  # this environment's map of its kind, kept beside the table
+            G_now[k] = G[0 if shared else k, kind]
+            kind_now[k] = kind
+        g = G_now[k]
         for _ in range(substeps):
             if not driven:  # open circuit: no current, the terminals show the back-EMF
                 X[_U, k] = c[_K_T] * X[_OMEGA, k]

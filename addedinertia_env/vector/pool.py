@@ -47,13 +47,13 @@ from ..experiment.filters import endpoint_slope_weights
 from ..experiment.reference import MirroredReference, fit_stroke
 from ..experiment.sample_log import make_record
 from ..rig import forces
-from ..rig.batched import CURRENT, PASSIVE, VOLTAGE, BatchedRig
+from ..rig.batched import CURRENT, VOLTAGE, BatchedRig
 from ..rig.control_loop import LoopState
 from ..rig.interface import SimulatedRigBase
 from ..rig.sensors import BatchedReading
 from ..scenarios import Scenario
 from .pool_kernels import (BROKEN, ENDED_NOW, EVENTS, OVER, RELEASE, STOP, TO_REVERSE, slot_bookkeeping,
-                           slot_rates)
+                           slot_masks, slot_rates)
 from .reference import MirroredReferences
 
 EMPTY, SETTLE, FREE, READY, HOLD, REVERSE, ENDED = range(7)
@@ -149,6 +149,7 @@ class ExperimentPool:
         self._was_active = np.zeros(n, dtype=bool)
         self._events = np.zeros((len(EVENTS), n), dtype=np.int64)  # slot_bookkeeping's event lists
         self._n_events = np.zeros(len(EVENTS), dtype=np.int64)
+        self._no_slots = np.zeros(0, dtype=np.int64)
         # Logs
         # tile x row x column x lane, slot k in tile k // LANES, lane k % LANES: one sample's writes
         # fill whole cache lines, and the tiles are one row longer than STAGE (cache sets, as the ring)
@@ -244,26 +245,28 @@ class ExperimentPool:
         Returns the per-slot increments of this sample for the reward (``tracking_sq`` rad^2,
         ``energy`` J, ``limit`` 0/1) and ``ended`` (slots whose reverse stroke ended here).
         """
-        stage = self.stage
-        settling, freeing = stage == SETTLE, stage == FREE
-        active = settling | freeing | controlled
-        mode = np.where(controlled, self.mode_code, PASSIVE)
-        applied = self.loop.command(value, controlled, active & ~controlled, self.mode_code == CURRENT)
-        r = self.rig.step(mode, np.where(controlled, applied, 0.0), active=active)
+        stage, n = self.stage, self.n
+        value = np.asarray(value, dtype=float)
+        settling, freeing, active = np.empty(n, dtype=bool), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        mode, command, resumed = np.empty(n, dtype=np.int64), np.empty(n), np.empty(n, dtype=np.int64)
+        n_resumed = slot_masks(stage, controlled, self._was_active, self.mode_code, value, settling, freeing, active,
+                               mode, command, resumed)
+        if not self.loop.ideal:  # the drives' set-points through the scenarios' control loops
+            applied = self.loop.command(value, controlled, active & ~controlled, self.mode_code == CURRENT)
+            command = np.where(controlled, applied, 0.0)
+        r = self.rig.step(mode, command, active=active)
         if not self.loop.ideal:  # what the hosts receive: readings through the loops' delay lines
             phi, psi, u, i = self.loop.arrive([r.phi, r.psi, r.u, r.i], active)
             r = BatchedReading(t=r.t, phi=phi, psi=psi, u=u, i=i, brake=r.brake)
         g = self._g = (self._g + 1) % RING
-        resumed = (active & ~self._was_active).nonzero()[0]
-        if len(resumed):
-            self._restore_ring(resumed)
-        n = self.n
+        if n_resumed:
+            self._restore_ring(resumed[:n_resumed])
         e_sq, d_energy, limit = np.empty(n), np.empty(n), np.empty(n, dtype=bool)
         events, counts = self._events, self._n_events
         while True:  # the log, energy, tracking, stage changes, free strokes and settling (pool_kernels.py)
             slot_bookkeeping(g, self._stage_row, self._ring, self._stage_block, self._stage_from,
                              self._stage_cnt, self._flushed, active, controlled, settling, freeing,
-                             np.asarray(value, dtype=float), self.mode_code == CURRENT, r.phi, r.psi, r.u, r.i, r.t,
+                             value, self.mode_code == CURRENT, r.phi, r.psi, r.u, r.i, r.t,
                              self.energy, self.last_t, self.phi, self.psi, self.u, self.i, self.t,
                              self.i_max, self.u_max, self._ref_table, self._ref_first, self._ref_len, stage,
                              self.refs.t_begin, self.refs.t_end, self.dt, self.free_n, self.free_max,
@@ -273,7 +276,7 @@ class ExperimentPool:
             if not counts[BROKEN]:
                 break
             self._flush(events[BROKEN, :counts[BROKEN]].copy())  # staged samples before a pause: to the logs
-        lists = [events[e, :counts[e]].copy() for e in range(len(EVENTS))]
+        lists = [events[e, :c].copy() if c else self._no_slots for e, c in enumerate(counts.tolist())]
         if self._stage_row == STAGE - 1:
             self._flush(self._stage_cnt.nonzero()[0])
             self._stage_row = 0

@@ -63,6 +63,26 @@ def slot_rates(ring, j, g, cols, counts, n_rate, w_rate, dt, out):  # pragma: no
 
 
 @njit(cache=True)
+def slot_masks(stage, controlled, was_active, mode_code, value, settling, freeing, active, mode, command,
+               resumed):  # pragma: no cover - compiled
+    """Which slots take this sample: ``settling`` (stage settle), ``freeing`` (stage free), ``active``
+    (those or ``controlled``); the rig's ``mode`` (``mode_code`` where controlled, else 0: passive)
+    and ``command`` (``value`` where controlled, else 0); the slots active again after a pause
+    into ``resumed``. Returns how many resumed."""
+    m = 0
+    for k in range(len(stage)):
+        settling[k] = stage[k] == _SETTLE
+        freeing[k] = stage[k] == _FREE
+        active[k] = settling[k] or freeing[k] or controlled[k]
+        mode[k] = mode_code if controlled[k] else 0
+        command[k] = value[k] if controlled[k] else 0.0
+        if active[k] and not was_active[k]:
+            resumed[m] = k
+            m += 1
+    return m
+
+
+@njit(cache=True)
 def slot_bookkeeping(g, row, ring, block, stage_from, stage_cnt, flushed,
                      active, controlled, settling, freeing, value, current_mode,
                      phi, psi, u, i, t,

@@ -4,12 +4,16 @@ Each environment's fitted stroke law (a :class:`~addedinertia_env.experiment.ref
 from :func:`~addedinertia_env.experiment.reference.fit_stroke`, the single experiment's own
 fit) is stored as a column of coefficient arrays; the series are evaluated by the same
 Clenshaw recursion, in the same order of operations, as ``numpy.polynomial.chebyshev.chebval``,
-so each column equals the scalar :class:`MirroredReference` bit for bit.
+so each column equals the scalar :class:`MirroredReference` bit for bit. The per-slot
+evaluation runs as one compiled loop (:func:`reference_at`: the mirrored time mapped onto the law's interval, and
+:func:`clenshaw_one`, the same operations in the same order, no gathers of coefficient
+columns).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..experiment.reference import DEFAULT_DEGREE, StrokeLaw
 
@@ -28,6 +32,42 @@ def clenshaw(c: np.ndarray, x: np.ndarray) -> np.ndarray:
         c0 = c[-i] - c1
         c1 = tmp + c1 * x2
     return c0 + c1 * x
+
+
+@njit(cache=True, inline="always")
+def clenshaw_one(c, k, x):  # pragma: no cover - compiled
+    """:func:`clenshaw` of column ``k`` of ``c`` (terms x envs) at one ``x``."""
+    m = c.shape[0]
+    if m == 1:
+        return c[0, k] + 0 * x
+    if m == 2:
+        return c[0, k] + c[1, k] * x
+    x2 = 2 * x
+    c0 = c[m - 2, k]
+    c1 = c[m - 1, k]
+    for i in range(3, m + 1):
+        tmp = c0
+        c0 = c[m - i, k] - c1
+        c1 = tmp + c1 * x2
+    return c0 + c1 * x
+
+
+@njit(cache=True)
+def reference_at(t, cols, coef, d1, d2, t_start, t_stop, t_begin, t_end, derivatives,
+                 phi, rate, accel):  # pragma: no cover - compiled
+    """phi_ref (rad) of slot ``cols[j]`` at ``t[j]`` (s) into ``phi[j]``, and with ``derivatives``
+    its rate (rad/s) and acceleration (rad/s^2) into ``rate[j]``, ``accel[j]``
+    (:meth:`MirroredReferences.phi_rate_accel`, element by element)."""
+    for j in range(len(cols)):
+        k = cols[j]
+        tb, ts, t0 = t_begin[k], t_stop[k], t_start[k]
+        mirrored = ts - (min(max(t[j], tb), t_end[k]) - tb)
+        x = (2.0 * mirrored - (t0 + ts)) / (ts - t0)
+        phi[j] = clenshaw_one(coef, k, x)
+        if derivatives:
+            scale = 2.0 / (ts - t0)
+            rate[j] = -(clenshaw_one(d1, k, x) * scale)
+            accel[j] = clenshaw_one(d2, k, x) * scale**2
 
 
 class MirroredReferences:
@@ -55,22 +95,23 @@ class MirroredReferences:
         self.t_begin[k] = t_begin
         self.t_end[k] = t_begin + law.duration
 
-    def _x(self, t: np.ndarray, sel) -> tuple[np.ndarray, np.ndarray]:
-        """The law's mapped variable at the mirrored time of ``t``, and its scale 2 / (t_stop - t_start)."""
-        t_begin, t_stop, t_start = self.t_begin[sel], self.t_stop[sel], self.t_start[sel]
-        mirrored = t_stop - (np.minimum(np.maximum(t, t_begin), self.t_end[sel]) - t_begin)
-        x = (2.0 * mirrored - (t_start + t_stop)) / (t_stop - t_start)
-        return x, 2.0 / (t_stop - t_start)
-
     def phi(self, t: np.ndarray, sel=slice(None)) -> np.ndarray:
         """phi_ref(t), rad, of slots ``sel``."""
-        x, _ = self._x(t, sel)
-        return clenshaw(self.coef[:, sel], x)
+        return self._evaluate(t, sel, False)[0]
 
     def phi_rate_accel(self, t: np.ndarray, sel=slice(None)):
         """phi_ref, its rate and acceleration at ``t`` (rad, rad/s, rad/s^2)."""
-        x, scale = self._x(t, sel)
-        phi = clenshaw(self.coef[:, sel], x)
-        rate = -(clenshaw(self.d1[:, sel], x) * scale)
-        accel = clenshaw(self.d2[:, sel], x) * scale**2
-        return phi, rate, accel
+        return self._evaluate(t, sel, True)
+
+    def _evaluate(self, t, sel, derivatives: bool):
+        """phi_ref (and with ``derivatives`` its rate and acceleration) of slots ``sel`` (a slice, indices
+        or one slot) at ``t`` (s; one per slot, or many for one slot), by :func:`reference_at`."""
+        cols = np.arange(self.coef.shape[1])[sel] if isinstance(sel, slice) else np.asarray(sel, dtype=np.int64)
+        t = np.asarray(t, dtype=float)
+        shape = np.broadcast_shapes(t.shape, cols.shape)
+        cols, t = (np.ascontiguousarray(np.broadcast_to(a, shape)).reshape(-1) for a in (cols, t))
+        out = [np.empty(len(cols)) for _ in range(3 if derivatives else 1)]
+        rate, accel = (out[1], out[2]) if derivatives else (out[0], out[0])
+        reference_at(t, cols, self.coef, self.d1, self.d2, self.t_start, self.t_stop, self.t_begin, self.t_end,
+                     derivatives, out[0], rate, accel)
+        return tuple(o.reshape(shape) for o in out)
