@@ -174,6 +174,37 @@ def is_ascending(x):
     return True
 
 
+
+@njit(cache=True, error_model="numpy")
+def count_crossings(t, phi, a, b, k, q):
+    """Where a quantised angle ``phi`` (encoder step ``q``, rad) steps between samples ``a`` and ``b``:
+    per count crossed, its instant relative to ``t[k]`` (s) and the angle midway between the two
+    readings (rad); a step of several counts in one sample spreads them over it (count ``m`` of ``n``
+    at ``(m + 0.5) / n``). Returns ``(tau, levels)``, empty when fewer than four counts. Element by
+    element the numpy expressions of ``energy._crossings_fit`` (``n = max(1, round(|d| / q))``,
+    ``t0 + (m + 0.5) / n (t1 - t0)``, ``phi0 + sign(d) (m + 0.5) q``), bit for bit."""
+    total = 0
+    for s in range(a, b):
+        d = phi[s + 1] - phi[s]
+        if d != 0:
+            total += int(max(1.0, np.rint(abs(d) / q)))
+    if total < 4:
+        return np.empty(0), np.empty(0)
+    tau = np.empty(total)
+    levels = np.empty(total)
+    c = 0
+    for s in range(a, b):
+        d = phi[s + 1] - phi[s]
+        if d != 0:
+            n = int(max(1.0, np.rint(abs(d) / q)))
+            t0, t1 = t[s], t[s + 1]
+            for m in range(n):
+                tau[c] = (t0 + (m + 0.5) / float(n) * (t1 - t0)) - t[k]
+                levels[c] = phi[s] + np.sign(d) * (m + 0.5) * q
+                c += 1
+    return tau, levels
+
+
 def warm_up() -> None:
     """Load every kernel's machine code now (from the cache, or compiled: a few seconds once), so that
     the first identification in a process costs what the others do."""
@@ -183,6 +214,7 @@ def warm_up() -> None:
     polynomial_roots_near_zero(np.ones((1, 3)), np.ones((1, 2)), np.zeros(1), 8)
     gradient(t, t)
     is_ascending(t)
+    count_crossings(t, t, 0, 7, 0, 1e-3)
     scaled_deviation(t, np.zeros(1, dtype=np.int64), t[:1], 1.0, t[:2])
     lag_ranking(np.ones(3), np.eye(3), np.zeros(2, dtype=np.int64), np.zeros(2), 1.0)
     twice_integrated(np.lib.stride_tricks.sliding_window_view(t, 4), 0.5 * np.diff(t[:4]))

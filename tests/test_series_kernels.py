@@ -6,9 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.series_kernels import (fit_windows, gradient, is_ascending, lag_ranking,
-                                             polynomial_roots_near_zero, scaled_deviation,
-                                             twice_integrated)
+from addedinertia_env.series_kernels import (count_crossings, fit_windows, gradient, is_ascending, lag_ranking,
+                                             polynomial_roots_near_zero, scaled_deviation, twice_integrated)
 from addedinertia_env.series_stats import median, median_step, quantile
 
 
@@ -159,3 +158,35 @@ def test_order_check_equals_numpys():
     for t in (np.arange(10.0), np.array([0.0, 1.0, 1.0, 2.0]), np.array([0.0, 2.0, 1.0]), np.array([0.0, np.nan]),
               np.array([3.0])):
         assert is_ascending(t) == bool(np.all(np.diff(t) >= 0))
+
+
+def _crossings_by_numpy(t, phi, a, b, k, q):
+    """The rest-angle fit's crossing instants and levels as energy._crossings_fit computed them with numpy."""
+    d = np.diff(phi[a:b + 1])
+    steps = np.nonzero(d != 0)[0]
+    n = np.maximum(1, np.round(np.abs(d[steps]) / q)).astype(np.int64)
+    if int(n.sum()) < 4:
+        return np.empty(0), np.empty(0)
+    j = np.repeat(steps, n)
+    n_j = np.repeat(n, n).astype(float)
+    m = np.arange(len(j)) - np.repeat(np.cumsum(n) - n, n)
+    t0, t1 = t[a + j], t[a + j + 1]
+    times = t0 + (m + 0.5) / n_j * (t1 - t0)
+    levels = phi[a + j] + np.sign(d[j]) * (m + 0.5) * q
+    return times - t[k], levels
+
+
+def test_count_crossings_equal_the_numpy_expressions():
+    rng = np.random.default_rng(23)
+    q = 2 * np.pi / 2**17
+    for case in range(300):
+        n = int(rng.integers(2, 200))
+        t = np.cumsum(1e-3 + rng.normal(size=n) * 1e-7 * (case % 2))
+        rate = rng.normal() * 10.0 ** rng.uniform(-4, -1)
+        phi = np.round((0.1 + rate * t + rng.normal(size=n) * q * (case % 3)) / q) * q
+        a = int(rng.integers(0, n - 1))
+        b = int(rng.integers(a, n))
+        k = a if case % 2 else b
+        got, expect = count_crossings(t, phi, a, b, k, q), _crossings_by_numpy(t, phi, a, b, k, q)
+        np.testing.assert_array_equal(got[0], expect[0])
+        np.testing.assert_array_equal(got[1], expect[1])

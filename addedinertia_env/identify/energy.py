@@ -60,7 +60,7 @@ import numpy as np
 from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
-from ..series_kernels import gradient, lag_ranking, twice_integrated
+from ..series_kernels import count_crossings, gradient, lag_ranking, twice_integrated
 from ..series_stats import median_step
 from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol,
                      smooth_angle, smooth_angles)
@@ -995,19 +995,9 @@ def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: flo
         a, b = int(np.searchsorted(t, t[k] + span_s)), k
     else:
         a, b = k, int(np.searchsorted(t, t[k] + span_s, side="right")) - 1
-    d = np.diff(phi[a:b + 1])
-    steps = np.nonzero(d != 0)[0]
-    # several counts in one sample: the crossings spread over it (count m of n at (m + 0.5) / n)
-    n = np.maximum(1, np.round(np.abs(d[steps]) / q)).astype(np.int64)
-    if int(n.sum()) < 4:
+    tau, levels = count_crossings(t, phi, a, b, k, q)
+    if not len(tau):
         return None
-    j = np.repeat(steps, n)
-    n_j = np.repeat(n, n).astype(float)
-    m = np.arange(len(j)) - np.repeat(np.cumsum(n) - n, n)
-    t0, t1 = t[a + j], t[a + j + 1]
-    times = t0 + (m + 0.5) / n_j * (t1 - t0)
-    levels = phi[a + j] + np.sign(d[j]) * (m + 0.5) * q
-    tau = times - t[k]
     # Before t2 the hull may pass its stop and come back a little: a free quadratic. After t3
     # it starts from rest at the brake's release: no linear term (a free one, extrapolated
     # back over the first count's dwell, is off by a count or more).
