@@ -161,3 +161,27 @@ def test_slot_masks_equal_the_numpy_masks():
     assert np.array_equal(out[0], settling) and np.array_equal(out[1], freeing) and np.array_equal(out[2], active)
     assert np.array_equal(out[3], np.where(controlled, 2, 0)) and np.array_equal(out[4], np.where(controlled, value, 0.0))
     assert np.array_equal(out[5][:m], np.nonzero(active & ~was_active)[0])
+
+
+def test_flush_staged_copies_each_slots_rows_to_its_log():
+    from numba.typed import List
+
+    from addedinertia_env.vector.pool_kernels import flush_staged
+
+    rng = np.random.default_rng(6)
+    n, lanes, stage = 20, 8, 16
+    block = rng.normal(size=(-(-n // lanes), stage + 1, 6, lanes))
+    logs = List([np.zeros((6, 40)) for _ in range(n)])
+    flushed = rng.integers(0, 20, n)
+    stage_cnt = rng.integers(0, 10, n)
+    stage_from = rng.integers(0, stage - 10, n)
+    slots = np.array([0, 3, 9, 17, 19])
+    want = [logs[k].copy() for k in range(n)]
+    for k in slots:
+        c, s, f = stage_cnt[k], stage_from[k], flushed[k]
+        want[k][:, f:f + c] = block[k // lanes, s:s + c, :, k % lanes].T
+    n0, cnt0 = flushed.copy(), stage_cnt.copy()
+    flush_staged(block, logs, slots, stage_cnt, stage_from, flushed)
+    for k in range(n):
+        assert np.array_equal(logs[k], want[k])
+    assert np.array_equal(flushed[slots], n0[slots] + cnt0[slots]) and not stage_cnt[slots].any()

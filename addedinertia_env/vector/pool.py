@@ -42,6 +42,7 @@ import math
 from typing import Any, Sequence
 
 import numpy as np
+from numba.typed import List
 
 from ..experiment.filters import endpoint_slope_weights
 from ..experiment.reference import MirroredReference, fit_stroke
@@ -52,8 +53,8 @@ from ..rig.control_loop import LoopState
 from ..rig.interface import SimulatedRigBase
 from ..rig.sensors import BatchedReading
 from ..scenarios import Scenario
-from .pool_kernels import (BROKEN, ENDED_NOW, EVENTS, OVER, RELEASE, STOP, TO_REVERSE, slot_bookkeeping,
-                           slot_masks, slot_rates)
+from .pool_kernels import (BROKEN, ENDED_NOW, EVENTS, OVER, RELEASE, STOP, TO_REVERSE, flush_staged,
+                           slot_bookkeeping, slot_masks, slot_rates)
 from .reference import MirroredReferences
 
 EMPTY, SETTLE, FREE, READY, HOLD, REVERSE, ENDED = range(7)
@@ -157,7 +158,8 @@ class ExperimentPool:
         self._stage_row = 0
         self._stage_from = np.zeros(n, dtype=np.int64)
         self._stage_cnt = np.zeros(n, dtype=np.int64)
-        self._logs = [np.zeros((len(COLUMNS), 0)) for _ in range(n)]
+        self._logs = List([np.zeros((len(COLUMNS), 0)) for _ in range(n)])  # numba's list: flush_staged writes them
+        self._log_cap = np.zeros(n, dtype=np.int64)  # samples each log holds
         self._flushed = np.zeros(n, dtype=np.int64)
         self._times = sample_times(1, self.dt, self.substeps)
 
@@ -221,10 +223,10 @@ class ExperimentPool:
         self._stage_cnt[slots] = 0
         self._flushed[slots] = 1
         for j, k in enumerate(slots):
-            log = self._logs[k]
-            if log.shape[1] < 4096:
-                log = self._logs[k] = np.zeros((len(COLUMNS), 4096))
-            log[:, 0] = (reading.phi[j], reading.psi[j], reading.u[j], reading.i[j], 0.0, 0.0)
+            if self._log_cap[k] < 4096:
+                self._logs[k] = np.zeros((len(COLUMNS), 4096))
+                self._log_cap[k] = 4096
+            self._logs[k][:, 0] = (reading.phi[j], reading.psi[j], reading.u[j], reading.i[j], 0.0, 0.0)
         self.stage[slots] = SETTLE
         self._was_active[slots] = False
         done = slots[self.settle_left[slots] <= 0]
@@ -393,17 +395,15 @@ class ExperimentPool:
         slots = slots[self._stage_cnt[slots] > 0]
         if not len(slots):
             return
-        counts, starts, n0s = (a[slots].tolist() for a in (self._stage_cnt, self._stage_from, self._flushed))
-        block = self._stage_block
-        for k, cnt, start, n0 in zip(slots.tolist(), counts, starts, n0s):
-            log = self._logs[k]
-            if n0 + cnt > log.shape[1]:
-                grown = np.zeros((len(COLUMNS), max(2 * log.shape[1], n0 + cnt)))
-                grown[:, :n0] = log[:, :n0]
-                log = self._logs[k] = grown
-            log[:, n0:n0 + cnt] = block[k // LANES, start:start + cnt, :, k % LANES].T
-        self._flushed[slots] += self._stage_cnt[slots]
-        self._stage_cnt[slots] = 0
+        need = self._flushed[slots] + self._stage_cnt[slots]
+        short = slots[need > self._log_cap[slots]]
+        for k in short.tolist():  # logs that grow (rare): twice the size, or what is needed
+            n0, size = int(self._flushed[k]), max(2 * int(self._log_cap[k]), int(self._flushed[k] + self._stage_cnt[k]))
+            grown = np.zeros((len(COLUMNS), size))
+            grown[:, :n0] = self._logs[k][:, :n0]
+            self._logs[k] = grown
+            self._log_cap[k] = size
+        flush_staged(self._stage_block, self._logs, slots, self._stage_cnt, self._stage_from, self._flushed)
 
     # --- records --------------------------------------------------------------------------
     def record(self, k: int, run_id: str = "run"):

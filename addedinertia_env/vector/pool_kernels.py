@@ -63,6 +63,24 @@ def slot_rates(ring, j, g, cols, counts, n_rate, w_rate, dt, out):  # pragma: no
 
 
 @njit(cache=True)
+def flush_staged(block, logs, slots, stage_cnt, stage_from, flushed):  # pragma: no cover - compiled
+    """Copy the staged samples of ``slots`` from ``block`` (tile x row x column x lane, slot ``k`` in
+    tile ``k // lanes``, lane ``k % lanes``) to their logs ``logs[k]`` (column x sample; long enough)
+    after their ``flushed[k]`` samples; ``flushed`` grows by ``stage_cnt``, which becomes 0."""
+    lanes = block.shape[3]
+    for s in range(len(slots)):
+        k = slots[s]
+        cnt, start, n0 = stage_cnt[k], stage_from[k], flushed[k]
+        log = logs[k]
+        tile, lane = k // lanes, k % lanes
+        for c in range(block.shape[2]):
+            for r in range(cnt):
+                log[c, n0 + r] = block[tile, start + r, c, lane]
+        flushed[k] = n0 + cnt
+        stage_cnt[k] = 0
+
+
+@njit(cache=True)
 def slot_masks(stage, controlled, was_active, mode_code, value, settling, freeing, active, mode, command,
                resumed):  # pragma: no cover - compiled
     """Which slots take this sample: ``settling`` (stage settle), ``freeing`` (stage free), ``active``
