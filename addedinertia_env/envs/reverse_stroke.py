@@ -324,7 +324,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         record = self.record()
         out: dict[str, Any] = {"failed": False, "failure": ""}
         try:
-            result = identify([record], "energy")
+            result = identify([record], "energy", interval_details=False)  # the numbers only
             est, ci = float(result.lambda66), [float(result.ci95[0]), float(result.ci95[1])]
         except IdentificationError as e:
             est, ci = math.nan, [math.nan, math.nan]

@@ -76,7 +76,7 @@ def estimate_lambda66(record) -> tuple[float, float, float, str | None]:
 
 def _estimate(record) -> tuple[float, float, float, str | None]:
     try:
-        result = identify([record], "energy")
+        result = identify([record], "energy", interval_details=False)  # the numbers only: no record per angle
     except IdentificationError as err:
         return math.nan, math.nan, math.nan, str(err)
     return float(result.lambda66), float(result.ci95[0]), float(result.ci95[1]), None
