@@ -32,7 +32,10 @@ pass through it to the rig, readings through its delay lines to everything here.
 
 Paused slots (``empty``, ``ready``, ``ended``) keep their state, clock, noise counter
 and delay lines: the rig's ``active`` mask. Every slot's samples go to a staging block
-(``STAGE`` samples x columns x slots) and from there to the slot's own log arrays.
+(``STAGE`` samples x columns, in tiles of ``LANES`` slots) and from there to the slot's own
+log arrays. A sample's bookkeeping in every slot (the log, energy, tracking error, stage
+changes, free-stroke detection, settling) is one compiled pass, :mod:`.pool_kernels`; what
+needs Python (the stroke fit at a stop, brakes) comes back from it as lists of slots.
 """
 
 from __future__ import annotations
