@@ -304,7 +304,10 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   f"{per_episode:,.0f} samples ({per_episode / e['samples_per_cpu_s'] * 1e3:,.1f} CPU-ms): per sample, "
                   f"{1e6 / e['samples_per_cpu_s']:.2f} CPU-us of stepping (settle, free strokes, resets included) and "
                   f"{ident_ms * 1e3 / per_episode:.2f} CPU-us of end-of-episode work; 1 M samples/s on "
-                  f"{head.get('workers', 1)} cores needs at most {head.get('workers', 1):g} CPU-us per sample all in.", "",
+                  f"{head.get('workers', 1)} cores needs at most {head.get('workers', 1):g} CPU-us per sample all in with "
+                  f"every core busy all the time, {head['cpu_s'] / head['wall_s']:.1f} CPU-us at the "
+                  f"{head['cpu_s'] / head['wall_s']:.1f} cores kept busy here, against "
+                  f"{1e6 / head['samples_per_cpu_s']:.2f} CPU-us measured in the headline row.", "",
                   "`gym.make_vec(\"AddedInertia/ReverseStroke-v0\", num_envs=N)` gives the batched env (its",
                   "`vector_entry_point`; `workers=W` runs it in W processes: shard 0 in the calling one, the others in",
                   "workers); `vectorization_mode=\"sync\"` gives N single",
