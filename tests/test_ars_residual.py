@@ -10,7 +10,7 @@ import pytest
 
 from addedinertia_env.bench.runner import run_episode
 from addedinertia_env.bench.suites import load_suite
-from addedinertia_env.learning.ars_residual import LinearPolicy, _base_factory, base_params, export_onnx
+from addedinertia_env.learning.ars_residual import LinearPolicy, base_factory, base_params, export_onnx
 from addedinertia_env.learning.paired_batch import run_batch
 from addedinertia_env.task import OBSERVATION_FIELDS
 
@@ -20,19 +20,19 @@ def test_the_trainer_scores_an_episode_as_the_benchmark_does():
     ranked error (MuJoCo, with the passive tail) to within the engines' difference."""
     suite = load_suite("hard-v0")
     params = base_params(suite, "pid")
-    batch = run_batch(suite, [0, 0], _base_factory("pid", params), split="tuning", oracle=[True, False])
+    batch = run_batch(suite, [0, 0], base_factory("pid", params), split="tuning", oracle=[True, False])
     seed = suite.split_seed("tuning", 0)
     for j, name in enumerate(("oracle", "pid")):
         row = run_episode(suite.task(suite.scenario(seed), name))
         assert row["failure"] is None
         assert batch.rel_error[j] == pytest.approx(row["rel_error"], abs=2e-5), name
     with pytest.raises(ValueError, match="held out"):
-        run_batch(suite, [0], _base_factory("pid", params), split="test")
+        run_batch(suite, [0], base_factory("pid", params), split="test")
 
 
 def test_a_zero_correction_is_the_base_and_the_oracle_is_paired_on_the_same_scenario():
     suite = load_suite("hard-v0")
-    make = _base_factory("pid", base_params(suite, "pid"))
+    make = base_factory("pid", base_params(suite, "pid"))
     plain = run_batch(suite, [3], make)
     zero = run_batch(suite, [3], make, policy=lambda obs, slots: np.zeros(len(slots), np.float32), residual_scale=0.1)
     assert zero.rel_error[0] == plain.rel_error[0]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from addedinertia_env.bench.suites import load_suite
-from addedinertia_env.learning.ars_residual import _base_factory, base_params
+from addedinertia_env.learning.ars_residual import base_factory, base_params
 from addedinertia_env.learning.dagger import MLPStudent, export_onnx, fit, load_student, train
 from addedinertia_env.learning.paired_batch import run_batch
 from addedinertia_env.task import OBSERVATION_FIELDS
@@ -22,7 +22,7 @@ def test_a_rig_that_always_follows_the_teacher_runs_the_oracles_episode():
     and its lambda66 are the oracle slot's on the same scenario and noise; the base's action is
     still recorded beside it."""
     suite = load_suite("hard-v0")
-    make = _base_factory("pid", base_params(suite, "pid"))
+    make = base_factory("pid", base_params(suite, "pid"))
     oracle = run_batch(suite, [5], make, oracle=[True])
     taught = run_batch(suite, [5], make, teacher_labels=True, teacher_mix=1.0)
     assert taught.rel_error[0] == pytest.approx(oracle.rel_error[0], abs=1e-12)

@@ -83,13 +83,15 @@ def base_params(suite, base: str) -> dict[str, Any]:
     return {k: (v.item() if hasattr(v, "item") else v) for k, v in getattr(c, "params", {}).items()} if tuned else {}
 
 
-def _base_factory(base: str, params: dict[str, Any]):
+def base_factory(base: str, params: dict[str, Any]):
+    """A maker of fresh ``base`` controllers with the pinned gains ``params`` (:func:`base_params`;
+    empty: the controller's defaults), as the batched trainers (ARS, DAgger) build their base."""
     from agents import make_controller  # noqa: PLC0415
 
     return (lambda: make_controller(base, tuned=False, **params)) if params else (lambda: make_controller(base))
 
 
-def _score(rel: np.ndarray, rel_oracle: np.ndarray, cap: float) -> np.ndarray:
+def capped_cost(rel: np.ndarray, rel_oracle: np.ndarray, cap: float) -> np.ndarray:
     """Per-episode training cost: min(|e - e_oracle|, cap), cap for a failure (of either)."""
     c = np.abs(rel - rel_oracle)
     return np.where(np.isfinite(c), np.minimum(c, cap), cap)
@@ -106,7 +108,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
     out.mkdir(parents=True, exist_ok=True)
     suite = load_suite(suite_name)
     pinned = base_params(suite, base)
-    make_base = _base_factory(base, pinned)
+    make_base = base_factory(base, pinned)
     rng = np.random.default_rng(seed)
     cpu0, wall0 = time.process_time(), time.perf_counter()
     next_scenario = seed * TRAIN_SEED_STRIDE
@@ -171,7 +173,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
         episodes += len(batch_seeds)
         m = len(seeds)
         rel = result.rel_error.reshape(len(groups), m)
-        cost = np.stack([_score(rel[g], rel[0], cap) for g in range(1, len(groups))])  # base, policy, candidates
+        cost = np.stack([capped_cost(rel[g], rel[0], cap) for g in range(1, len(groups))])  # base, policy, candidates
         base_cost, center_cost = cost[0], cost[1]
         cand = cost[2:].reshape(directions, 2, m).mean(axis=2)  # (+, -) mean cost per direction
         reward = -cand

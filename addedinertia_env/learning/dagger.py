@@ -50,7 +50,7 @@ import numpy as np
 
 from ..atomic import atomic_target, atomic_write_text
 from ..task import OBSERVATION_FIELDS
-from .ars_residual import base_params, _base_factory, _score
+from .ars_residual import base_factory, base_params, capped_cost
 from .paired_batch import run_batch
 
 CLIP_X = 5.0  # normalised observations are clipped to +-5
@@ -171,7 +171,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pd", seed: int
     out.mkdir(parents=True, exist_ok=True)
     suite = load_suite(suite_name)
     pinned = base_params(suite, base)
-    make_base = _base_factory(base, pinned)
+    make_base = base_factory(base, pinned)
     cpu0, wall0 = time.process_time(), time.perf_counter()
     next_scenario = seed * TRAIN_SEED_STRIDE
     env_steps = episodes = 0
@@ -182,13 +182,13 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pd", seed: int
     ref = run_batch(suite, val_seeds + val_seeds, make_base, oracle=[True] * validate + [False] * validate,
                     action_repeat=action_repeat)
     rel_oracle, rel_base = ref.rel_error[:validate], ref.rel_error[validate:]
-    base_cost = _score(rel_base, rel_oracle, cap)
+    base_cost = capped_cost(rel_base, rel_oracle, cap)
     env_steps += ref.agent_steps
     episodes += 2 * validate
 
     def validation(student) -> dict[str, float]:
         r = run_batch(suite, val_seeds, make_base, policy=student, residual_scale=scale, action_repeat=action_repeat)
-        cost = _score(r.rel_error, rel_oracle, cap)
+        cost = capped_cost(r.rel_error, rel_oracle, cap)
         ce = np.abs(r.rel_error - rel_oracle)
         return {"val_mean_cost": float(cost.mean()), "val_median_ce": float(np.nanmedian(ce)),
                 "val_paired_mean_diff": float(np.mean(cost - base_cost)),

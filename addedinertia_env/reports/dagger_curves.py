@@ -65,13 +65,13 @@ def validate(runs: list[Path], n: int, cap: float = 0.005) -> dict[str, Any]:
     from agents import make_controller  # noqa: PLC0415
 
     from ..bench.suites import load_suite  # noqa: PLC0415
-    from ..learning.ars_residual import _base_factory, _score  # noqa: PLC0415
+    from ..learning.ars_residual import base_factory, capped_cost  # noqa: PLC0415
     from ..learning.dagger import load_student  # noqa: PLC0415
     from ..learning.paired_batch import run_batch  # noqa: PLC0415
 
     cards = [json.loads((r / "training_card.json").read_text()) for r in runs]
     suite = load_suite(cards[0]["suite"])
-    make_base = _base_factory(cards[0]["base"], cards[0]["base_params"])
+    make_base = base_factory(cards[0]["base"], cards[0]["base_params"])
     repeat, scale = cards[0]["action_repeat"], cards[0]["scale"]
     seeds = list(range(SELECTION_FIRST, SELECTION_FIRST + n))
     first = run_batch(suite, seeds * 2, make_base, oracle=[True] * n + [False] * n, action_repeat=repeat)
@@ -79,13 +79,13 @@ def validate(runs: list[Path], n: int, cap: float = 0.005) -> dict[str, Any]:
     rel["pd"] = run_batch(suite, seeds, lambda: make_controller("pd"), action_repeat=repeat).rel_error
     for r, card in zip(runs, cards):
         student = load_student(r / "policy.npz")
-        rel[r.name] = run_batch(suite, seeds, _base_factory(card["base"], card["base_params"]), policy=student,
+        rel[r.name] = run_batch(suite, seeds, base_factory(card["base"], card["base_params"]), policy=student,
                                 residual_scale=card["scale"], action_repeat=repeat).rel_error
     ce = {k: np.abs(v - rel["oracle"]) for k, v in rel.items() if k != "oracle"}
     result: dict[str, Any] = {"scenarios": n, "first_seed": SELECTION_FIRST, "cap": cap, "entries": {}}
     for name, c in ce.items():
         result["entries"][name] = {"median_ce": float(np.nanmedian(c)),
-                                   "mean_capped_cost": float(_score(rel[name], rel["oracle"], cap).mean()),
+                                   "mean_capped_cost": float(capped_cost(rel[name], rel["oracle"], cap).mean()),
                                    "failures": int(np.sum(~np.isfinite(rel[name]))),
                                    "paired_vs_pd": paired_median_diff(c, ce["pd"]) if name != "pd" else None}
     result["chosen"] = min((r.name for r in runs), key=lambda k: (result["entries"][k]["median_ce"], k))

@@ -79,7 +79,7 @@ def run(n: int, cap: float = 0.005) -> dict[str, Any]:
 
     from ..bench.suites import load_suite  # noqa: PLC0415
     from ..learning import paired_batch  # noqa: PLC0415
-    from ..learning.ars_residual import _base_factory, _score, base_params  # noqa: PLC0415
+    from ..learning.ars_residual import base_factory, base_params, capped_cost  # noqa: PLC0415
 
     suite = load_suite("hard-v0")
     seeds = list(range(FIRST, FIRST + n))
@@ -89,7 +89,7 @@ def run(n: int, cap: float = 0.005) -> dict[str, Any]:
     def score(name: str, rel: np.ndarray, **knobs: Any) -> None:
         ce = np.abs(rel - oracle)
         rows.append({"entry": name, **knobs, "median_ce": float(np.nanmedian(ce)),
-                     "mean_capped_cost": float(_score(rel, oracle, cap).mean()),
+                     "mean_capped_cost": float(capped_cost(rel, oracle, cap).mean()),
                      "failures": int(np.sum(~np.isfinite(rel)))})
 
     for v in VARIANTS:
@@ -107,9 +107,9 @@ def run(n: int, cap: float = 0.005) -> dict[str, Any]:
             paired_batch.OracleController = OracleController
     score("pd", paired_batch.run_batch(suite, seeds, lambda: make_controller("pd")).rel_error)
     pid = base_params(suite, "pid")
-    score("pid", paired_batch.run_batch(suite, seeds, _base_factory("pid", pid)).rel_error)
+    score("pid", paired_batch.run_batch(suite, seeds, base_factory("pid", pid)).rel_error)
     # the classical controllers pre-spin the flywheel in the hold; the oracle does not
-    score("pid, no pre-spin", paired_batch.run_batch(suite, seeds, _base_factory("pid", {**pid, "prespin": False})).rel_error)
+    score("pid, no pre-spin", paired_batch.run_batch(suite, seeds, base_factory("pid", {**pid, "prespin": False})).rel_error)
     return {"suite": "hard-v0", "split": "train", "first_seed": FIRST, "scenarios": n, "cap": cap, "rows": rows}
 
 
