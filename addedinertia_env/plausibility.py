@@ -43,7 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .run_record import RecordError, RunRecord
-from .series_stats import median, quantile
+from .scan_kernels import (abs_max, abs_rates, block_starts, first_beyond, first_step_beyond,
+                           median_abs_deviation_sorted, second_differences)
+from .series_stats import median, quantile, sorted_median
 
 MARGIN = 1.5  # how far a measured value may exceed a limit derived from physics (sensor gain, noise)
 LIMIT_MARGIN = 2.0  # how far |i| or |u| may exceed the rig's stated i_max / u_max
@@ -78,7 +80,8 @@ def check_plausible(rec: RunRecord) -> Limits:
         known = rec.known
     except ValueError as e:  # KnownRigError: the rig block itself is unusable
         raise RecordError(f"{name}: rig block: {e}") from None
-    _check_phase_order(rec)
+    starts, labels = _phase_blocks(rec.phase)
+    _check_phase_order(rec, starts, labels)
     t, phi, psi, u, i = (np.asarray(rec[c], dtype=float) for c in ("t", "phi", "psi", "u", "i"))
     k_t, R, c, J_h, phi_n = known.k_t, known.R, known.c_torsion, known.J_hull, known.phi_neutral
     i_max_rig, u_max_rig = _positive_or_none(known.i_max), _positive_or_none(known.u_max)
@@ -86,14 +89,14 @@ def check_plausible(rec: RunRecord) -> Limits:
 
     # Angles first: a psi of 1e15 rad would make every rate below meaningless.
     psi_abs = max(q_psi if q_psi > 0 else 2 * math.pi / 2**24, 1e-9) * PSI_RESOLUTION_FRACTION / np.finfo(float).eps
-    _refuse_above(name, "psi", np.abs(psi), psi, psi_abs,
+    _refuse_above(name, "psi", psi, psi_abs,
                   f"{psi_abs:.3g} rad (beyond it a float64 cannot resolve a tenth of an encoder count; "
                   "radians, not counts?)")
 
-    dt = np.diff(t)
+    dt = t[1:] - t[:-1]
     # Flywheel rate, robustly: a single bad sample must not raise the limits it is tested by.
     omega = _robust_max_rate(t, psi, dt)
-    hull_amp = float(np.max(np.abs(phi - phi_n)))
+    hull_amp = float(_abs_max(phi, phi_n))
 
     # Voltage.
     if u_max_rig is not None:
@@ -105,27 +108,27 @@ def check_plausible(rec: RunRecord) -> Limits:
                  "no rig.u_max given)")
     else:
         u_lim, why_u = math.inf, "no rig.u_max or rig.i_max given"
-    _refuse_above(name, "u", np.abs(u), u, u_lim, f"{u_lim:.4g} V = {why_u}")
+    _refuse_above(name, "u", u, u_lim, f"{u_lim:.4g} V = {why_u}")
 
     # Current: the rig's limit, and what the record's own voltages can drive.
-    u_seen = float(np.max(np.abs(u)))
+    u_seen = float(_abs_max(u, 0.0))
     i_ohm = MARGIN * (u_seen + k_t * omega) / R + _noise(i)
     i_lim, why_i = i_ohm, (f"{MARGIN:g} x (max|u| {u_seen:.3g} V + k_t |Omega| {k_t * omega:.3g} V) / R {R:g} ohm "
                            "+ the channel's noise: the most the terminal voltage can drive")
     if i_max_rig is not None and LIMIT_MARGIN * i_max_rig < i_lim:
         i_lim, why_i = LIMIT_MARGIN * i_max_rig, f"{LIMIT_MARGIN:g} x rig.i_max {i_max_rig:g} A"
-    _refuse_above(name, "i", np.abs(i), i, i_lim, f"{i_lim:.4g} A = {why_i}")
+    _refuse_above(name, "i", i, i_lim, f"{i_lim:.4g} A = {why_i}")
 
     # Rates: step by step, so non-uniform t and gaps are fine.
-    i_top = i_max_rig if i_max_rig is not None else float(np.max(np.abs(i)))
+    i_top = i_max_rig if i_max_rig is not None else float(_abs_max(i, 0.0))
     u_top = u_max_rig if u_max_rig is not None else u_seen
     hull_rate = math.sqrt((c * hull_amp**2 + 4.0 * k_t * i_top * hull_amp) / J_h)
     fly_rate = (u_top + R * i_top) / k_t + hull_rate
-    moving = rec.phase[1:] != "idle"  # an operator may twist the rod by hand while idle
-    _refuse_steps(name, "phi", t, phi, dt, MARGIN * hull_rate, q_phi, mask=moving,
+    moving = _not_idle_steps(len(rec.phase), starts, labels)  # an operator may twist the rod by hand while idle
+    _refuse_steps(name, "phi", phi, dt, MARGIN * hull_rate, q_phi, mask=moving,
                   why=f"hull rate {MARGIN:g} x sqrt((c A^2 + 4 k_t i_max A) / J_hull) = {MARGIN * hull_rate:.3g} "
                       f"rad/s with A = {hull_amp:.3g} rad (spring energy + motor work)")
-    _refuse_steps(name, "psi", t, psi, dt, MARGIN * fly_rate, q_psi, mask=None,
+    _refuse_steps(name, "psi", psi, dt, MARGIN * fly_rate, q_psi, mask=None,
                   why=f"flywheel rate {MARGIN:g} x ((u_max + R i_max) / k_t + hull rate) = {MARGIN * fly_rate:.3g} rad/s")
     return Limits(i_lim, why_i, u_lim, why_u, hull_rate, fly_rate, psi_abs)
 
@@ -146,11 +149,32 @@ def _count_step(counts) -> float:
 
 
 def _noise(x: np.ndarray) -> float:
-    """Robust sigma of a channel's sample-to-sample noise (second differences; one spike does not count)."""
+    """Robust sigma of a channel's sample-to-sample noise (second differences; one spike does not count):
+    ``1.4826 median(|d2 - median(d2)|) / sqrt(6)``, ``d2 = np.diff(x, 2)``, with one sort."""
     if x.size < 3:
         return 0.0
-    d2 = np.diff(x, 2)
-    return float(1.4826 * median(np.abs(d2 - median(d2))) / math.sqrt(6.0))
+    s = np.sort(second_differences(x) if _series(x) else np.diff(x, 2))
+    m = sorted_median(s)
+    if math.isfinite(m):  # else nan or inf: the elementwise form (nan either way)
+        mad = float(median_abs_deviation_sorted(s, m))
+    else:
+        mad = median(np.abs(s - m))
+    return float(1.4826 * mad / math.sqrt(6.0))
+
+
+def _abs_max(x: np.ndarray, center: float) -> float:
+    """``np.max(np.abs(x - center))`` (numpy's error for no samples)."""
+    return abs_max(x, center) if _series(x) and len(x) else np.max(np.abs(x - center))
+
+
+def _series(x: np.ndarray, steps: np.ndarray | None = None, mask: np.ndarray | None = None) -> bool:
+    """Whether the compiled scans apply: ``x`` a 1-D float64 array, ``steps`` and ``mask`` (when given)
+    1-D with one element per step of ``x`` (otherwise the numpy expressions run, with numpy's own
+    broadcasting and errors)."""
+    ok = x.ndim == 1 and x.dtype == np.float64
+    for other in (steps, mask):
+        ok = ok and (other is None or (other.ndim == 1 and len(other) == len(x) - 1))
+    return ok
 
 
 def _robust_max_rate(t: np.ndarray, x: np.ndarray, dt: np.ndarray | None = None) -> float:
@@ -158,7 +182,8 @@ def _robust_max_rate(t: np.ndarray, x: np.ndarray, dt: np.ndarray | None = None)
     when already computed."""
     if x.size < 2:
         return 0.0
-    rate = np.abs(np.diff(x) / (np.diff(t) if dt is None else dt))
+    dt = np.diff(t) if dt is None else dt
+    rate = abs_rates(x, dt) if _series(x, dt) else np.abs(np.diff(x) / dt)
     return quantile(rate, 0.99) if rate.size >= 100 else median(rate)
 
 
@@ -167,54 +192,77 @@ def _line(k: int) -> int:
     return int(k) + 2
 
 
-def _refuse_above(name: str, column: str, magnitude: np.ndarray, values: np.ndarray, limit: float, why: str) -> None:
-    bad = magnitude > limit
-    if bad.any():
-        k = int(np.argmax(bad))
+def _refuse_above(name: str, column: str, values: np.ndarray, limit: float, why: str) -> None:
+    if _series(values):
+        k = first_beyond(values, limit)
+    else:
+        bad = np.abs(values) > limit
+        k = int(np.argmax(bad)) if bad.any() else -1
+    if k >= 0:
         raise RecordError(f"{name}: line {_line(k)}, column '{column}': {float(values[k])!r} is beyond what the rig allows, "
                           f"|{column}| <= {why}; wrong units or a bad sample?")
 
 
-def _refuse_steps(name: str, column: str, t, x, dt, rate: float, q: float, mask, why: str) -> None:
+_NO_MASK = np.zeros(0, dtype=bool)
+
+
+def _refuse_steps(name: str, column: str, x, dt, rate: float, q: float, mask, why: str) -> None:
+    """Refuse the first step ``|x[k+1] - x[k]|`` beyond ``rate dt[k]`` plus quantisation and noise where
+    ``mask[k]`` (every step when ``mask`` is None)."""
     if x.size < 2:
         return
-    step = np.abs(np.diff(x))
-    tol = rate * dt + QUANT_STEPS * q + NOISE_SIGMAS * _noise(x)
-    bad = step > tol
-    if mask is not None:
-        bad &= mask
-    if bad.any():
-        k = int(np.argmax(bad))
+    quant, noise = QUANT_STEPS * q, NOISE_SIGMAS * _noise(x)
+    if _series(x, dt, mask) and dt.dtype == np.float64:
+        k = first_step_beyond(x, dt, rate, quant, noise, _NO_MASK if mask is None else mask)
+    else:
+        bad = np.abs(np.diff(x)) > rate * dt + quant + noise
+        if mask is not None:
+            bad &= mask
+        k = int(np.argmax(bad)) if bad.any() else -1
+    if k >= 0:
+        step, tol = abs(x[k + 1] - x[k]), rate * dt[k] + quant + noise  # the numbers the scan compared
         raise RecordError(f"{name}: line {_line(k + 1)}, column '{column}': {float(x[k + 1])!r} after {float(x[k])!r} "
-                          f"({dt[k]:.3g} s earlier) is a step of {step[k]:.4g} rad; expected at most {tol[k]:.4g} rad "
+                          f"({dt[k]:.3g} s earlier) is a step of {step:.4g} rad; expected at most {tol:.4g} rad "
                           f"from the {why} plus encoder quantisation and noise")
 
 
-def _check_phase_order(rec: RunRecord) -> None:
+def _phase_blocks(phase: np.ndarray) -> tuple[list[int], list[str]]:
+    """First sample and label of each contiguous block of one phase."""
+    phase = np.asarray(phase)
+    starts = block_starts(phase)
+    return starts.tolist(), [str(label) for label in phase[starts].tolist()]
+
+
+def _not_idle_steps(n: int, starts: list[int], labels: list[str]) -> np.ndarray:
+    """Per step ``k`` (samples ``k``, ``k + 1``; ``n`` samples): sample ``k + 1`` is not ``idle``
+    (``phase[1:] != 'idle'``), from the phase blocks."""
+    moving = np.ones(max(n - 1, 0), dtype=bool)
+    for a, b, label in zip(starts, starts[1:] + [n], labels):
+        if label == "idle":
+            moving[max(a - 1, 0):b - 1] = False
+    return moving
+
+
+def _check_phase_order(rec: RunRecord, starts: list[int], labels: list[str]) -> None:
     kind = rec.experiment.get("kind")
     order = PHASE_ORDER.get(kind)
     if order is None:
         return
-    bad = _first_out_of_order(rec.phase, order)
+    bad = _first_out_of_order(starts, labels, order)
     if bad is None:
         return
     k, label = bad
     after = f" after {str(rec.phase[k - 1])!r}" if k else " first"
-    fits = [other for other, o in PHASE_ORDER.items() if o is not None and _first_out_of_order(rec.phase, o) is None]
+    fits = [other for other, o in PHASE_ORDER.items() if o is not None and _first_out_of_order(starts, labels, o) is None]
     hint = f"; the phases fit a {' or '.join(fits)} run: is experiment.kind right?" if fits else ""
     raise RecordError(f"{rec.name}: line {_line(k)}, column 'phase': {label!r}{after}; expected the phases of a "
                       f"{kind} run in the order {' -> '.join(order)} (each once; hold and idle optional){hint}")
 
 
-def _first_out_of_order(phase: np.ndarray, order: tuple[str, ...]) -> tuple[int, str] | None:
-    """(sample index, label) of the first phase block that breaks ``order``, or None."""
-    phase = np.asarray(phase)
-    if not len(phase):
-        return None
-    starts = np.concatenate([[0], np.nonzero(phase[1:] != phase[:-1])[0] + 1])  # first sample of each block
+def _first_out_of_order(starts: list[int], labels: list[str], order: tuple[str, ...]) -> tuple[int, str] | None:
+    """(sample index, label) of the first phase block (``starts``, ``labels``) that breaks ``order``, or None."""
     pos = -1
-    for k, label in zip(starts.tolist(), phase[starts].tolist()):
-        label = str(label)
+    for k, label in zip(starts, labels):
         nxt = next((p for p in range(pos + 1, len(order)) if order[p] == label), None)
         if nxt is None:
             return k, label

@@ -9,7 +9,11 @@ def median(x: np.ndarray) -> float:
     """``np.median`` of a non-empty 1-D float array, the same number, by sorting (numpy's vectorised
     sort beats its partition on these sizes, and a compiled selection on quantised data): nan when
     ``x`` holds a nan (they sort last)."""
-    s = np.sort(x)
+    return sorted_median(np.sort(x))
+
+
+def sorted_median(s: np.ndarray) -> float:
+    """:func:`median` of a non-empty 1-D float array already sorted ascending (``np.sort``: nan last)."""
     if np.isnan(s[-1]):
         return float("nan")
     k = len(s) // 2

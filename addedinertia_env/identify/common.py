@@ -152,9 +152,11 @@ def prepare() -> None:
     when it is built to score episodes); the compiled kernels are loaded (or compiled) here too."""
     from scipy.signal import savgol_coeffs  # noqa: F401, PLC0415
 
+    from ..scan_kernels import warm_up as warm_up_scans  # noqa: PLC0415
     from ..series_kernels import warm_up  # noqa: PLC0415
 
     warm_up()
+    warm_up_scans()
 
 
 @lru_cache(maxsize=64)

@@ -60,6 +60,8 @@ import numpy as np
 from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
+from ..scan_kernels import (block_starts, gap_counts, negative_step_ratios, reaction_work, relaxed_interval_means,
+                            squared_step_sums, true_counts, value_change_starts)
 from ..series_kernels import count_crossings, gradient, lag_ranking, twice_integrated
 from ..series_stats import median_step
 from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol,
@@ -364,7 +366,7 @@ class RunBalance:
                                           f"(winding inductance, H); the record gives {self.L!r}; use work='reaction'")
         t, phi, psi = rec.t, rec["phi"], rec["psi"]
         self.t, self.phi, self.psi = t, phi, psi
-        first_blocks, phase_change = _first_blocks(rec)
+        first_blocks, phase_starts = _first_blocks(rec)
         free, hold, rev = first_blocks.get("free"), first_blocks.get("hold"), first_blocks.get("reverse")
         if free is None or rev is None:
             raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
@@ -379,7 +381,7 @@ class RunBalance:
         self.direction = float(np.sign(self.phi2 - self.phi_n))
         # Smoothed angles for the work increments, smoothed phase by phase: a window across the
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
-        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec, phase_change))
+        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec, phase_starts))
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         if work == "reaction" and FLYWHEEL_CALIBRATION:
@@ -445,7 +447,7 @@ class RunBalance:
         reason = ["" if p else "boundary angle not passed on both strokes" for p in passed.tolist()]
         # the work sums and rate fits assume the stroke was sampled throughout
         period = 1.0 / float(self.rec.rig["sample_rate"])
-        big = np.concatenate([[0], np.cumsum(np.diff(t) > MAX_GAP_PERIODS * period * (1 + 1e-6))])
+        big = gap_counts(t, MAX_GAP_PERIODS * period * (1 + 1e-6))  # long gaps before each sample
         gapped = passed & (((big[self.k2] - big[k1]) != 0) | ((big[k4] - big[self.k3]) != 0))
         for j in np.nonzero(gapped)[0].tolist():  # a long gap: the message names it
             gap = largest_gap(self.rec, int(k1[j]), self.k2) or largest_gap(self.rec, self.k3, int(k4[j]))
@@ -573,7 +575,7 @@ class RunBalance:
         relative difference of the reverse and forward speeds at the angle (the rejection tests)."""
         if self.saturated is not None:  # fraction of samples k3..k4 at the limit
             if self._sat_count is None:
-                self._sat_count = np.concatenate([[0], np.cumsum(self.saturated)])
+                self._sat_count = true_counts(self.saturated)
             count = self._sat_count
             sat = (count[np.minimum(k4s + 1, len(count) - 1)] - count[self.k3]) / (
                 np.minimum(k4s + 1, len(self.saturated)) - self.k3)
@@ -708,8 +710,7 @@ class RunBalance:
         """1-sigma of the motor work on [t_a, t_b] from white current noise, J (``a``, ``b``:
         sample indices, integers or arrays of them)."""
         if self._dsq_cum is None:  # sum of the squared angle increments from the first sample
-            d = np.diff(self.phi_s) if self.work == "reaction" else np.diff(self.psi_s)
-            self._dsq_cum = np.concatenate([[0.0], np.cumsum(d**2)])
+            self._dsq_cum = squared_step_sums(self.phi_s if self.work == "reaction" else self.psi_s)
         last = len(self._dsq_cum) - 1
         total = self._dsq_cum[np.minimum(b, last)] - self._dsq_cum[np.minimum(a, last)]
         return self.k_t * self.noise_i * np.sqrt(np.maximum(total, 0.0) / 2.0)
@@ -717,14 +718,12 @@ class RunBalance:
     def _cumulative_work(self) -> np.ndarray:
         """Motor work from the first sample to each sample, J (the form chosen by ``work``)."""
         t, i = self.t, self.i
+        if self.work == "reaction":  # work of the motor's reaction on the hull: -(k_t i - M_f) dphi
+            return reaction_work(t, self.interval_current(i), self.torque_scale, self.phi_s, self.psi_s, self.k_t,
+                                 self.f_visc, self.f_coul)
         i_mid = self.torque_scale * self.interval_current(i)
         dpsi = np.diff(self.psi_s)
-        if self.work == "reaction":
-            # Work of the motor's reaction on the hull: -(k_t i - M_f) dphi.
-            omega = dpsi / np.diff(t)
-            torque = self.k_t * i_mid - (self.f_visc * omega + self.f_coul * np.sign(omega))
-            steps = -torque * np.diff(self.phi_s)
-        elif self.work == "current":
+        if self.work == "current":
             steps = self.k_t * i_mid * dpsi
         else:
             u_offset = _voltage_offset(t[self.free], self.psi[self.free], self.rec["u"][self.free])
@@ -776,12 +775,16 @@ def interval_mean_current(t: np.ndarray, i: np.ndarray, R: float, L: float,
         return i[:-1].astype(float)
     if not L > 0.0:
         return 0.5 * (i[1:] + i[:-1])
-    h = np.diff(t)
     tau = L / R
-    a = np.exp(-h / tau)
-    i0, i1 = i[:-1], i[1:]
-    i_ss = (i1 - a * i0) / (1.0 - a)
-    return i_ss + (i0 - i1) * tau / h
+    t, i = np.asarray(t, dtype=float), np.asarray(i, dtype=float)
+    if t.ndim != 1 or i.shape != t.shape:  # numpy's broadcasting (and errors) for anything but two series
+        h = np.diff(t)
+        a = np.exp(-h / tau)
+        i_ss = (i[1:] - a * i[:-1]) / (1.0 - a)
+        return i_ss + (i[:-1] - i[1:]) * tau / h
+    decay = negative_step_ratios(t, tau)  # -h / tau, then exp(-h / tau) in place (numpy's exp)
+    np.exp(decay, out=decay)
+    return relaxed_interval_means(t, i, decay, tau)
 
 
 def _smooth_by_phase(rec: RunRecord, *angles: np.ndarray, cuts: np.ndarray | None = None) -> list[np.ndarray]:
@@ -804,33 +807,36 @@ def _smooth_by_phase(rec: RunRecord, *angles: np.ndarray, cuts: np.ndarray | Non
     return out
 
 
-def phase_blocks(rec: RunRecord, phase_change: np.ndarray | None = None) -> np.ndarray:
+def phase_blocks(rec: RunRecord, starts: np.ndarray | None = None) -> np.ndarray:
     """Boundaries of the record's contiguous blocks of one phase and one brake state: sample
-    indices ``[0, ..., len]`` (block ``j`` is ``cuts[j]:cuts[j + 1]``). ``phase_change``: the
-    mask ``phase[1:] != phase[:-1]`` when already computed (it is not changed)."""
-    if phase_change is None:
-        phase = np.asarray(rec.phase)
-        change = phase[1:] != phase[:-1]
-    else:
-        change = phase_change.copy()
+    indices ``[0, ..., len]`` (block ``j`` is ``cuts[j]:cuts[j + 1]``). ``starts``: the first sample of
+    each phase block (:func:`~addedinertia_env.scan_kernels.block_starts` of ``phase``) when known."""
+    n = len(rec.phase)
+    if starts is None:
+        starts = block_starts(rec.phase)
+    inner = np.asarray(starts, dtype=np.int64)[1:]
     if "brake" in rec.samples:
         b = np.asarray(rec["brake"], dtype=float)
-        change |= (b[1:] != b[:-1]) & ~(np.isnan(b[1:]) & np.isnan(b[:-1]))
-    return np.concatenate([[0], np.nonzero(change)[0] + 1, [len(rec.phase)]])
+        if b.ndim != 1 or len(b) != n:  # numpy's broadcasting (and its error) as the masks compared it
+            change = np.zeros(max(n - 1, 0), dtype=bool)
+            change[inner - 1] = True
+            change |= (b[1:] != b[:-1]) & ~(np.isnan(b[1:]) & np.isnan(b[:-1]))
+            inner = np.nonzero(change)[0] + 1
+        else:
+            inner = np.union1d(inner, value_change_starts(b))
+    return np.concatenate([[0], inner, [n]]).astype(np.int64)
 
 
 def _first_blocks(rec: RunRecord) -> tuple[dict[str, slice], np.ndarray]:
     """The first contiguous block of each phase (what :func:`~.common.segment` gives, for every
-    phase from one comparison), and the phase-change mask ``phase[1:] != phase[:-1]``."""
+    phase from one scan), and every phase block's first sample (:func:`phase_blocks` takes them)."""
     phase = np.asarray(rec.phase)
-    change = phase[1:] != phase[:-1]
-    if not len(phase):
-        return {}, change
-    starts = [0] + (np.nonzero(change)[0] + 1).tolist()
+    starts = block_starts(phase)
     first: dict[str, slice] = {}
-    for a, b, label in zip(starts, starts[1:] + [len(phase)], phase[starts].tolist()):
+    bounds = starts.tolist() + [len(phase)]
+    for a, b, label in zip(bounds, bounds[1:], phase[starts].tolist()):
         first.setdefault(str(label), slice(a, b))
-    return first, change
+    return first, starts
 
 
 def _n_samples(dt_median: float, span_s: float) -> int:
