@@ -160,6 +160,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
         self.episode_config = self.config
         self._task: ReverseStrokeTask | None = None
         self.episodes_ended = 0
+        self._spares_due = False  # the last advance(defer_spares=True) left its spare starts to start_spares()
 
     @staticmethod
     def spaces(num_envs: int, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, **_ignored: Any):
@@ -198,8 +199,18 @@ class ReverseStrokeVectorEnv(VectorEnv):
         if len(free) >= minimum:
             self._begin(free, [self._draw(self._spare_rng) for _ in free])
 
+    def start_spares(self) -> None:
+        """Start the spare episodes that the last :meth:`advance` left due (``defer_spares=True``): a
+        batch of empty slots begins its settle and free strokes. The same slots and scenarios
+        whenever it runs before the next step's sampling, which calls it first if nobody did (a
+        process of the sharded env calls it while it would otherwise wait for another)."""
+        if self._spares_due:
+            self._spares_due = False
+            self._start_spares(minimum=self.spare_batch)
+
     def _claim(self, envs: np.ndarray) -> None:
         """Environments ``envs`` take ready slots (running the spares on until enough are ready)."""
+        self.start_spares()
         pool = self.pool
         old = self.env_slot[envs]
         self._owned[old] = False
@@ -252,6 +263,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
         pool.take(mine)
         self._task = ReverseStrokeTask(i_max=1.0, weights=self.config.reward_weights)
         self._needs_reset[:] = False
+        self._spares_due = False
         return observe(pool, self.env_slot), self._reset_info(mine)
 
     def _reset_info(self, envs: np.ndarray) -> dict[str, Any]:
@@ -276,18 +288,20 @@ class ReverseStrokeVectorEnv(VectorEnv):
         pending = self._advance(actions)  # step() holds the one-BLAS-thread limit for all three parts
         return self._finish(pending, [_estimate(r) for r in pending.records])
 
-    def advance(self, actions) -> "PendingStep":
+    def advance(self, actions, defer_spares: bool = False) -> "PendingStep":
         """The first half of :meth:`step`: every environment's samples, up to the identification of
         the episodes that ended. Returns the :class:`PendingStep`; its ``records`` (one per ended
         episode, when episodes are scored) go through :func:`estimate_lambda66` (here or in another
-        process) and :meth:`finish` completes the step with those estimates."""
+        process) and :meth:`finish` completes the step with those estimates. ``defer_spares``: leave
+        the step's spare starts to :meth:`start_spares` (the same episodes, started later)."""
         with _BLAS.limit(limits=1, user_api="blas"):
-            return self._advance(actions)
+            return self._advance(actions, defer_spares)
 
-    def _advance(self, actions) -> "PendingStep":
+    def _advance(self, actions, defer_spares: bool = False) -> "PendingStep":
         pool = self.pool
         if pool is None:
             raise gym.error.ResetNeeded("call reset() before step()")
+        self.start_spares()  # those the last step left due, before anything samples
         n = self.num_envs
         a = np.asarray(actions, dtype=np.float64).reshape(n, -1)
         if a.shape != (n, 1):
@@ -318,7 +332,9 @@ class ReverseStrokeVectorEnv(VectorEnv):
                     ended.append(out["ended"])
             if not controlled.any():
                 break
-        self._start_spares(minimum=self.spare_batch)
+        self._spares_due = True
+        if not defer_spares:
+            self.start_spares()
         env_of_slot = np.full(pool.n, -1)
         env_of_slot[self.env_slot] = np.arange(n)
         terms = self._task.terms(tracking_sq=tracking[self.env_slot], energy=energy[self.env_slot],

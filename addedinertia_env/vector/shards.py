@@ -21,6 +21,9 @@ the most identification work to the one with the least, each shard identifies wh
 every shard finishes its step (:meth:`~.env.ReverseStrokeVectorEnv.finish`). The numbers are the
 same wherever a record is identified; only the wall time changes (the step waits for the
 slowest shard, so without this the shard that happens to have more episodes ending sets it).
+A shard starts its step's spare episodes (:meth:`~.env.ReverseStrokeVectorEnv.start_spares`, a
+few ms every few steps) while it waits for the others, not in its sampling half: the same
+episodes, and the halves are more even (measured: 715k -> 735k samples/s, 6 alternating runs).
 
 Why shard 0 lives in this process rather than in a worker of its own: this process would
 otherwise sit idle while the workers step and then relay their results with the workers idle,
@@ -110,11 +113,17 @@ def _worker(conn, num_envs: int, kwargs: dict) -> None:
             if command == "close":
                 break
             if command == "advance":  # first half of a step: the ended episodes' record lengths
-                pending = env.advance(args)
-                out = [len(r) for r in pending.records]
-            elif command == "settle":
+                pending = env.advance(args, defer_spares=True)
+                conn.send(("ok", [len(r) for r in pending.records]))
+                if not conn.poll():  # the step's spare starts while the other shards still sample
+                    env.start_spares()
+                continue
+            if command == "settle":
                 out, pending = _settle(conn, env, pending, *args), None
-            elif command == "step":
+                conn.send(("ok", out))
+                env.start_spares()  # if still due: while the parent joins the shards' results
+                continue
+            if command == "step":
                 out = env.step(args)
             elif command == "reset":
                 out = env.reset(**args)
@@ -230,12 +239,15 @@ class ShardedVectorEnv(VectorEnv):
         parts = self._rows(np.asarray(actions).reshape(self.num_envs, -1))
         self._send_all("advance", parts[1:])
         try:
-            pending = self.local.advance(parts[0])
+            pending = self.local.advance(parts[0], defer_spares=True)
+            if not all(conn.poll() for conn in self._conns):  # the spare starts while the workers still sample
+                self.local.start_spares()
         finally:
             loads = [None] + self._gather()
         loads[0] = [len(r) for r in pending.records]
         estimates = self._settle(pending, self._plan(loads))
         mine = self.local.finish(pending, estimates)
+        self.local.start_spares()  # if still due
         outs = [mine] + self._gather()
         obs, rew, term, trunc, infos = zip(*outs)
         return (np.concatenate(obs), np.concatenate(rew), np.concatenate(term), np.concatenate(trunc),
