@@ -341,3 +341,29 @@ def test_deferred_spare_starts_run_the_same_episodes():
         ended += int(r1[2].sum())
     assert ended > 8, "the run should reach spare episodes"
     assert np.array_equal(plain.slot_seed, split.slot_seed)
+
+
+def test_an_episode_whose_record_fails_the_plausibility_check_is_scored_as_failed():
+    """A record its own rig could not have made (here a flywheel angle of 1e15 rad: a DAQ glitch on
+    a bench) is a failed episode with the check's message, in both envs, not an exception that
+    stops the run."""
+    import dataclasses
+
+    env = ReverseStrokeVectorEnv(1, **SHORT)
+    env.reset(seed=5)
+    for _ in range(600):
+        if env.step(np.zeros((1, 1)))[2][0]:
+            break
+    record = env.record(0)
+    samples = dict(record.samples)
+    samples["psi"] = samples["psi"].copy()
+    samples["psi"][len(samples["psi"]) // 2] = 1e15
+    bad = dataclasses.replace(record, samples=samples)
+    est, lo, hi, failure = estimate_lambda66(bad)
+    assert np.isnan([est, lo, hi]).all() and "column 'psi'" in failure
+
+    single = ReverseStrokeEnv(**SHORT)
+    single.reset(seed=5)
+    single.record = lambda *a, **k: bad
+    out = single._score()
+    assert out["failed"] and "column 'psi'" in out["failure"] and np.isnan(out["rel_error"])

@@ -15,7 +15,7 @@ from ..experiment.protocol import Experiment
 from ..experiment.runner import controller_context as _runner_context
 from ..identify import IdentificationError, identify
 from ..metrics import episode_metrics
-from ..record import RunRecord
+from ..record import RecordError, RunRecord
 from ..rig.interface import Rig
 from ..rig.mujoco_rig import MujocoRig
 from ..scenarios import Scenario, build_rig, load_ranges
@@ -326,7 +326,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         try:
             result = identify([record], "energy", interval_details=False)  # the numbers only
             est, ci = float(result.lambda66), [float(result.ci95[0]), float(result.ci95[1])]
-        except IdentificationError as e:
+        except (IdentificationError, RecordError) as e:  # refused by the method or by the plausibility check
             est, ci = math.nan, [math.nan, math.nan]
             out.update(failed=True, failure=str(e))
         true = self.lambda66_true()

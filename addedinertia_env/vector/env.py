@@ -52,6 +52,7 @@ from gymnasium.vector.utils import batch_space
 from ..envs.config import EnvConfig
 from ..identify import IdentificationError, identify
 from ..identify.common import prepare as prepare_identification
+from ..run_record import RecordError
 from ..metrics import episode_metrics
 from ..rig import forces
 from ..scenarios import load_ranges
@@ -77,7 +78,7 @@ def estimate_lambda66(record) -> tuple[float, float, float, str | None]:
 def _estimate(record) -> tuple[float, float, float, str | None]:
     try:
         result = identify([record], "energy", interval_details=False)  # the numbers only: no record per angle
-    except IdentificationError as err:
+    except (IdentificationError, RecordError) as err:  # refused by the method or by the plausibility check
         return math.nan, math.nan, math.nan, str(err)
     return float(result.lambda66), float(result.ci95[0]), float(result.ci95[1]), None
 
