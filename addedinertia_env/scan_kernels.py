@@ -173,7 +173,7 @@ def squared_step_sums(x):
 
 
 @njit(cache=True, error_model="numpy")
-def _numpy_sign(x):
+def numpy_sign(x):
     """``np.sign`` of a float: 1, -1, 0 for either zero, nan for nan."""
     if x > 0:
         return 1.0
@@ -195,7 +195,7 @@ def reaction_work(t, i_mean, scale, phi_s, psi_s, k_t, f_visc, f_coul):
     out[0] = 0.0
     for k in range(n - 1):
         omega = (psi_s[k + 1] - psi_s[k]) / (t[k + 1] - t[k])
-        torque = k_t * (scale * i_mean[k]) - (f_visc * omega + f_coul * _numpy_sign(omega))
+        torque = k_t * (scale * i_mean[k]) - (f_visc * omega + f_coul * numpy_sign(omega))
         step = -torque * (phi_s[k + 1] - phi_s[k])
         out[k + 1] = step if k == 0 else out[k] + step
     return out

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .scan_kernels import numpy_sign
+
 
 @njit(cache=True, error_model="numpy")
 def twice_integrated(x, half_dt):
@@ -205,6 +207,83 @@ def count_crossings(t, phi, a, b, k, q):
     return tau, levels
 
 
+@njit(cache=True, error_model="numpy")
+def first_at_or_past(phi, a, b, offset, direction, levels):
+    """The crossing search of ``crossings.first_crossings`` on a finite stroke: with ``x = direction *
+    phi[a:b]`` and its running maximum ``top`` (``np.maximum.accumulate``), per level the first ``k`` with
+    ``top[k] >= direction * level`` (``np.searchsorted(top, ..., side="left")``) as ``offset + k``, or -1
+    past the end; and whether ``x[0] >= direction * level`` (reached at the first sample). Returns ``(out,
+    reached, ok)``; ``ok`` is False (and the rest unset) when an ``x`` or a level is not finite."""
+    n = b - a
+    top = np.empty(n)
+    out = np.empty(len(levels), dtype=np.int64)
+    reached = np.zeros(len(levels), dtype=np.bool_)
+    for k in range(n):
+        x = direction * phi[a + k]
+        if not np.isfinite(x):
+            return out, reached, False
+        top[k] = x if k == 0 or x > top[k - 1] else top[k - 1]
+    for j in range(len(levels)):
+        if not np.isfinite(levels[j]):
+            return out, reached, False
+    for j in range(len(levels)):
+        target = direction * levels[j]
+        lo, hi = 0, n
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if top[mid] < target:
+                lo = mid + 1
+            else:
+                hi = mid
+        out[j] = offset + lo if lo < n else -1
+        reached[j] = direction * phi[a] >= target
+    return out, reached, True
+
+
+@njit(cache=True, error_model="numpy")
+def accumulated_kernels(indices, weights, lengths, factors, size):
+    """``np.bincount(indices, weights=np.repeat(factors, lengths) * weights, minlength=size)``: kernel ``r``
+    (``lengths[r]`` consecutive entries of ``indices``, ``weights``) scaled by ``factors[r]`` and added sample
+    by sample in order, as bincount sums."""
+    top = size
+    for k in range(len(indices)):
+        if indices[k] < 0:
+            raise ValueError("'list' argument must have no negative elements")
+        if indices[k] + 1 > top:
+            top = indices[k] + 1
+    out = np.zeros(top)
+    k = 0
+    for r in range(len(lengths)):
+        f = factors[r]
+        for _ in range(lengths[r]):
+            out[indices[k]] += f * weights[k]
+            k += 1
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def calibration_target(tt, th, psi, f_visc, f_coul, J_f):
+    """The angle the flywheel calibration (``energy._flywheel_calibration``) explains, and the half sample
+    intervals: with ``om = gradient(psi, tt)`` and the friction ``f_visc om + f_coul sign(om)``, ``th +
+    twice_integrated(friction) / J_f``, and ``0.5 * np.diff(tt)``: the numpy expressions element by element."""
+    m = len(tt)
+    om = gradient(psi, tt)
+    half = np.empty(m - 1)
+    for k in range(m - 1):
+        half[k] = 0.5 * (tt[k + 1] - tt[k])
+    target = np.empty(m)
+    target[0] = th[0] + 0.0 / J_f
+    first, second = 0.0, 0.0
+    prev = f_visc * om[0] + f_coul * numpy_sign(om[0])
+    for k in range(m - 1):
+        cur = f_visc * om[k + 1] + f_coul * numpy_sign(om[k + 1])
+        first_next = first + (cur + prev) * half[k]
+        second = second + (first_next + first) * half[k]
+        target[k + 1] = th[k + 1] + second / J_f
+        first, prev = first_next, cur
+    return target, half
+
+
 def warm_up() -> None:
     """Load every kernel's machine code now (from the cache, or compiled: a few seconds once), so that
     the first identification in a process costs what the others do."""
@@ -218,3 +297,6 @@ def warm_up() -> None:
     scaled_deviation(t, np.zeros(1, dtype=np.int64), t[:1], 1.0, t[:2])
     lag_ranking(np.ones(3), np.eye(3), np.zeros(2, dtype=np.int64), np.zeros(2), 1.0)
     twice_integrated(np.lib.stride_tricks.sliding_window_view(t, 4), 0.5 * np.diff(t[:4]))
+    first_at_or_past(t, 0, 8, 0, -1.0, t[:3])
+    accumulated_kernels(np.arange(8), t, np.array([3, 5]), t[:2], 8)
+    calibration_target(t, t, t, 0.1, 0.01, 2.0)

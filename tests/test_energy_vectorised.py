@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.signal import savgol_filter
+from scipy.signal import savgol_coeffs, savgol_filter
 
 from addedinertia_env.daq import Quirks, apply_quirks
 from addedinertia_env.identify import identify
@@ -60,6 +60,11 @@ def test_savgol_equals_scipys_filter(n, window, degree, deriv):
     x = 0.3 + np.cumsum(np.random.default_rng(n).normal(size=n)) * 1e-3
     ours, scipys = savgol(x, window, degree, deriv, 1e-3), savgol_filter(x, window, degree, deriv, delta=1e-3)
     np.testing.assert_allclose(ours, scipys, rtol=0, atol=1e-11 * np.max(np.abs(scipys)))
+    # the interior: np.convolve's own dot products ('valid' mode), bit for bit those of its 'same' mode
+    half = window // 2
+    taps = savgol_coeffs(window, degree, deriv=deriv)
+    same = np.convolve(x, taps, "same") / 1e-3**deriv if deriv else np.convolve(x, taps, "same")
+    np.testing.assert_array_equal(ours[half:n - half], same[half:n - half])
 
 
 def _one_fit(t, phi, k, level, half_width, degree):
@@ -243,3 +248,21 @@ def test_numbers_without_interval_records_equal_the_full_result(records):
         assert (lean.lambda66, lean.ci95, lean.n_intervals) == (full.lambda66, full.ci95, full.n_intervals), name
         assert "intervals" not in lean.details and "intervals" in full.details, name
         assert lean.details == {k: v for k, v in full.details.items() if k != "intervals"}, name
+
+
+def test_polynomial_fits_equal_numpys():
+    from addedinertia_env.identify.common import line_fit, power_fit  # noqa: PLC0415
+
+    rng = np.random.default_rng(23)
+    for case in range(100):
+        n = int(rng.integers(3, 80))
+        x = np.sort(rng.normal(size=n)) * 10.0 ** rng.uniform(-4, 1)
+        y = rng.normal(size=n) + 3.0 * x
+        for degree in (1, 2, 3):
+            if n > degree:
+                np.testing.assert_array_equal(power_fit(x, y, degree), np.polynomial.polynomial.polyfit(x, y, degree))
+        np.testing.assert_array_equal(line_fit(x, y), np.polyfit(x, y, 1))
+    with pytest.warns(np.exceptions.RankWarning):  # a design of one repeated abscissa
+        power_fit(np.ones(5), np.arange(5.0), 2)
+    with pytest.warns(np.exceptions.RankWarning):
+        line_fit(np.ones(5), np.arange(5.0))

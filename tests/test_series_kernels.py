@@ -190,3 +190,59 @@ def test_count_crossings_equal_the_numpy_expressions():
         got, expect = count_crossings(t, phi, a, b, k, q), _crossings_by_numpy(t, phi, a, b, k, q)
         np.testing.assert_array_equal(got[0], expect[0])
         np.testing.assert_array_equal(got[1], expect[1])
+
+
+def test_crossing_search_equals_the_running_maximum_search():
+    from addedinertia_env.series_kernels import first_at_or_past  # noqa: PLC0415
+
+    rng = np.random.default_rng(13)
+    for case in range(200):
+        n = int(rng.integers(2, 300))
+        phi = np.round(np.cumsum(rng.normal(size=n + 10)) * 20.0) / 20.0
+        a, direction = int(rng.integers(0, 10)), float(rng.choice([-1.0, 1.0]))
+        levels = rng.uniform(phi.min() - 0.5, phi.max() + 0.5, size=int(rng.integers(0, 12)))
+        levels = np.concatenate([levels, phi[rng.integers(0, n + 10, size=3)]])  # levels hit exactly
+        x = direction * phi[a:a + n]
+        top = np.maximum.accumulate(x)
+        target = direction * levels
+        i = np.searchsorted(top, target, side="left")
+        out, reached, ok = first_at_or_past(phi, a, a + n, a, direction, levels)
+        assert ok
+        np.testing.assert_array_equal(out, np.where(i < n, a + i, -1))
+        np.testing.assert_array_equal(reached, x[0] >= target)
+    phi[3] = np.nan
+    assert not first_at_or_past(phi, 0, 10, 0, 1.0, np.zeros(2))[2]
+
+
+def test_accumulated_kernels_equal_bincount():
+    from addedinertia_env.series_kernels import accumulated_kernels  # noqa: PLC0415
+
+    rng = np.random.default_rng(17)
+    lengths = rng.integers(1, 40, size=30)
+    starts = rng.integers(0, 500, size=30)
+    idx = np.concatenate([s + np.arange(m) for s, m in zip(starts, lengths)])
+    kern = rng.normal(size=len(idx))
+    factors = rng.normal(size=30) * 10.0 ** rng.uniform(-3, 3, size=30)
+    expected = np.bincount(idx, weights=np.repeat(factors, lengths) * kern, minlength=520)
+    np.testing.assert_array_equal(accumulated_kernels(idx, kern, lengths, factors, 520), expected)
+    with pytest.raises(ValueError, match="negative"):
+        accumulated_kernels(idx - 600, kern, lengths, factors, 520)
+
+
+@pytest.mark.parametrize("even", [True, False])
+def test_calibration_target_equals_the_numpy_expressions(even):
+    from addedinertia_env.series_kernels import calibration_target  # noqa: PLC0415
+
+    rng = np.random.default_rng(19)
+    m = 1500
+    tt = 2.0 + np.arange(m) * 1e-3 if even else np.cumsum(1e-3 * (1.0 + 0.05 * rng.random(m)))
+    psi = np.cumsum(rng.normal(size=m)) * 1e-3
+    psi[200:260] = psi[200]  # a flywheel at rest: sign 0
+    th = rng.normal(size=m)
+    f_visc, f_coul, J_f = 2e-4, 3e-3, 1.7e-3
+    om = gradient(psi, tt)
+    friction = f_visc * om + f_coul * np.sign(om)
+    half = 0.5 * np.diff(tt)
+    target, got_half = calibration_target(tt, th, psi, f_visc, f_coul, J_f)
+    np.testing.assert_array_equal(got_half, half)
+    np.testing.assert_array_equal(target, th + twice_integrated(np.atleast_2d(friction), half)[0] / J_f)

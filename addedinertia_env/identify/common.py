@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -109,6 +110,45 @@ def local_fit(t: np.ndarray, y: np.ndarray, tc: float, half_width: float, full: 
     return coef, cov, float(np.sqrt(var))
 
 
+def power_fit(x: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
+    """Least-squares power series ``y ~ c0 + c1 x + ... + c_degree x^degree`` of 1-D float samples: the
+    coefficients ``np.polynomial.polynomial.polyfit(x, y, degree)`` returns, the same numbers by the same
+    steps (each column of the design scaled to unit norm, ``np.linalg.lstsq`` with ``rcond = n eps``, the
+    scale divided back out; numpy's RankWarning when the design is rank-deficient), without its argument
+    handling (a few microseconds a call on the energy method's short rest-rate fits)."""
+    x, y = np.asarray(x) + 0.0, np.asarray(y) + 0.0
+    if x.ndim != 1 or y.ndim != 1 or not len(x) or len(x) != len(y) or degree < 0:
+        return np.polynomial.polynomial.polyfit(x, y, degree)  # numpy's checks and messages
+    columns = np.empty((degree + 1, len(x)))  # the transposed design: row j holds x**j
+    columns[0] = x * 0 + 1
+    for j in range(1, degree + 1):
+        columns[j] = columns[j - 1] * x if j > 1 else x
+    scale = np.sqrt(np.square(columns).sum(1))
+    scale[scale == 0] = 1
+    coef, _, rank, _ = np.linalg.lstsq(columns.T / scale, y, len(x) * np.finfo(x.dtype).eps)
+    if rank != degree + 1:
+        warnings.warn("The fit may be poorly conditioned", np.exceptions.RankWarning, stacklevel=2)
+    return coef / scale
+
+
+def line_fit(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``np.polyfit(x, y, 1)`` of 1-D float samples, ``[slope, intercept]``: the same numbers by the same
+    steps (columns ``x``, 1 scaled to unit norm, ``np.linalg.lstsq`` with ``rcond = n eps``, the scale
+    divided back out; numpy's RankWarning when rank-deficient), without its argument handling."""
+    x, y = np.asarray(x) + 0.0, np.asarray(y) + 0.0
+    if x.ndim != 1 or y.ndim != 1 or len(x) < 2 or len(x) != len(y):
+        return np.polyfit(x, y, 1)  # numpy's checks and messages
+    design = np.empty((len(x), 2))  # np.vander(x, 2)
+    design[:, 1] = 1
+    design[:, 0] = x
+    scale = np.sqrt((design * design).sum(axis=0))
+    design /= scale
+    coef, _, rank, _ = np.linalg.lstsq(design, y, len(x) * np.finfo(x.dtype).eps)
+    if rank != 2:
+        warnings.warn("Polyfit may be poorly conditioned", np.exceptions.RankWarning, stacklevel=2)
+    return coef / scale
+
+
 def pooled_interval(values: np.ndarray, sigmas: np.ndarray, z: float = 1.96) -> tuple[float, float, float]:
     """Inverse-variance mean of independent estimates, with a 95 % interval.
 
@@ -197,8 +237,11 @@ def savgol(x: np.ndarray, window: int, degree: int, deriv: int = 0, delta: float
     if window % 2 != 1 or window > len(x) or degree >= window:
         raise ValueError(f"savgol: window {window} must be odd, > degree {degree} and <= len(x) = {len(x)}")
     taps, left, right = _savgol_maps(int(window), int(degree), int(deriv))
-    y = np.convolve(x, taps, "same")
     half = window // 2
+    y = np.empty(len(x))
+    # the outputs whose window lies inside x ('valid': the same dot products as the interior of 'same',
+    # whose edge outputs the maps replace)
+    y[half:len(x) - half] = np.convolve(x, taps, "valid")
     y[:half] = left @ x[:window]
     y[len(x) - half:] = right @ x[len(x) - window:]
     if deriv:

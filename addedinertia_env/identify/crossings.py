@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..series_kernels import fit_windows, is_ascending, polynomial_roots_near_zero, scaled_deviation
+from ..series_kernels import (first_at_or_past, fit_windows, is_ascending, polynomial_roots_near_zero,
+                              scaled_deviation)
 from .common import IdentificationError
 
 SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
@@ -25,18 +26,16 @@ def first_crossings(phi: np.ndarray, a: int, b: int, levels: np.ndarray, directi
     """For each of ``levels``: the first sample in [a, b) after which ``phi`` has crossed it
     moving in ``direction`` (the index of the first sample at or past it), or -1."""
     levels = np.asarray(levels, dtype=float)
-    x = direction * phi[a:b]
-    if len(x) >= 2 and np.all(np.isfinite(x)) and np.all(np.isfinite(levels)):
+    span = range(len(phi))[a:b]  # the samples phi[a:b]
+    if len(span) >= 2 and phi.ndim == 1 and phi.dtype == np.float64 and levels.ndim == 1:
         # The first sample at or past a level that the stroke starts short of is the crossing:
         # a search in the running maximum (sign(d (phi - level)) is that of d phi - d level, exactly).
-        top = np.maximum.accumulate(x)
-        target = direction * levels
-        i = np.searchsorted(top, target, side="left")
-        out = np.where(i < len(x), a + i, -1)
-        past = np.nonzero(x[0] >= target)[0]  # levels already reached at the first sample: the full test
-        if len(past):
-            out[past] = _first_crossings_plain(phi, a, b, levels[past], direction)
-        return out
+        out, reached, finite = first_at_or_past(phi, span.start, span.stop, int(a), float(direction), levels)
+        if finite:
+            past = np.nonzero(reached)[0]  # levels already reached at the first sample: the full test
+            if len(past):
+                out[past] = _first_crossings_plain(phi, a, b, levels[past], direction)
+            return out
     return _first_crossings_plain(phi, a, b, levels, direction)
 
 
@@ -129,8 +128,8 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         resid = y - fitted
         var = np.maximum(np.einsum("ij,ij->i", resid, resid) / max(m - degree - 1, 1), 1e-24)
         sigma[g] = np.sqrt(var) * np.linalg.norm(kernel, axis=1)
-        for row, j in enumerate(g.tolist()):
-            kernels[j] = (idx[row], kernel[row])
+        for j, idx_row, kernel_row in zip(g.tolist(), idx, kernel):
+            kernels[j] = (idx_row, kernel_row)
     return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": kernels}
 
 

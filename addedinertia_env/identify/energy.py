@@ -62,10 +62,11 @@ from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
 from ..scan_kernels import (block_starts, gap_counts, negative_step_ratios, reaction_work, relaxed_interval_means,
                             squared_step_sums, true_counts, value_change_starts)
-from ..series_kernels import count_crossings, gradient, lag_ranking, twice_integrated
+from ..series_kernels import (accumulated_kernels, calibration_target, count_crossings, lag_ranking,
+                              twice_integrated)
 from ..series_stats import median_step
-from .common import (IdentificationError, Result, largest_gap, local_fit, pooled_interval, savgol,
-                     smooth_angle, smooth_angles)
+from .common import (IdentificationError, Result, largest_gap, line_fit, local_fit, pooled_interval, power_fit,
+                     savgol, smooth_angle, smooth_angles)
 from .crossings import crossing_fits, first_crossings
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
@@ -328,8 +329,8 @@ def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarra
     line in phi1 beyond their own noise, kg m^2."""
     if len(lam) < 6:
         return 0.0
-    coef = np.polyfit(phi1, lam, 1)
-    resid = lam - np.polyval(coef, phi1)
+    coef = line_fit(phi1, lam)
+    resid = lam - ((0.0 * phi1 + coef[0]) * phi1 + coef[1])  # np.polyval(coef, phi1), Horner from zero
     excess = float(np.sum(g * (resid**2 - s**2)))
     # The mean over the range equals the line's value at the weighted centre; a slope means
     # the estimate depends on where the boundary is taken: a quarter of the end-to-end change
@@ -475,11 +476,12 @@ class RunBalance:
         t = self.t
         t1, w1f, t4, w1r = fits["f"]["t"], fits["f"]["rate"], fits["r"]["t"], fits["r"]["rate"]
         t2, t3 = t[self.k2], t[self.k3]
-        W, B = self.work_cum, self.bearing_cum
-        A_f = np.interp(t2, t, W) - np.interp(t1, t, W)
-        A_r = np.interp(t4, t, W) - np.interp(t3, t, W)
-        B_f = np.interp(t2, t, B) - np.interp(t1, t, B)
-        B_r = np.interp(t4, t, B) - np.interp(t3, t, B)
+        # the cumulative works at t2, t3, every t1 and every t4, each interpolated in one call
+        at = np.concatenate([[t2, t3], t1, t4])
+        n1 = len(t1)
+        W, B = np.interp(at, t, self.work_cum), np.interp(at, t, self.bearing_cum)
+        A_f, A_r = W[0] - W[2:2 + n1], W[2 + n1:] - W[1]
+        B_f, B_r = B[0] - B[2:2 + n1], B[2 + n1:] - B[1]
         c, n, p2, p3 = self.c, self.phi_n, self.phi_rest2, self.phi_rest3
         spring = 0.5 * c * ((p2 - n) ** 2 - (p - n) ** 2 + (p3 - n) ** 2 - (p - n) ** 2)
         zero = np.zeros(len(good))
@@ -621,18 +623,18 @@ class RunBalance:
     def rate_sigma(self, g: np.ndarray, lam: list, w1f: list, w1r: list, kernels_f: list, kernels_r: list) -> float:
         """:meth:`averaged_rate_sigma` from per-angle lists: weights ``g``, lambda66 (kg m^2), forward and
         reverse rates (rad/s) and their fits' kernels ``(indices, weights)``; kg m^2."""
-        idxs, kerns, factors = [], [], []
+        factors, kernels = [], []
         for gk, lam_k, wf, wr, kf, kr in zip(g, lam, w1f, w1r, kernels_f, kernels_r):
             denom = 0.5 * (wf**2 + wr**2)
             J_total = lam_k + self.J_h
-            for (idx, kern), w in ((kf, wf), (kr, wr)):
-                idxs.append(idx)
-                kerns.append(kern)
-                factors.append(gk * (-J_total * w / denom))  # this kernel's weight in the average
+            factors += [gk * (-J_total * wf / denom), gk * (-J_total * wr / denom)]  # each kernel's weight
+            kernels += [kf, kr]
         # summed sample by sample in the order above (as adding the kernels one after another)
-        if idxs:
-            parts = np.repeat(np.array(factors, dtype=float), [len(k) for k in kerns]) * np.concatenate(kerns)
-            combined = np.bincount(np.concatenate(idxs), weights=parts, minlength=len(self.t))
+        if kernels:
+            idx, kern = zip(*kernels)
+            combined = accumulated_kernels(np.concatenate(idx).astype(np.int64, copy=False), np.concatenate(kern),
+                                           np.array([len(k) for k in kern], dtype=np.int64),
+                                           np.array(factors, dtype=float), len(self.t))
         else:
             combined = np.zeros(len(self.t))
         return self.angle_noise * float(np.linalg.norm(combined))
@@ -699,7 +701,7 @@ class RunBalance:
         if k - a < 5:
             return 0.0
         s = t[a:k + 1] - t[k]
-        coef = np.polynomial.polynomial.polyfit(s, (self.phi if angle is None else angle)[a:k + 1], 2)
+        coef = power_fit(s, (self.phi if angle is None else angle)[a:k + 1], 2)
         return float(coef[1])
 
     def _flywheel_energy_at(self, tc: float, hull_rate: float) -> float:
@@ -863,15 +865,14 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     if b - a < 200:
         return None
     tt, th = t[a:b + 1], theta[a:b + 1]
-    om = gradient(psi[a:b + 1], tt)  # psi already smoothed phase by phase
-    friction = f_visc * om + f_coul * np.sign(om)
-
-    half_dtt = 0.5 * np.diff(tt)
+    # the angle the fit explains (kept for the final fit): th + the friction's torque (from psi, already
+    # smoothed phase by phase) twice integrated over J_f; and the half sample intervals
+    target, half_dtt = calibration_target(tt, th, psi[a:b + 1], float(f_visc), float(f_coul), float(J_f))
+    y = target
 
     def twice(x):  # trapezoid integral of the integral, from 0, along the last axis
         return twice_integrated(np.atleast_2d(x), half_dtt).reshape(np.shape(x))
 
-    y = target = th + twice(friction) / J_f  # the angle the fit explains (kept for the final fit)
     lags = np.arange(-2e-3, MAX_LAG_S + 1e-9, 2.5e-4)
     # Least squares on (1, t - t_a, the lagged current's column), every lag at once: the first two
     # columns are shared, so they are projected out (twice, for orthogonality to rounding) and
