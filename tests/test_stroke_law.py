@@ -48,3 +48,36 @@ def test_chebyshev_derivative_equals_numpys():
             c = rng.normal(size=n) * 10.0 ** rng.uniform(-6, 3, size=n)
             np.testing.assert_array_equal(chebyshev_derivative(c), C.chebder(c))
             np.testing.assert_array_equal(chebyshev_derivative(chebyshev_derivative(c)), C.chebder(c, 2))
+
+
+def _numpy_fit_stroke(t, phi, t_start, t_stop_guess, degree=11):
+    """fit_stroke written with numpy's Chebyshev functions only (what the compiled pieces must equal)."""
+    sel = (t >= t_start) & (t <= t_stop_guess)
+    ts, ps = t[sel], phi[sel]
+    a, b = ts[0], ts[-1]
+    x = (2.0 * ts - (a + b)) / (b - a)
+    coef = C.chebfit(x, ps, degree)
+    rms = float(np.sqrt(np.mean((C.chebval(x, coef) - ps) ** 2)))
+    tt = np.linspace(a + 0.8 * (b - a), b, 2001)
+    rr = C.chebval((2.0 * tt - (a + b)) / (b - a), C.chebder(coef)) * (2.0 / (b - a))
+    change = np.nonzero(np.signbit(rr[:-1]) != np.signbit(rr[1:]))[0]
+    if len(change):
+        k = change[-1]
+        t_stop = float(tt[k] - rr[k] * (tt[k + 1] - tt[k]) / (rr[k + 1] - rr[k]))
+    else:
+        t_stop = float(tt[np.argmin(np.abs(rr))])
+    coef_new = C.chebinterpolate(
+        lambda xn: C.chebval((2.0 * (a + 0.5 * (xn + 1.0) * (t_stop - a)) - (a + b)) / (b - a), coef), degree)
+    return coef_new, a, t_stop, rms
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_fit_stroke_equals_numpys_chebyshev_functions_bit_for_bit(seed):
+    t, phi, period = _decaying_stroke(seed)
+    rng = np.random.default_rng(100 + seed)
+    phi = phi + rng.normal(0.0, 1e-5, len(phi)) * (seed % 2)  # half of them noisy
+    t_start, t_brake = rng.uniform(0.0, 0.05), period / 4 + rng.uniform(-0.05, 0.05)  # some stop past the window
+    law = fit_stroke(t, phi, t_start, t_brake)
+    coef, a, t_stop, rms = _numpy_fit_stroke(t, phi, t_start, t_brake)
+    np.testing.assert_array_equal(law.coef, coef)
+    assert (law.t_start, law.t_stop, law.fit_rms) == (a, t_stop, rms)

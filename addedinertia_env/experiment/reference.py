@@ -9,10 +9,14 @@ fitted rate vanishes. Only measured samples and the rig's known constants are us
 
 from __future__ import annotations
 
+import functools
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.polynomial import chebyshev as C
+
+from .stroke_kernels import chebyshev_rows, last_rate_zero, mapped_series, rates_on_grid, squared_residuals
 
 DEFAULT_DEGREE = 11
 
@@ -127,6 +131,12 @@ def fit_stroke(t: np.ndarray, phi: np.ndarray, t_start: float, t_stop_guess: flo
 
     ``t_stop_guess`` is the moment the brake was set; the fitted rate's zero nearest to
     it (searched a little beyond it) is returned as ``t_stop``.
+
+    The numbers are numpy's: ``C.chebfit`` on the selected samples, the rate zero from
+    ``C.chebval`` on a grid, the law re-expressed with ``C.chebinterpolate``; the element-wise
+    series run as compiled loops of the same operations (:mod:`.stroke_kernels`), the sums,
+    the least-squares solve and the matrix product in numpy (tests/test_stroke_law.py holds
+    the result equal to the numpy calls, bit for bit).
     """
     sel = (t >= t_start) & (t <= t_stop_guess)
     if sel.sum() < 3 * degree:
@@ -135,22 +145,48 @@ def fit_stroke(t: np.ndarray, phi: np.ndarray, t_start: float, t_stop_guess: flo
     ts, ps = t[sel], phi[sel]
     a, b = ts[0], ts[-1]
     x = (2.0 * ts - (a + b)) / (b - a)
-    coef = C.chebfit(x, ps, degree)
-    rms = float(np.sqrt(np.mean((C.chebval(x, coef) - ps) ** 2)))
+    coef = _chebfit(x, ps, degree)
+    rms = float(np.sqrt(np.mean(squared_residuals(coef, x, ps))))
     # Rate zero near the brake time: solve on a fine grid over the last 20 % of the stroke
     # (the rate of the law on [a, b], StrokeLaw(coef, a, b).rate, without building that law).
     tt = np.linspace(a + 0.8 * (b - a), b, 2001)
-    rr = C.chebval((2.0 * tt - (a + b)) / (b - a), chebyshev_derivative(coef)) * (2.0 / (b - a))
-    sign_change = np.nonzero(np.signbit(rr[:-1]) != np.signbit(rr[1:]))[0]
-    if len(sign_change):
-        k = sign_change[-1]
-        t_stop = float(tt[k] - rr[k] * (tt[k + 1] - tt[k]) / (rr[k + 1] - rr[k]))
+    d1 = chebyshev_derivative(coef)
+    k, r_k, r_next = last_rate_zero(d1, tt, a, b)  # the last sign change of the rate on the grid
+    if k >= 0:
+        t_stop = float(tt[k] - r_k * (tt[k + 1] - tt[k]) / (r_next - r_k))
     else:
-        t_stop = float(tt[np.argmin(np.abs(rr))])
+        t_stop = float(tt[np.argmin(np.abs(rates_on_grid(d1, tt, a, b)))])
     # Re-express the same polynomial on [a, t_stop] so that t_stop is the law's end: interpolated at
-    # degree + 1 Chebyshev points of [a, t_stop], which a polynomial of this degree meets exactly.
-    def on_old_interval(x_new):
-        return C.chebval((2.0 * (a + 0.5 * (x_new + 1.0) * (t_stop - a)) - (a + b)) / (b - a), coef)
-
-    coef_new = C.chebinterpolate(on_old_interval, degree)
+    # degree + 1 Chebyshev points of [a, t_stop], which a polynomial of this degree meets exactly
+    # (C.chebinterpolate of the series on [a, b] mapped onto [a, t_stop]).
+    points, rows = _interpolation_nodes(degree)
+    coef_new = np.dot(rows, mapped_series(coef, points, a, b, t_stop))
+    coef_new[0] /= degree + 1
+    coef_new[1:] /= 0.5 * (degree + 1)
     return StrokeLaw(coef=coef_new, t_start=a, t_stop=t_stop, fit_rms=rms)
+
+
+def _chebfit(x: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
+    """``C.chebfit(x, y, degree)`` for 1-D ``x``, ``y`` and an integer ``degree``: the same
+    scaled least-squares problem handed to ``np.linalg.lstsq`` (numpy's ``polyutils._fit``),
+    the Chebyshev rows compiled (:func:`~.stroke_kernels.chebyshev_rows`)."""
+    x = x + 0.0
+    y = y + 0.0
+    lhs = chebyshev_rows(x, degree)  # chebvander(x, degree).T
+    scl = np.sqrt(np.square(lhs).sum(1))
+    scl[scl == 0] = 1
+    c, _, rank, _ = np.linalg.lstsq(lhs.T / scl, y, len(x) * np.finfo(x.dtype).eps)
+    c = c / scl
+    if rank != degree + 1:
+        warnings.warn("The fit may be poorly conditioned", np.exceptions.RankWarning, stacklevel=3)
+    return c
+
+
+@functools.lru_cache(maxsize=None)
+def _interpolation_nodes(degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """``C.chebinterpolate``'s nodes (``chebpts1(degree + 1)``) and the matrix it multiplies the
+    function's values by (``chebvander(nodes, degree).T``), computed by numpy once per degree."""
+    points = C.chebpts1(degree + 1)
+    rows = C.chebvander(points, np.asarray(degree)).T
+    points.flags.writeable = rows.flags.writeable = False
+    return points, rows

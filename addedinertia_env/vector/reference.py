@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from ..experiment.reference import DEFAULT_DEGREE, StrokeLaw
+from ..experiment.stroke_kernels import clenshaw_one
 
 
 def clenshaw(c: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -30,24 +31,6 @@ def clenshaw(c: np.ndarray, x: np.ndarray) -> np.ndarray:
     for i in range(3, len(c) + 1):
         tmp = c0
         c0 = c[-i] - c1
-        c1 = tmp + c1 * x2
-    return c0 + c1 * x
-
-
-@njit(cache=True, inline="always")
-def clenshaw_one(c, k, x):  # pragma: no cover - compiled
-    """:func:`clenshaw` of column ``k`` of ``c`` (terms x envs) at one ``x``."""
-    m = c.shape[0]
-    if m == 1:
-        return c[0, k] + 0 * x
-    if m == 2:
-        return c[0, k] + c[1, k] * x
-    x2 = 2 * x
-    c0 = c[m - 2, k]
-    c1 = c[m - 1, k]
-    for i in range(3, m + 1):
-        tmp = c0
-        c0 = c[m - i, k] - c1
         c1 = tmp + c1 * x2
     return c0 + c1 * x
 
