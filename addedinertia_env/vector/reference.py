@@ -5,9 +5,10 @@ from :func:`~addedinertia_env.experiment.reference.fit_stroke`, the single exper
 fit) is stored as a column of coefficient arrays; the series are evaluated by the same
 Clenshaw recursion, in the same order of operations, as ``numpy.polynomial.chebyshev.chebval``,
 so each column equals the scalar :class:`MirroredReference` bit for bit. The per-slot
-evaluation runs as one compiled loop (:func:`reference_at`: the mirrored time mapped onto the law's interval, and
-:func:`clenshaw_one`, the same operations in the same order, no gathers of coefficient
-columns).
+evaluation runs as one compiled loop (:func:`reference_at`, one slot at a time :func:`reference_one`:
+the mirrored time mapped onto the law's interval, and
+:func:`~addedinertia_env.experiment.stroke_kernels.clenshaw_one`, the same operations in the
+same order, no gathers of coefficient columns).
 """
 
 from __future__ import annotations
@@ -35,22 +36,32 @@ def clenshaw(c: np.ndarray, x: np.ndarray) -> np.ndarray:
     return c0 + c1 * x
 
 
+@njit(cache=True, inline="always")
+def reference_one(t, k, coef, d1, d2, t_start, t_stop, t_begin, t_end, derivatives):  # pragma: no cover - compiled
+    """phi_ref (rad) of slot ``k`` at ``t`` (s), and with ``derivatives`` its rate (rad/s) and
+    acceleration (rad/s^2) (else 0.0 for both): the scalar :class:`MirroredReference` of the slot."""
+    tb, ts, t0 = t_begin[k], t_stop[k], t_start[k]
+    mirrored = ts - (min(max(t, tb), t_end[k]) - tb)
+    x = (2.0 * mirrored - (t0 + ts)) / (ts - t0)
+    phi = clenshaw_one(coef, k, x)
+    if not derivatives:
+        return phi, 0.0, 0.0
+    scale = 2.0 / (ts - t0)
+    return phi, -(clenshaw_one(d1, k, x) * scale), clenshaw_one(d2, k, x) * scale**2
+
+
 @njit(cache=True)
 def reference_at(t, cols, coef, d1, d2, t_start, t_stop, t_begin, t_end, derivatives,
                  phi, rate, accel):  # pragma: no cover - compiled
     """phi_ref (rad) of slot ``cols[j]`` at ``t[j]`` (s) into ``phi[j]``, and with ``derivatives``
     its rate (rad/s) and acceleration (rad/s^2) into ``rate[j]``, ``accel[j]``
-    (:meth:`MirroredReferences.phi_rate_accel`, element by element)."""
+    (:meth:`MirroredReferences.phi_rate_accel`, element by element: :func:`reference_one`)."""
     for j in range(len(cols)):
-        k = cols[j]
-        tb, ts, t0 = t_begin[k], t_stop[k], t_start[k]
-        mirrored = ts - (min(max(t[j], tb), t_end[k]) - tb)
-        x = (2.0 * mirrored - (t0 + ts)) / (ts - t0)
-        phi[j] = clenshaw_one(coef, k, x)
+        p, r, a = reference_one(t[j], cols[j], coef, d1, d2, t_start, t_stop, t_begin, t_end, derivatives)
+        phi[j] = p
         if derivatives:
-            scale = 2.0 / (ts - t0)
-            rate[j] = -(clenshaw_one(d1, k, x) * scale)
-            accel[j] = clenshaw_one(d2, k, x) * scale**2
+            rate[j] = r
+            accel[j] = a
 
 
 class MirroredReferences:
