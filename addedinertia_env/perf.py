@@ -289,8 +289,11 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   f"{head.get('workers', 1)} x the per-CPU-second one ({head['samples_per_cpu_s']:,.0f}); here the processes "
                   f"kept {head['cpu_s'] / head['wall_s']:.1f} cores busy: every step waits for the slower shard. The shards "
                   "share the identification of the episodes that ended in a step (records move to the shard with less "
-                  "to do), but a record is identified in one piece, so a step with one ended episode keeps one core busy "
-                  "for it; the shards' sampling halves also differ from step to step (resets waiting for spare slots), "
+                  "to do), but a record is identified in one piece, so in a step where an odd number of episodes "
+                  "ended (" + (f"{100 * head['odd_end_steps_frac']:.0f} % of the timed steps" if "odd_end_steps_frac" in head
+                               else "about half the steps") + ") one process waits for the other's last record; the "
+                  "shards' sampling halves also differ from step to step (the stroke fits at the free strokes' stops, "
+                  "the records of the ended episodes; the spare starts run while a process waits), "
                   "and other jobs on the machine take turns (load average above). "
                   + (f"Per sample the {head.get('workers', 1)} processes used "
                      f"{abs(100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1)):.0f} % "

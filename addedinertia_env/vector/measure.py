@@ -48,12 +48,13 @@ def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 
     for _ in range(warmup_steps):
         env.step(_policy(rng, num_envs))
     env.unwrapped.score_episodes = scored
-    ended = 0
+    ended = odd = 0
     rel = []
     t0 = time.perf_counter()
     cpu0 = time.process_time() + workers_cpu()
     for _ in range(steps):
         _, _, term, trunc, info = env.step(_policy(rng, num_envs))
+        odd += int(term.sum()) % 2  # steps whose ended episodes cannot be split evenly between 2 processes
         if term.any():
             ended += int(term.sum())
             if "rel_error" in info:  # scored episodes only
@@ -69,6 +70,7 @@ def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 
             "samples_per_s": agent_steps * action_repeat / wall, "agent_steps_per_s": agent_steps / wall,
             "samples_per_cpu_s": agent_steps * action_repeat / cpu,
             "episodes_ended": ended, "episodes_per_s": ended / wall, "reset_s": reset_s,
+            "odd_end_steps_frac": odd / steps,
             "warmup_steps": warmup_steps,
             "median_abs_rel_error": float(np.nanmedian(rel)) if rel and np.isfinite(rel).any() else float("nan"),
             "failed_estimates": int(np.sum(~np.isfinite(rel))) if rel else 0}
