@@ -116,7 +116,7 @@ detection-table: $(STAMP)
 
 # docs/PERFORMANCE.md: single MuJoCo env vs batched physics, 1..16384 envs, one run.
 perf: $(STAMP)
-	$(BIN)/addedinertia perf --max-envs 16384 --vector-envs 1024 --vector-steps 400 --vector-warmup 1000 --vector-seconds 20 --out docs/PERFORMANCE.md --json
+	$(BIN)/addedinertia perf --max-envs 16384 --vector-envs 1024 --vector-steps 400 --vector-warmup 1000 --vector-seconds 20 --vector-repeats 3 --out docs/PERFORMANCE.md --json
 
 # docs/LEADERBOARD_realistic.md: the same controllers on realistic-v0 (realistic sensors everywhere).
 leaderboard-realistic:

@@ -207,8 +207,12 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
     ]
     if "vector_env_samples_per_s" in result:
         w = result.get("vector_workers", 1)
+        runs = next((r.get("repeat_samples_per_s") for r in result["vector_task"]["rows"]
+                     if r.get("repeat_samples_per_s")), None)
+        median_of = f", median of {len(runs)} runs" if runs and len(runs) > 1 else ""
         lines += [
-            f"| whole task, batched vector env, n = {result['vector_n_envs']}, {w} process{'es' if w > 1 else ''} | "
+            f"| whole task, batched vector env, n = {result['vector_n_envs']}, {w} process{'es' if w > 1 else ''}"
+            f"{median_of} | "
             f"{result['vector_env_samples_per_s']:,.0f} samples/s ({result['vector_env_agent_steps_per_s']:,.0f} agent "
             f"steps/s); {result['vector_env_samples_per_cpu_s']:,.0f} per CPU-s |",
             f"| whole task, `gym.make_vec` sync | {result['sync_vector_env_samples_per_s']:,.0f} samples/s; "
@@ -278,6 +282,10 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   f"first reset ({head['n_envs']} free strokes at once) took {head['reset_s']:.1f} s; its timed window used "
                   f"{head['cpu_s']:.1f} CPU-s in {head['wall_s']:.1f} s of wall time; {head['episodes_per_s']:.0f} episodes "
                   "ended per second."]
+        if head.get("repeat_samples_per_s") and len(head["repeat_samples_per_s"]) > 1:
+            lines += [f"The headline row is the median of {len(head['repeat_samples_per_s'])} runs, each from a fresh "
+                      "env: " + ", ".join(f"{v:,.0f}" for v in head["repeat_samples_per_s"])
+                      + " samples/s (the run-to-run spread on this machine)."]
         median = head.get("median_abs_rel_error")
         if isinstance(median, float) and np.isfinite(median):
             lines += [f"Median |rel_error| under the random policy: {100 * median:.2f} %."]

@@ -14,7 +14,8 @@ from addedinertia_env.perf import measure_batched, render_markdown
 def test_perf_json_has_the_contract_fields(capsys, tmp_path):
     out = tmp_path / "PERF.md"
     assert main(["perf", "--max-envs", "16", "--seconds", "0.01", "--repeats", "1", "--vector-envs", "4",
-                 "--vector-steps", "3", "--vector-warmup", "2", "--vector-seconds", "0.2", "--json", "--out", str(out)]) == 0
+                 "--vector-steps", "3", "--vector-warmup", "2", "--vector-seconds", "0.2", "--vector-repeats", "2", "--json",
+                 "--out", str(out)]) == 0
     result = json.loads(capsys.readouterr().out)
     for key in ("single_env_steps_per_s", "batched_physics_steps_per_s", "n_envs", "vector_env_samples_per_s",
                 "vector_env_agent_steps_per_s", "sync_vector_env_samples_per_s", "vector_n_envs",
@@ -35,6 +36,9 @@ def test_perf_json_has_the_contract_fields(capsys, tmp_path):
     assert result["machine"]["nproc"] >= 1 and result["machine"]["cpu"]
     text = out.read_text()
     assert "addedinertia perf" in text and result["machine"]["cpu"] in text and "GPU" in text
+    if result["vector_workers"] > 1:  # the headline row (2 processes on a 2-core machine): the median of 2 runs
+        head = result["vector_task"]["rows"][2]
+        assert len(head["repeat_samples_per_s"]) == 2 and "median of 2 runs" in text and "--vector-repeats 2" in text
     assert (tmp_path / "figures" / "perf_time_vs_n.png").stat().st_size > 1000
 
 
@@ -75,3 +79,13 @@ def test_whole_task_measurement_counts_ended_episodes_with_and_without_identific
         assert 0 < row["odd_end_steps_frac"] * 250 <= row["episodes_ended"]
     assert scored["median_abs_rel_error"] < 1.0  # identified
     assert plain["median_abs_rel_error"] != plain["median_abs_rel_error"]  # nan: nothing identified
+
+
+def test_the_headline_is_the_median_run_and_keeps_every_run():
+    from addedinertia_env.vector.measure import median_run
+
+    runs = [{"samples_per_s": v, "tag": k} for k, v in enumerate([7.0, 9.0, 8.0])]
+    row = median_run(runs)
+    assert row["tag"] == 2 and row["repeat_samples_per_s"] == [7.0, 9.0, 8.0]
+    assert median_run(runs[:2])["tag"] == 0  # even count: the lower middle run, never the best
+    assert "repeat_samples_per_s" not in runs[2]  # the runs themselves are left as they were

@@ -24,6 +24,8 @@ def register(sub) -> None:
                    help="agent steps before the timing starts, so that the first episodes spread out (default 600)")
     p.add_argument("--vector-seconds", type=float, default=20.0,
                    help="wall time of the single-env and gym.make_vec sync measurements, s (default 20)")
+    p.add_argument("--vector-repeats", type=positive_int, default=1,
+                   help="runs of the batched env's headline row, each from a fresh env; the median run counts (default 1)")
     p.add_argument("--vector-workers", type=positive_int, default=None,
                    help="processes of the batched env's headline row (default: the CPU cores, at most 2)")
     p.add_argument("--out", default=None, help="write the report to this Markdown file (e.g. docs/PERFORMANCE.md)")
@@ -52,7 +54,8 @@ def run(args) -> int:
     if args.vector_workers is not None and args.vector_workers > args.vector_envs:
         raise BadInput(f"--vector-workers {args.vector_workers}: expected at most --vector-envs ({args.vector_envs})")
     result.update(measure_vector_task(args.vector_envs, steps=args.vector_steps, warmup_steps=args.vector_warmup,
-                                      seconds=args.vector_seconds, workers=args.vector_workers, progress=info))
+                                      seconds=args.vector_seconds, workers=args.vector_workers, progress=info,
+                                      repeats=args.vector_repeats))
     result["machine"]["load_avg_at_end"] = [round(x, 2) for x in os.getloadavg()] if hasattr(os, "getloadavg") else None
     info(f"single MuJoCo env: {result['single_env_steps_per_s']:,.0f} steps/s; batched n={result['n_envs']}: "
          f"{result['batched_physics_steps_per_s']:,.0f} steps/s; ratio {result['ratio_batched_to_single']:,.0f}x")
@@ -68,6 +71,7 @@ def run(args) -> int:
             [f"--max-envs {args.max_envs}", f"--vector-envs {args.vector_envs}", f"--vector-steps {args.vector_steps}",
              f"--vector-warmup {args.vector_warmup}",
              f"--vector-seconds {args.vector_seconds:g}"]
+            + ([f"--vector-repeats {args.vector_repeats}"] if args.vector_repeats > 1 else [])
             + ([f"--vector-workers {args.vector_workers}"] if args.vector_workers is not None else [])
             + [f"--out {args.out}"])
         text = render_markdown(result, command, os.path.relpath(fig, out.parent))

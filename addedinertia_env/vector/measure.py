@@ -109,13 +109,23 @@ def default_workers() -> int:
     return max(1, min(2, cores))
 
 
+def median_run(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """The run of ``runs`` (rows of :func:`measure_batched`) whose samples per second is the median
+    (the lower middle one for an even count), with every run's figure in ``repeat_samples_per_s``."""
+    ranked = sorted(runs, key=lambda r: r["samples_per_s"])
+    row = dict(ranked[(len(ranked) - 1) // 2])
+    row["repeat_samples_per_s"] = [r["samples_per_s"] for r in runs]
+    return row
+
+
 def measure_vector_task(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 400, sync_envs: int = 8,
                         seconds: float = 20.0, action_repeat: int = 10, workers: int | None = None,
-                        progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+                        progress: Callable[[str], None] | None = None, repeats: int = 1) -> dict[str, Any]:
     """The engines on the same task in one run; the keys of ``addedinertia perf --json``.
 
     Rows: one env, ``gym.make_vec`` sync, the batched env in ``workers`` processes (the
-    headline), in one process, and in one process without the end-of-episode identification.
+    headline: the median of ``repeats`` runs, each from a fresh env), in one process, and in one
+    process without the end-of-episode identification.
     """
     say = progress or (lambda _m: None)
     workers = default_workers() if workers is None else workers
@@ -129,9 +139,12 @@ def measure_vector_task(num_envs: int = 1024, steps: int = 300, warmup_steps: in
     rows = [single, sync]
     headline = None
     if workers > 1:
-        headline = measure_batched(num_envs, steps, warmup_steps, action_repeat, workers=workers)
-        say(f"batched n={num_envs}, {workers} processes: {headline['samples_per_s']:,.0f} samples/s, "
-            f"{headline['samples_per_cpu_s']:,.0f} per CPU-s")
+        runs = []
+        for _ in range(repeats):
+            runs.append(measure_batched(num_envs, steps, warmup_steps, action_repeat, workers=workers))
+            say(f"batched n={num_envs}, {workers} processes: {runs[-1]['samples_per_s']:,.0f} samples/s, "
+                f"{runs[-1]['samples_per_cpu_s']:,.0f} per CPU-s")
+        headline = median_run(runs)
         rows.append(headline)
     one = measure_batched(num_envs, steps, warmup_steps, action_repeat)
     say(f"batched n={num_envs}, 1 process: {one['samples_per_s']:,.0f} samples/s, "
