@@ -84,12 +84,15 @@ def fit_windows(t, tc, half_width):
     for j in range(len(tc)):
         lo = min(max(np.searchsorted(t, tc[j] - half_width, side="left") - 2, 0), n)
         hi = min(max(np.searchsorted(t, tc[j] + half_width, side="right") + 2, 0), n)
-        a, b = lo, lo
+        a, b = lo, lo  # the first and one past the last candidate inside (a scan from each end)
         for k in range(lo, hi):
             if abs(t[k] - tc[j]) <= half_width:
-                if b == a:
-                    a = k
-                b = k + 1
+                a = k
+                for k_last in range(hi - 1, k - 1, -1):
+                    if abs(t[k_last] - tc[j]) <= half_width:
+                        b = k_last + 1
+                        break
+                break
         first[j], stop[j] = a, b
     return first, stop
 
@@ -165,6 +168,16 @@ def scaled_deviation(t, first, tc, half_width, canonical):
             if d > worst:
                 worst = d
     return worst
+
+
+@njit(cache=True, error_model="numpy")
+def canonical_abscissae(t, first, tc, half_width, m, grid):
+    """A crossing fit's scaled abscissae ``(t[first:first + m] - tc) / half_width`` rounded to multiples of
+    ``1 / grid`` (a power of two): ``np.round(row * grid) / grid`` (``np.round`` is ``rint``), element by element."""
+    out = np.empty(m)
+    for k in range(m):
+        out[k] = np.rint((t[first + k] - tc) / half_width * grid) / grid
+    return out
 
 
 @njit(cache=True, error_model="numpy")
@@ -298,5 +311,6 @@ def warm_up() -> None:
     lag_ranking(np.ones(3), np.eye(3), np.zeros(2, dtype=np.int64), np.zeros(2), 1.0)
     twice_integrated(np.lib.stride_tricks.sliding_window_view(t, 4), 0.5 * np.diff(t[:4]))
     first_at_or_past(t, 0, 8, 0, -1.0, t[:3])
+    canonical_abscissae(t, 0, 0.0, 1.0, 4, 2.0**40)
     accumulated_kernels(np.arange(8), t, np.array([3, 5]), t[:2], 8)
     calibration_target(t, t, t, 0.1, 0.01, 2.0)

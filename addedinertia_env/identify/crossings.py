@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..series_kernels import (first_at_or_past, fit_windows, is_ascending, polynomial_roots_near_zero,
-                              scaled_deviation)
+from ..series_kernels import (canonical_abscissae, first_at_or_past, fit_windows, is_ascending,
+                              polynomial_roots_near_zero, scaled_deviation)
 from .common import IdentificationError
 
 SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
@@ -91,7 +91,7 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     powers = np.arange(degree + 1)
     coef = np.empty((n_fit, degree + 1))
     groups = []  # (fits, sample indices, angles, design, pseudo-inverse): P0/X0 shared, or P/X per fit
-    for m in np.unique(size).tolist():
+    for m in sorted(set(size.tolist())):  # the window lengths (np.unique's, ascending)
         g = np.nonzero(size == m)[0]
         idx = first[g][:, None] + np.arange(m)[None, :]  # (fits, m) sample indices
         y = phi[idx]
@@ -147,8 +147,7 @@ def _shared_design(t: np.ndarray, first: np.ndarray, tc: np.ndarray, m: int, hal
     :data:`SHARED_DESIGN_TOLERANCE`. The canonical row depends on the group alone (not on what
     was computed before), so the pair is kept across calls: records on one sampling grid reuse
     it, and every result is the same whatever ran before."""
-    row = (t[first[0]:first[0] + m] - tc[0]) / half_width
-    canonical = np.round(row * _GRID) / _GRID  # exact: scaling by a power of two
+    canonical = canonical_abscissae(t, int(first[0]), float(tc[0]), float(half_width), m, _GRID)  # exact scalings
     if scaled_deviation(t, first, tc, half_width, canonical) > SHARED_DESIGN_TOLERANCE:
         return None
     key = (degree, canonical.tobytes())

@@ -395,7 +395,7 @@ class RunBalance:
             if calib is not None:
                 self.torque_scale, self.current_lag = calib
         self.work_cum = self._cumulative_work()
-        self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros_like(t)
+        self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros(t.shape, t.dtype)
         self.asymmetry_correction = asymmetry_correction
         self._fits: dict = {}
         self._dsq_cum: np.ndarray | None = None
