@@ -266,3 +266,48 @@ def test_polynomial_fits_equal_numpys():
         power_fit(np.ones(5), np.arange(5.0), 2)
     with pytest.warns(np.exceptions.RankWarning):
         line_fit(np.ones(5), np.arange(5.0))
+
+
+def test_angle_columns_equal_the_numpy_expressions():
+    from addedinertia_env.identify.balance_kernels import angle_uncertainties, angle_values  # noqa: PLC0415
+    from addedinertia_env.identify.energy import BalanceTerms, inertia_from_terms  # noqa: PLC0415
+    from addedinertia_env.scan_kernels import squared_step_sums, true_counts  # noqa: PLC0415
+
+    rng = np.random.default_rng(29)
+    n, samples, k2, k3, J_h = 41, 3000, 1400, 1700, 0.012
+    terms = {name: rng.normal(size=n) * 10.0 ** rng.uniform(-4, 0) for name in
+             ("spring", "A_f", "A_r", "B_f", "B_r", "K1", "K2", "K3", "K4", "hull_rest", "dW")}
+    w1f, w1r = rng.normal(size=n), rng.normal(size=n)
+    w1f[3], w1r[5] = 1e-14, np.nan  # the mismatch's floor and a nan rate
+    T = BalanceTerms(phi1=rng.normal(size=n), t1=rng.random(n), t4=rng.random(n), w1f=w1f, w1r=w1r, **terms)
+    k1s, k4s = rng.integers(0, k2, size=n), rng.integers(k3 + 1, samples + 5, size=n)
+    saturated = rng.random(samples) < 0.05
+    count = true_counts(saturated)
+    lam_np = inertia_from_terms(T, J_h)
+    sat_np = (count[np.minimum(k4s + 1, len(count) - 1)] - count[k3]) / (np.minimum(k4s + 1, samples) - k3)
+    mismatch_np = np.abs(np.abs(w1r) - np.abs(w1f)) / np.maximum(np.abs(w1f), 1e-12)
+    f = [getattr(T, name) for name in ("spring", "A_f", "A_r", "B_f", "B_r", "K1", "K2", "K3", "K4", "hull_rest",
+                                        "dW", "w1f", "w1r")]
+    lam, sat, mismatch = angle_values(*f, J_h, count, samples, k3, k4s)
+    np.testing.assert_array_equal(lam, lam_np)
+    np.testing.assert_array_equal(sat, sat_np)
+    np.testing.assert_array_equal(mismatch, mismatch_np)
+    np.testing.assert_array_equal(angle_values(*f, J_h, np.zeros(0, dtype=np.int64), 0, k3, k4s)[1], np.zeros(n))
+
+    sigma_f, sigma_r, s_dW = rng.random(n) * 1e-3, rng.random(n) * 1e-3, rng.random(n) * 1e-4
+    dsq = squared_step_sums(np.cumsum(rng.normal(size=samples)) * 1e-4)
+    k_t, noise_i, gain_u = 0.05, 0.01, 0.005
+
+    def work_noise(a, b):  # the numpy expression of RunBalance's work noise
+        total = dsq[np.minimum(b, len(dsq) - 1)] - dsq[np.minimum(a, len(dsq) - 1)]
+        return k_t * noise_i * np.sqrt(np.maximum(total, 0.0) / 2.0)
+
+    denom = 0.5 * (w1f**2 + w1r**2)
+    s_den = np.hypot(w1f * sigma_f, w1r * sigma_r)
+    s_current = np.hypot(work_noise(k1s, k2), work_noise(k3, k4s)) / denom
+    s_independent = np.hypot(s_current, (lam_np + J_h) * s_den / denom)
+    s_common = np.hypot(gain_u * np.hypot(T.A_f, T.A_r), s_dW) / denom
+    got = angle_uncertainties(lam, T.A_f, T.A_r, w1f, w1r, sigma_f, sigma_r, s_dW, k1s, k4s, k2, k3, dsq,
+                              k_t * noise_i, gain_u, J_h)
+    for ours, theirs in zip(got, (s_independent, s_common, np.hypot(s_independent, s_common), s_current)):
+        np.testing.assert_array_equal(ours, theirs)

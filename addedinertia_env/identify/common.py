@@ -195,8 +195,11 @@ def prepare() -> None:
     from ..scan_kernels import warm_up as warm_up_scans  # noqa: PLC0415
     from ..series_kernels import warm_up  # noqa: PLC0415
 
+    from .balance_kernels import warm_up as warm_up_balance  # noqa: PLC0415
+
     warm_up()
     warm_up_scans()
+    warm_up_balance()
 
 
 @lru_cache(maxsize=64)

@@ -65,6 +65,7 @@ from ..scan_kernels import (block_starts, gap_counts, negative_step_ratios, reac
 from ..series_kernels import (accumulated_kernels, calibration_target, count_crossings, lag_ranking,
                               twice_integrated)
 from ..series_stats import median_step
+from .balance_kernels import angle_uncertainties, angle_values
 from .common import (IdentificationError, Result, largest_gap, line_fit, local_fit, pooled_interval, power_fit,
                      savgol, smooth_angle, smooth_angles)
 from .crossings import crossing_fits, first_crossings
@@ -339,6 +340,10 @@ def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarra
     return float(np.hypot(np.sqrt(max(excess, 0.0)) / np.sqrt(max(len(lam) / 8.0, 1.0)), slope_part))
 
 
+_VALUE_TERMS = ("spring", "A_f", "A_r", "B_f", "B_r", "K1", "K2", "K3", "K4", "hull_rest", "dW", "w1f", "w1r")
+_NO_COUNTS = np.zeros(0, dtype=np.int64)
+
+
 class RunBalance:
     """The energy balance of one reverse-symmetric record, evaluated at any boundary angle.
 
@@ -521,19 +526,18 @@ class RunBalance:
         if not len(good):
             return cols
         T, fit = got["terms"], got["fits"]
-        lam = inertia_from_terms(T, self.J_h)
-        denom = 0.5 * (T.w1f**2 + T.w1r**2)
-        J_total = lam + self.J_h
         k1s, k4s = got["k1s"], got["k4s"]
-        sA_f, sA_r = self._work_noise(k1s, self.k2), self._work_noise(self.k3, k4s)
-        s_den = np.hypot(T.w1f * fit["f"]["sigma_rate"], T.w1r * fit["r"]["sigma_rate"])
-        s_current = np.hypot(sA_f, sA_r) / denom
-        s_independent = np.hypot(s_current, J_total * s_den / denom)
+        lam, sat, mismatch = self._values(T, k4s)
+        if self._dsq_cum is None:  # sum of the squared angle increments from the first sample
+            self._dsq_cum = squared_step_sums(self.phi_s if self.work == "reaction" else self.psi_s)
         gain_u = CALIBRATED_TORQUE_UNCERTAINTY if self.calibrated else CURRENT_GAIN_UNCERTAINTY
-        s_gain = gain_u * np.hypot(T.A_f, T.A_r)
-        s_common = np.hypot(s_gain, got["s_dW"]) / denom
-        sigma = np.hypot(s_independent, s_common)
-        sat, mismatch = self._saturation_and_mismatch(T, k4s)
+        # the motor work's noise over k1..k2 and k3..k4, the rates' sigmas, the gain's and the dissipation
+        # model's parts, each over the kinetic denominator (the numpy expressions, compiled)
+        contiguous = [np.ascontiguousarray(x, dtype=float) for x in (T.A_f, T.A_r, T.w1f, T.w1r, fit["f"]["sigma_rate"],
+                                                                      fit["r"]["sigma_rate"], got["s_dW"])]
+        s_independent, s_common, sigma, s_current = angle_uncertainties(
+            lam, *contiguous, np.asarray(k1s, dtype=np.int64), np.asarray(k4s, dtype=np.int64), self.k2, self.k3,
+            self._dsq_cum, self.k_t * self.noise_i, gain_u, self.J_h)
         cols.update(lam=lam, w1f=T.w1f, w1r=T.w1r, s_independent=s_independent, s_common=s_common, sigma=sigma,
                     s_current=s_current, sat=sat, mismatch=mismatch,
                     rejected=(sat > MAX_SATURATED_FRACTION) | (mismatch > MAX_SPEED_MISMATCH))
@@ -572,19 +576,16 @@ class RunBalance:
                 iv.rejected = f"reverse speed at phi1 differs by {mis:.0%} from the forward speed"
         return out
 
-    def _saturation_and_mismatch(self, T: BalanceTerms, k4s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per usable angle: the fraction of samples k3..k4 with the current at its limit, and the
-        relative difference of the reverse and forward speeds at the angle (the rejection tests)."""
-        if self.saturated is not None:  # fraction of samples k3..k4 at the limit
-            if self._sat_count is None:
-                self._sat_count = true_counts(self.saturated)
-            count = self._sat_count
-            sat = (count[np.minimum(k4s + 1, len(count) - 1)] - count[self.k3]) / (
-                np.minimum(k4s + 1, len(self.saturated)) - self.k3)
-        else:
-            sat = np.zeros(len(k4s))
-        mismatch = np.abs(np.abs(T.w1r) - np.abs(T.w1f)) / np.maximum(np.abs(T.w1f), 1e-12)
-        return sat, mismatch
+    def _values(self, T: BalanceTerms, k4s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per usable angle: lambda66 (:func:`inertia_from_terms`, kg m^2), the fraction of samples k3..k4
+        with the current at its limit, and the relative difference of the reverse and forward speeds at
+        the angle (the rejection tests)."""
+        if self.saturated is not None and self._sat_count is None:  # cumulative count of samples at the limit
+            self._sat_count = true_counts(self.saturated)
+        count = self._sat_count if self.saturated is not None else _NO_COUNTS
+        f = [np.ascontiguousarray(getattr(T, name), dtype=float) for name in _VALUE_TERMS]
+        return angle_values(*f, float(self.J_h), count, len(self.saturated) if self.saturated is not None else 0,
+                            self.k3, np.asarray(k4s, dtype=np.int64))
 
     def weighted_value(self, phi1: np.ndarray, weights: np.ndarray) -> float:
         """The Hann-weighted lambda66 (kg m^2) over the usable angles ``phi1`` (weights ``weights``),
@@ -594,9 +595,7 @@ class RunBalance:
         good = got["good"]
         if not len(good):
             return float("nan")
-        T = got["terms"]
-        lam = inertia_from_terms(T, self.J_h)
-        sat, mismatch = self._saturation_and_mismatch(T, got["k4s"])
+        lam, sat, mismatch = self._values(got["terms"], got["k4s"])
         keep = ~((sat > MAX_SATURATED_FRACTION) | (mismatch > MAX_SPEED_MISMATCH))  # not rejected by intervals()
         if not keep.any():
             return float("nan")
@@ -707,15 +706,6 @@ class RunBalance:
     def _flywheel_energy_at(self, tc: float, hull_rate: float) -> float:
         omega = float(local_fit(self.t, self.psi, tc, half_width=RATE_HALF_WIDTH, degree=RATE_DEGREE)[1])
         return 0.5 * self.J_f * (hull_rate + omega) ** 2
-
-    def _work_noise(self, a, b):
-        """1-sigma of the motor work on [t_a, t_b] from white current noise, J (``a``, ``b``:
-        sample indices, integers or arrays of them)."""
-        if self._dsq_cum is None:  # sum of the squared angle increments from the first sample
-            self._dsq_cum = squared_step_sums(self.phi_s if self.work == "reaction" else self.psi_s)
-        last = len(self._dsq_cum) - 1
-        total = self._dsq_cum[np.minimum(b, last)] - self._dsq_cum[np.minimum(a, last)]
-        return self.k_t * self.noise_i * np.sqrt(np.maximum(total, 0.0) / 2.0)
 
     def _cumulative_work(self) -> np.ndarray:
         """Motor work from the first sample to each sample, J (the form chosen by ``work``)."""
