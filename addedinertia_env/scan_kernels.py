@@ -95,24 +95,34 @@ def second_differences(x):
 
 
 @njit(cache=True, error_model="numpy")
+def _kth_deviation(s, m, p, k):
+    """The ``k``-th smallest (from 0) of ``abs(s - m)`` for an ascending ``s`` whose first ``p`` elements are
+    below ``m``: the deviations of ``s[p - 1], s[p - 2], ...`` rise, as do those of ``s[p], s[p + 1], ...``;
+    a binary search for how many of the ``k + 1`` smallest come from the first run."""
+    lo, hi = max(0, k + 1 - (len(s) - p)), min(k + 1, p)
+    while lo < hi:
+        i = (lo + hi) // 2
+        if abs(s[p - 1 - i] - m) < abs(s[p + k - i] - m):  # the first run's next beats the second's last
+            lo = i + 1
+        else:
+            hi = i
+    a = abs(s[p - lo] - m) if lo > 0 else -np.inf
+    b = abs(s[p + k - lo] - m) if k + 1 - lo > 0 else -np.inf
+    return a if a > b else b
+
+
+@njit(cache=True, error_model="numpy")
 def median_abs_deviation_sorted(s, m):
     """``np.median(np.abs(s - m))`` for a non-empty ascending ``s`` without nan and a finite ``m``, without a
-    second sort: ``abs(s - m)`` falls towards the first ``s >= m`` and rises after it, so its order
-    statistics come from merging the two runs outwards from there (the same elements, so the same
-    number; an even count averages the middle two as ``(a + b) / 2.0``)."""
+    second sort: ``abs(s - m)`` falls towards the first ``s >= m`` and rises after it (rounding is
+    monotonic), so its order statistics are found in those two sorted runs (the same elements, so the
+    same number; an even count averages the middle two as ``(a + b) / 2.0``)."""
     n = len(s)
-    hi = np.searchsorted(s, m)
-    lo = hi - 1
-    prev, cur = 0.0, 0.0
-    for _ in range(n // 2 + 1):
-        if lo >= 0 and (hi >= n or abs(s[lo] - m) <= abs(s[hi] - m)):
-            v = abs(s[lo] - m)
-            lo -= 1
-        else:
-            v = abs(s[hi] - m)
-            hi += 1
-        prev, cur = cur, v
-    return cur if n % 2 else (prev + cur) / 2.0
+    p = np.searchsorted(s, m)
+    k = n // 2
+    if n % 2:
+        return _kth_deviation(s, m, p, k)
+    return (_kth_deviation(s, m, p, k - 1) + _kth_deviation(s, m, p, k)) / 2.0
 
 
 @njit(cache=True, error_model="numpy")

@@ -297,6 +297,19 @@ def calibration_target(tt, th, psi, f_visc, f_coul, J_f):
     return target, half
 
 
+@njit(cache=True, error_model="numpy")
+def window_rows(x, starts, m):
+    """Rows of ``m`` consecutive samples of ``x`` from each of ``starts``: the sample indices
+    ``starts[:, None] + np.arange(m)`` and the values ``x[indices]``."""
+    idx = np.empty((len(starts), m), dtype=np.int64)
+    rows = np.empty((len(starts), m))
+    for r in range(len(starts)):
+        for j in range(m):
+            idx[r, j] = starts[r] + j
+            rows[r, j] = x[starts[r] + j]
+    return idx, rows
+
+
 def warm_up() -> None:
     """Load every kernel's machine code now (from the cache, or compiled: a few seconds once), so that
     the first identification in a process costs what the others do."""
@@ -312,5 +325,6 @@ def warm_up() -> None:
     twice_integrated(np.lib.stride_tricks.sliding_window_view(t, 4), 0.5 * np.diff(t[:4]))
     first_at_or_past(t, 0, 8, 0, -1.0, t[:3])
     canonical_abscissae(t, 0, 0.0, 1.0, 4, 2.0**40)
+    window_rows(t, np.arange(2), 3)
     accumulated_kernels(np.arange(8), t, np.array([3, 5]), t[:2], 8)
     calibration_target(t, t, t, 0.1, 0.01, 2.0)

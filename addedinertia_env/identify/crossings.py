@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..series_kernels import (canonical_abscissae, first_at_or_past, fit_windows, is_ascending,
-                              polynomial_roots_near_zero, scaled_deviation)
+                              polynomial_roots_near_zero, scaled_deviation, window_rows)
 from .common import IdentificationError
 
 SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
@@ -93,8 +93,7 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     groups = []  # (fits, sample indices, angles, design, pseudo-inverse): P0/X0 shared, or P/X per fit
     for m in sorted(set(size.tolist())):  # the window lengths (np.unique's, ascending)
         g = np.nonzero(size == m)[0]
-        idx = first[g][:, None] + np.arange(m)[None, :]  # (fits, m) sample indices
-        y = phi[idx]
+        idx, y = window_rows(phi, first[g], m)  # (fits, m) sample indices and angles
         shared = _shared_design(t, first[g], tc[g], m, half_width, degree)
         if shared is not None:  # one design for the group
             X0, P0 = shared
