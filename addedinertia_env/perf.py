@@ -168,6 +168,13 @@ def plot_time_vs_n(result: dict[str, Any], path: str) -> None:
     save_figure(fig, path, dpi=110)
 
 
+def _time_shares(shares: list[dict[str, float]]) -> str:
+    """``sample 25 / 21 %, identify 34 / 32 %, ...``: each activity's share of the wall time in every
+    process (shard 0 first), largest first."""
+    names = sorted({k for sh in shares for k in sh}, key=lambda k: -sum(sh.get(k, 0.0) for sh in shares))
+    return ", ".join(f"{k} " + " / ".join(f"{100 * sh.get(k, 0.0):.0f}" for sh in shares) + " %" for k in names)
+
+
 def render_markdown(result: dict[str, Any], command: str, figure: str | None) -> str:
     """docs/PERFORMANCE.md from a :func:`run_perf` result."""
     m = result["machine"]
@@ -282,6 +289,10 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   f"first reset ({head['n_envs']} free strokes at once) took {head['reset_s']:.1f} s; its timed window used "
                   f"{head['cpu_s']:.1f} CPU-s in {head['wall_s']:.1f} s of wall time; {head['episodes_per_s']:.0f} episodes "
                   "ended per second."]
+        if head.get("time_shares"):
+            lines += ["", "Where the headline row's wall time went, per process (" + _time_shares(head["time_shares"])
+                      + "; `StepClock` in `vector/shards.py`). *wait* is a process blocked until another answers: "
+                      "the step waits for the slower shard."]
         if head.get("repeat_samples_per_s") and len(head["repeat_samples_per_s"]) > 1:
             lines += [f"The headline row is the median of {len(head['repeat_samples_per_s'])} runs, each from a fresh "
                       "env: " + ", ".join(f"{v:,.0f}" for v in head["repeat_samples_per_s"])

@@ -39,6 +39,10 @@ def test_perf_json_has_the_contract_fields(capsys, tmp_path):
     if result["vector_workers"] > 1:  # the headline row (2 processes on a 2-core machine): the median of 2 runs
         head = result["vector_task"]["rows"][2]
         assert len(head["repeat_samples_per_s"]) == 2 and "median of 2 runs" in text and "--vector-repeats 2" in text
+        assert len(head["time_shares"]) == 2 and "Where the headline row's wall time went" in text
+        for shares, clocked in zip(head["time_shares"], head["clocked_s"]):  # each process's time, counted once
+            assert shares["sample"] > 0 and min(shares.values()) >= 0 and sum(shares.values()) == pytest.approx(1.0)
+            assert abs(clocked - head["wall_s"]) < 0.2 * head["wall_s"] + 0.005  # the clock ran over the window
     assert (tmp_path / "figures" / "perf_time_vs_n.png").stat().st_size > 1000
 
 

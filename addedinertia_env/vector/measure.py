@@ -50,6 +50,9 @@ def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 
     env.unwrapped.score_episodes = scored
     ended = odd = 0
     rel = []
+    step_clock = getattr(env.unwrapped, "step_clock", None)  # the sharded env: where each process's time goes
+    if step_clock is not None:
+        step_clock(True)
     t0 = time.perf_counter()
     cpu0 = time.process_time() + workers_cpu()
     for _ in range(steps):
@@ -61,6 +64,11 @@ def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 
                 rel.extend(np.abs(info["rel_error"][term]).tolist())
     wall = time.perf_counter() - t0
     cpu = time.process_time() + workers_cpu() - cpu0
+    shares = clocked = None
+    if step_clock is not None:  # fractions of each process's clocked time (about the wall time), shard 0 first
+        counted = step_clock(False)
+        clocked = [sum(seconds.values()) for seconds in counted]
+        shares = [{k: v / total for k, v in sorted(seconds.items())} for seconds, total in zip(counted, clocked)]
     env.close()
     agent_steps = num_envs * steps
     kind = (f"batched (gym.make_vec), {workers} process" + ("es" if workers > 1 else "")
@@ -70,7 +78,7 @@ def measure_batched(num_envs: int = 1024, steps: int = 300, warmup_steps: int = 
             "samples_per_s": agent_steps * action_repeat / wall, "agent_steps_per_s": agent_steps / wall,
             "samples_per_cpu_s": agent_steps * action_repeat / cpu,
             "episodes_ended": ended, "episodes_per_s": ended / wall, "reset_s": reset_s,
-            "odd_end_steps_frac": odd / steps,
+            "odd_end_steps_frac": odd / steps, "time_shares": shares, "clocked_s": clocked,
             "warmup_steps": warmup_steps,
             "median_abs_rel_error": float(np.nanmedian(rel)) if rel and np.isfinite(rel).any() else float("nan"),
             "failed_estimates": int(np.sum(~np.isfinite(rel))) if rel else 0}

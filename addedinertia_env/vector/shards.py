@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import time
+from collections import Counter
 import traceback
 from typing import Any
 
@@ -73,6 +74,30 @@ def balance_plan(loads: list[list[float]], margin: float = MOVE_MARGIN) -> list[
     return moves
 
 
+class StepClock:
+    """Where one process's wall time goes in the sharded steps, while ``on``: :meth:`lap` gives the
+    time since the previous lap to an activity (``sample``: the sampling half, ``spares``: spare
+    starts, ``identify``, ``transfer``: records and results to and from other processes, the plan,
+    ``finish``, ``join``: the shards' results put together, ``wait``: blocked until another process
+    answers, ``caller``: between two steps, in the caller's code), summed in ``seconds``."""
+
+    def __init__(self):
+        self.on = False
+        self.seconds: Counter = Counter()
+        self._last = 0.0
+
+    def switch(self, on: bool) -> None:
+        """Start (from zero) or stop counting."""
+        self.on, self.seconds, self._last = on, Counter(), time.perf_counter()
+
+    def lap(self, activity: str) -> None:
+        """The time since the previous lap goes to ``activity``."""
+        if self.on:
+            now = time.perf_counter()
+            self.seconds[activity] += now - self._last
+            self._last = now
+
+
 def _expect(conn, kind: str):
     command, args = conn.recv()
     if command != kind:
@@ -80,7 +105,7 @@ def _expect(conn, kind: str):
     return args
 
 
-def _settle(conn, env: ReverseStrokeVectorEnv, pending, export: list[int], n_import: int):
+def _settle(conn, env: ReverseStrokeVectorEnv, pending, export: list[int], n_import: int, clock: StepClock):
     """The second half of a sharded step in a worker (module docstring): send the ``export``
     records, take ``n_import`` records of other shards, identify those and its own others, send
     the foreign estimates back, take the estimates of the exported records, finish the step.
@@ -88,40 +113,60 @@ def _settle(conn, env: ReverseStrokeVectorEnv, pending, export: list[int], n_imp
     records = pending.records
     if export:
         conn.send(("ok", [records[i] for i in export]))
+        clock.lap("transfer")
     foreign = _expect(conn, "foreign") if n_import else []
+    clock.lap("wait")
     moved = set(export)
     estimates: list = [None] * len(records)
     for i, record in enumerate(records):
         if i not in moved:
             estimates[i] = estimate_lambda66(record)
+    clock.lap("identify")
     if n_import:
-        conn.send(("ok", [estimate_lambda66(r) for r in foreign]))
+        results = [estimate_lambda66(r) for r in foreign]
+        clock.lap("identify")
+        conn.send(("ok", results))
+        clock.lap("transfer")
     if export:
         for i, estimate in zip(export, _expect(conn, "estimates")):
             estimates[i] = estimate
-    return env.finish(pending, estimates)
+        clock.lap("wait")
+    out = env.finish(pending, estimates)
+    clock.lap("finish")
+    return out
 
 
 def _worker(conn, num_envs: int, kwargs: dict) -> None:
     env = None
     pending = None
+    clock = StepClock()
     try:
         env = ReverseStrokeVectorEnv(num_envs, **kwargs)
         conn.send(("ok", None))
         while True:
             command, args = conn.recv()
+            clock.lap("wait")
             if command == "close":
                 break
             if command == "advance":  # first half of a step: the ended episodes' record lengths
                 pending = env.advance(args, defer_spares=True)
+                clock.lap("sample")
                 conn.send(("ok", [len(r) for r in pending.records]))
                 if not conn.poll():  # the step's spare starts while the other shards still sample
                     env.start_spares()
+                    clock.lap("spares")
                 continue
             if command == "settle":
-                out, pending = _settle(conn, env, pending, *args), None
+                out, pending = _settle(conn, env, pending, *args, clock), None
                 conn.send(("ok", out))
+                clock.lap("transfer")
                 env.start_spares()  # if still due: while the parent joins the shards' results
+                clock.lap("spares")
+                continue
+            if command == "clock":  # switch the step clock on or off; its seconds so far
+                out = dict(clock.seconds)
+                clock.switch(args)
+                conn.send(("ok", out))
                 continue
             if command == "step":
                 out = env.step(args)
@@ -178,6 +223,7 @@ class ShardedVectorEnv(VectorEnv):
         self.offsets = np.concatenate([[0], np.cumsum(self.sizes)])
         self.num_envs = num_envs
         self._closed = False
+        self._clock = StepClock()
         ctx = mp.get_context()
         self._conns, self._procs = [], []  # workers: shards 1 .. W-1
         for n in self.sizes[1:]:
@@ -236,22 +282,41 @@ class ShardedVectorEnv(VectorEnv):
 
     def step(self, actions):
         """Step every shard with its rows of ``actions`` at the same time; returns ``(obs, rewards, terminated, truncated, info)`` joined in environment order."""
+        clock = self._clock
+        clock.lap("caller")
         parts = self._rows(np.asarray(actions).reshape(self.num_envs, -1))
         self._send_all("advance", parts[1:])
+        clock.lap("transfer")
         try:
             pending = self.local.advance(parts[0], defer_spares=True)
+            clock.lap("sample")
             if not all(conn.poll() for conn in self._conns):  # the spare starts while the workers still sample
                 self.local.start_spares()
+                clock.lap("spares")
         finally:
             loads = [None] + self._gather()
+            clock.lap("wait")
         loads[0] = [len(r) for r in pending.records]
         estimates = self._settle(pending, self._plan(loads))
         mine = self.local.finish(pending, estimates)
+        clock.lap("finish")
         self.local.start_spares()  # if still due
+        clock.lap("spares")
         outs = [mine] + self._gather()
+        clock.lap("wait")
         obs, rew, term, trunc, infos = zip(*outs)
-        return (np.concatenate(obs), np.concatenate(rew), np.concatenate(term), np.concatenate(trunc),
-                _join(list(infos), self.sizes))
+        out = (np.concatenate(obs), np.concatenate(rew), np.concatenate(term), np.concatenate(trunc),
+               _join(list(infos), self.sizes))
+        clock.lap("join")
+        return out
+
+    def step_clock(self, on: bool) -> list[dict[str, float]]:
+        """Switch every process's :class:`StepClock` on (from zero) or off; returns the seconds each
+        counted so far per activity, shard 0 (this process) first."""
+        self._clock.lap("caller")
+        mine = dict(self._clock.seconds)
+        self._clock.switch(on)
+        return [mine] + self._all("clock", [on] * len(self._conns))
 
     def _settle(self, pending, moves: list[tuple[int, int, int]]) -> list:
         """The identification half of a step (module docstring): tell each worker what it sends and
@@ -263,13 +328,17 @@ class ShardedVectorEnv(VectorEnv):
         for src, i, dst in moves:
             exports.setdefault(src, []).append(i)
             imports.setdefault(dst, []).append((src, len(exports[src]) - 1))
+        clock = self._clock
+        clock.lap("transfer")
         self._send_all("settle", [(exports.get(k, []), len(imports.get(k, []))) for k in range(1, len(self.sizes))])
         sent = {k: self._gather_one(k) for k in exports if k}
+        clock.lap("wait")
         if 0 in exports:
             sent[0] = [pending.records[i] for i in exports[0]]
         for dst, items in imports.items():
             if dst:
                 self._conns[dst - 1].send(("foreign", [sent[src][pos] for src, pos in items]))
+        clock.lap("transfer")
         moved = set(exports.get(0, []))
         estimates: list = [None] * len(pending.records)
         for i, record in enumerate(pending.records):
@@ -278,10 +347,12 @@ class ShardedVectorEnv(VectorEnv):
         back = {k: [None] * len(v) for k, v in exports.items()}
         for src, pos in imports.get(0, []):
             back[src][pos] = estimate_lambda66(sent[src][pos])
+        clock.lap("identify")
         for dst, items in imports.items():
             if dst:
                 for (src, pos), estimate in zip(items, self._gather_one(dst)):
                     back[src][pos] = estimate
+        clock.lap("wait")
         for k, values in back.items():
             if k:
                 self._conns[k - 1].send(("estimates", values))
