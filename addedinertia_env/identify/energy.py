@@ -998,7 +998,11 @@ def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: flo
     # Before t2 the hull may pass its stop and come back a little: a free quadratic. After t3
     # it starts from rest at the brake's release: no linear term (a free one, extrapolated
     # back over the first count's dwell, is off by a count or more).
-    X = np.column_stack([np.ones_like(tau), tau, tau**2]) if span_s < 0 else np.column_stack([np.ones_like(tau), tau**2])
+    X = np.empty((len(tau), 3 if span_s < 0 else 2))  # the columns 1, (tau,) tau^2
+    X[:, 0] = 1.0
+    X[:, -1] = tau**2
+    if span_s < 0:
+        X[:, 1] = tau
     coef, *_ = np.linalg.lstsq(X, levels, rcond=None)
     if span_s < 0:
         return coef
@@ -1036,7 +1040,9 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c
     keep = slice(win, len(seg) - win // 2)
     w, acc, ph = w[keep], acc[keep], seg[keep]
     # -c (phi - phi_n) - J acc = d1 w + d2 w|w|   (linear in d1, d2)
-    X = np.column_stack([w, w * np.abs(w)])
+    X = np.empty((len(w), 2))  # the columns w, w |w|
+    X[:, 0] = w
+    np.multiply(w, np.abs(w), out=X[:, 1])
     y = -c * (ph - phi_n) - J_total * acc
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
     d1, d2 = (float(x) for x in coef)
