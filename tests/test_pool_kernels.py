@@ -185,3 +185,49 @@ def test_flush_staged_copies_each_slots_rows_to_its_log():
     for k in range(n):
         assert np.array_equal(logs[k], want[k])
     assert np.array_equal(flushed[slots], n0[slots] + cnt0[slots]) and not stage_cnt[slots].any()
+
+
+def test_restore_rings_puts_each_slots_last_samples_before_the_current_position():
+    """restore_rings against the numpy code it replaced (the newest logged sample at g - 1)."""
+    from numba.typed import List
+
+    from addedinertia_env.vector.pool_kernels import restore_rings
+
+    rng = np.random.default_rng(3)
+    flushed = np.array([0, 1, 5, 63, 64, 200])
+    logs = [rng.normal(size=(6, max(int(n), 1) + 3)) for n in flushed]
+    slots = np.array([5, 0, 2, 3, 1, 4])
+    for g in (0, 1, 40, 63):
+        ring = rng.normal(size=(len(flushed), 2, RING))
+        expected = ring.copy()
+        for k in slots.tolist():
+            nk = int(flushed[k])
+            mk = min(nk, RING - 1)
+            if mk:
+                expected[k, :, (g - mk + np.arange(mk)) % RING] = logs[k][:2, nk - mk:nk].T
+        restore_rings(ring, List(logs), slots, flushed, g)
+        assert np.array_equal(ring, expected)
+
+
+def test_tabulated_reference_equals_phi_on_the_reverse_strokes_samples():
+    """MirroredReferences.tabulate against the numpy selection and MirroredReference.phi."""
+    from addedinertia_env.experiment.reference import MirroredReference, fit_stroke
+    from addedinertia_env.vector.reference import MirroredReferences
+
+    refs = MirroredReferences(2)
+    t_fit = np.arange(0.0, 0.5, DT)
+    law = fit_stroke(t_fit, 0.1 * np.cos(6.0 * t_fit), 0.02, 0.45)
+    refs.set(1, law, 2.0)
+    single = MirroredReference(law, t_begin=2.0)
+    until = refs.t_end[1] + 0.5 * DT
+    for t in (np.arange(1.5, 3.0, DT), np.arange(2.1, 2.2, DT), np.arange(3.0, 3.1, DT)):
+        row = np.full(4096, np.nan)
+        a, b = refs.tabulate(1, t, until, row)
+        inside = np.nonzero((refs.t_begin[1] < t) & (t <= until))[0]
+        if not len(inside):
+            assert a == b and np.isnan(row).all()
+            continue
+        assert (a, b) == (inside[0], inside[-1] + 1)
+        assert np.array_equal(row[:b - a], single.phi(t[a:b])) and np.isnan(row[b - a:]).all()
+        short = np.full(b - a - 1, np.nan)
+        assert refs.tabulate(1, t, until, short) == (a, b) and np.isnan(short).all()  # too short: untouched

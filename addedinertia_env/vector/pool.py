@@ -57,7 +57,7 @@ from ..rig.interface import SimulatedRigBase
 from ..rig.sensors import BatchedReading
 from ..scenarios import Scenario
 from .pool_kernels import (BROKEN, ENDED_NOW, EVENTS, OVER, RELEASE, STOP, TO_REVERSE, flush_staged,
-                           slot_bookkeeping, slot_masks, slot_rates)
+                           restore_rings, slot_bookkeeping, slot_masks, slot_rates)
 from .reference import MirroredReferences
 
 EMPTY, SETTLE, FREE, READY, HOLD, REVERSE, ENDED = range(7)
@@ -161,7 +161,8 @@ class ExperimentPool:
         self._stage_row = 0
         self._stage_from = np.zeros(n, dtype=np.int64)
         self._stage_cnt = np.zeros(n, dtype=np.int64)
-        self._logs = List([np.zeros((len(COLUMNS), 0)) for _ in range(n)])  # numba's list: flush_staged writes them
+        self._log_arrays = [np.zeros((len(COLUMNS), 0)) for _ in range(n)]  # column x sample, per slot
+        self._logs = List(self._log_arrays)  # the same arrays in numba's list (flush_staged writes them)
         self._log_cap = np.zeros(n, dtype=np.int64)  # samples each log holds
         self._flushed = np.zeros(n, dtype=np.int64)
         self._times = sample_times(1, self.dt, self.substeps)
@@ -227,9 +228,9 @@ class ExperimentPool:
         self._flushed[slots] = 1
         for j, k in enumerate(slots):
             if self._log_cap[k] < 4096:
-                self._logs[k] = np.zeros((len(COLUMNS), 4096))
+                self._set_log(k, np.zeros((len(COLUMNS), 4096)))
                 self._log_cap[k] = 4096
-            self._logs[k][:, 0] = (reading.phi[j], reading.psi[j], reading.u[j], reading.i[j], 0.0, 0.0)
+            self._log_arrays[k][:, 0] = (reading.phi[j], reading.psi[j], reading.u[j], reading.i[j], 0.0, 0.0)
         self.stage[slots] = SETTLE
         self._was_active[slots] = False
         done = slots[self.settle_left[slots] <= 0]
@@ -331,7 +332,7 @@ class ExperimentPool:
         for k in slots:
             k = int(k)
             n = int(self._flushed[k])
-            t, phi = self.times(n), self._logs[k][0, :n]
+            t, phi = self.times(n), self._log_arrays[k][0, :n]
             law = self.laws[k] = fit_stroke(t, phi, float(self.t_cross[k] - self.lead_s[k]), float(self.t_brake[k]))
             self.fit_rms[k] = law.fit_rms
             self.inertia_prior[k] = law.inertia_prior(float(self.c_known[k]), float(self.phi_n[k]))
@@ -349,16 +350,16 @@ class ExperimentPool:
         refs = self.refs
         span = int(math.ceil((self.hold_s[k] + refs.duration[k]) / self.dt)) + 4
         t = self.times(first + span)[first:]
-        inside = np.nonzero((refs.t_begin[k] < t) & (t <= refs.t_end[k] + 0.5 * self.dt))[0]
-        if not len(inside):
+        until = refs.t_end[k] + 0.5 * self.dt
+        a, b = refs.tabulate(k, t, until, self._ref_table[k])
+        if b == a:  # no sample of the reverse stroke
             self._ref_len[k] = 0
             return
-        a, b = int(inside[0]), int(inside[-1]) + 1
         if b - a > self._ref_table.shape[1]:
             grown = np.zeros((self.n, max(b - a, 2 * self._ref_table.shape[1])))
             grown[:, :self._ref_table.shape[1]] = self._ref_table
             self._ref_table = grown
-        self._ref_table[k, :b - a] = refs.phi(t[a:b], k)
+            refs.tabulate(k, t, until, self._ref_table[k])
         self._ref_first[k], self._ref_len[k] = first + a, b - a
 
     def take(self, slots: np.ndarray) -> None:
@@ -384,13 +385,14 @@ class ExperimentPool:
 
     def _restore_ring(self, slots: np.ndarray) -> None:
         """Slots that run again after a pause: their encoder history back into the ring (newest
-        at the position before the current one)."""
+        at the position before the current one; :func:`~.pool_kernels.restore_rings`)."""
         self._flush(slots)
-        g = self._g
-        for k, nk in zip(slots.tolist(), self._flushed[slots].tolist()):
-            mk = min(nk, RING - 1)  # positions before a slot's first sample stay unused
-            if mk:
-                self._ring[k, :, (g - mk + np.arange(mk)) % RING] = self._logs[k][:2, nk - mk:nk].T
+        restore_rings(self._ring, self._logs, slots, self._flushed, self._g)
+
+    def _set_log(self, k: int, log: np.ndarray) -> None:
+        """Slot ``k``'s log array (column x sample) becomes ``log``, in both lists of logs."""
+        self._log_arrays[k] = log
+        self._logs[k] = log
 
     def _flush(self, slots) -> None:
         """Copy the staged samples of ``slots`` to their own logs."""
@@ -403,8 +405,8 @@ class ExperimentPool:
         for k in short.tolist():  # logs that grow (rare): twice the size, or what is needed
             n0, size = int(self._flushed[k]), max(2 * int(self._log_cap[k]), int(self._flushed[k] + self._stage_cnt[k]))
             grown = np.zeros((len(COLUMNS), size))
-            grown[:, :n0] = self._logs[k][:, :n0]
-            self._logs[k] = grown
+            grown[:, :n0] = self._log_arrays[k][:, :n0]
+            self._set_log(k, grown)
             self._log_cap[k] = size
         flush_staged(self._stage_block, self._logs, slots, self._stage_cnt, self._stage_from, self._flushed)
 
@@ -413,7 +415,7 @@ class ExperimentPool:
         """Slot ``k``'s run record so far (as the single experiment writes it, without the tail)."""
         self._flush([k])
         n = int(self._flushed[k])
-        log = self._logs[k]
+        log = self._log_arrays[k]
         phase = np.empty(n, dtype="<U7")
         phase[:] = "idle"
         kr, kh = int(self.k_release[k]), int(self.k_hold[k])

@@ -81,6 +81,24 @@ def flush_staged(block, logs, slots, stage_cnt, stage_from, flushed):  # pragma:
 
 
 @njit(cache=True)
+def restore_rings(ring, logs, slots, flushed, g):  # pragma: no cover - compiled
+    """The encoder history (phi, psi: rows 0 and 1 of ``logs[k]``) of slots ``k = slots[s]`` back into
+    their ``ring`` rows: the last ``min(flushed[k], size - 1)`` logged samples, the newest at ring
+    position ``g - 1``, the ones before it at the positions before (modulo the ring's size); positions
+    before a slot's first sample are left as they are."""
+    size = ring.shape[2]
+    for s in range(len(slots)):
+        k = slots[s]
+        nk = flushed[k]
+        mk = min(nk, size - 1)
+        log = logs[k]
+        for m in range(mk):
+            pos = (g - mk + m + size) % size
+            ring[k, 0, pos] = log[0, nk - mk + m]
+            ring[k, 1, pos] = log[1, nk - mk + m]
+
+
+@njit(cache=True)
 def slot_masks(stage, controlled, was_active, mode_code, value, settling, freeing, active, mode, command,
                resumed):  # pragma: no cover - compiled
     """Which slots take this sample: ``settling`` (stage settle), ``freeing`` (stage free), ``active``

@@ -64,6 +64,25 @@ def reference_at(t, cols, coef, d1, d2, t_start, t_stop, t_begin, t_end, derivat
             accel[j] = a
 
 
+@njit(cache=True)
+def tabulate_one(t, k, after, until, coef, d1, d2, t_start, t_stop, t_begin, t_end, row):  # pragma: no cover - compiled
+    """Slot ``k``'s phi_ref (rad) at the times ``t[a:b]`` (s) into ``row[:b - a]``, where ``a`` and ``b - 1``
+    are the first and last index with ``after < t <= until``; returns ``(a, b)``, ``(0, 0)`` when no
+    time qualifies, and writes nothing when ``row`` is shorter than ``b - a`` (the caller grows it)."""
+    a, b = -1, -1
+    for j in range(len(t)):
+        if after < t[j] and t[j] <= until:
+            if a < 0:
+                a = j
+            b = j + 1
+    if a < 0:
+        return 0, 0
+    if b - a <= len(row):
+        for j in range(a, b):
+            row[j - a] = reference_one(t[j], k, coef, d1, d2, t_start, t_stop, t_begin, t_end, False)[0]
+    return a, b
+
+
 class MirroredReferences:
     """The reverse-stroke references of ``n`` slots; a slot is set by :meth:`set` once its free stroke is fitted."""
 
@@ -88,6 +107,12 @@ class MirroredReferences:
         self.duration[k] = law.duration
         self.t_begin[k] = t_begin
         self.t_end[k] = t_begin + law.duration
+
+    def tabulate(self, k: int, t: np.ndarray, until: float, row: np.ndarray) -> tuple[int, int]:
+        """Slot ``k``'s phi_ref (rad) at the times ``t`` (s) after its ``t_begin`` and up to ``until``
+        (s) into ``row`` (:func:`tabulate_one`): returns ``(a, b)``, the span of ``t`` tabulated."""
+        return tabulate_one(t, k, self.t_begin[k], until, self.coef, self.d1, self.d2, self.t_start, self.t_stop,
+                            self.t_begin, self.t_end, row)
 
     def phi(self, t: np.ndarray, sel=slice(None)) -> np.ndarray:
         """phi_ref(t), rad, of slots ``sel``."""
