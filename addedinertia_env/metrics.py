@@ -20,6 +20,7 @@ import numpy as np
 
 from .experiment.reference import MirroredReference, fit_stroke
 from .record import RunRecord
+from .record_kernels import masked_power_steps, phase_mask
 
 # A command at 99.9 % of its limit or more counts as at the limit (saturated).
 SATURATION_FRACTION = 0.999
@@ -69,12 +70,9 @@ def cycles_metrics(records: list[RunRecord], references: list[MirroredReference]
 
 
 def controlled(rec: RunRecord) -> np.ndarray:
-    """Mask of the controlled samples (hold and reverse)."""
-    phase = np.asarray(rec.phase)
-    mask = phase == CONTROLLED_PHASES[0]
-    for name in CONTROLLED_PHASES[1:]:
-        mask |= phase == name
-    return mask
+    """Mask of the controlled samples (hold and reverse): ``phase == "hold"`` or ``"reverse"``
+    (:func:`~addedinertia_env.record_kernels.phase_mask`)."""
+    return phase_mask(rec.phase, CONTROLLED_PHASES)
 
 
 def electric_energy(rec: RunRecord, mask: np.ndarray | None = None) -> float:
@@ -82,6 +80,11 @@ def electric_energy(rec: RunRecord, mask: np.ndarray | None = None) -> float:
     ``mask``: :func:`controlled` of ``rec`` if the caller has it."""
     t, u, i = rec.t, rec["u"], rec["i"]
     mask = controlled(rec) if mask is None else mask
+    if (len(t) and all(isinstance(a, np.ndarray) and a.dtype == np.float64 and a.shape == t.shape for a in (t, u, i))
+            and t.ndim == 1 and isinstance(mask, np.ndarray) and mask.dtype == bool and mask.shape == t.shape):
+        terms = np.empty(np.count_nonzero(mask))  # the terms below, in one compiled pass
+        masked_power_steps(t, u, i, mask, terms)
+        return float(np.sum(terms))
     dt = np.diff(t, prepend=t[0])
     return float(np.sum(np.abs(u * i)[mask] * dt[mask]))
 

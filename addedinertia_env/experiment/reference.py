@@ -16,9 +16,18 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import chebyshev as C
 
-from .stroke_kernels import chebyshev_rows, last_rate_zero, mapped_series, rates_on_grid, squared_residuals
+from .stroke_kernels import chebyshev_rows, chebyshev_series, last_rate_zero, mapped_series, rates_on_grid, squared_residuals
 
 DEFAULT_DEGREE = 11
+
+
+def series(x, coef: np.ndarray):
+    """``C.chebval(x, coef)``, the same numbers; a 1-D float64 ``x`` runs the compiled loop
+    (:func:`~.stroke_kernels.chebyshev_series`), anything else numpy's."""
+    if (isinstance(x, np.ndarray) and x.ndim == 1 and x.dtype == np.float64 and coef.dtype == np.float64
+            and coef.ndim == 1 and coef.flags.c_contiguous):
+        return chebyshev_series(coef, x)
+    return C.chebval(x, coef)
 
 
 def chebyshev_derivative(coef: np.ndarray) -> np.ndarray:
@@ -63,15 +72,15 @@ class StrokeLaw:
 
     def phi(self, t):
         """Fitted hull angle at ``t`` (s; float or array), rad."""
-        return C.chebval(self._x(t), self.coef)
+        return series(self._x(t), self.coef)
 
     def rate(self, t):
         """Fitted hull rate at ``t`` (s), rad/s."""
-        return C.chebval(self._x(t), self._d1) * self._scale
+        return series(self._x(t), self._d1) * self._scale
 
     def accel(self, t):
         """Fitted hull acceleration at ``t`` (s), rad/s^2."""
-        return C.chebval(self._x(t), self._d2) * self._scale**2
+        return series(self._x(t), self._d2) * self._scale**2
 
     @property
     def duration(self) -> float:

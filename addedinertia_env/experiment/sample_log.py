@@ -55,6 +55,7 @@ def make_record(samples: dict[str, np.ndarray], rig: Rig, experiment: dict[str, 
     meta: dict[str, Any] = {"format": FORMAT, "run_id": run_id, "source": getattr(rig, "source", "sim"),
                             "rig": rig.known.to_block(), "experiment": experiment}
     truth = getattr(rig, "truth", None)
-    if callable(truth) and truth() is not None:
-        meta["truth"] = truth()
+    value = truth() if callable(truth) else None  # computed once
+    if value is not None:
+        meta["truth"] = value
     return RunRecord(samples=samples, meta=meta)

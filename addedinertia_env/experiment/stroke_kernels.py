@@ -51,6 +51,16 @@ def chebyshev_rows(x, degree):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def chebyshev_series(coef, x):  # pragma: no cover - compiled
+    """``numpy.polynomial.chebyshev.chebval(x, coef)`` for 1-D ``x`` and contiguous 1-D ``coef``."""
+    c = coef.reshape(-1, 1)
+    out = np.empty(len(x))
+    for j in range(len(x)):
+        out[j] = clenshaw_one(c, 0, x[j])
+    return out
+
+
+@njit(cache=True)
 def squared_residuals(coef, x, y):  # pragma: no cover - compiled
     """``(chebval(x, coef) - y) ** 2`` element by element (``coef`` 1-D)."""
     c = coef.reshape(-1, 1)

@@ -70,6 +70,15 @@ COLUMNS = ("phi", "psi", "u", "i", "i_cmd", "u_cmd")
 RATE_WINDOW_S = 0.04  # s, as RateEstimator's default
 
 
+def _plan_block(plan) -> dict[str, Any]:
+    """``dataclasses.asdict(plan)``: a plain copy when every field is a number, text or None (no
+    deep copies to make), else asdict itself."""
+    out = {f.name: getattr(plan, f.name) for f in dataclasses.fields(plan)}
+    if all(v is None or type(v) in (int, float, str, bool) for v in out.values()):
+        return out
+    return dataclasses.asdict(plan)
+
+
 class SlotRig(SimulatedRigBase):
     """What a slot's run record says about its rig: known constants and (simulator) truth."""
 
@@ -434,7 +443,7 @@ class ExperimentPool:
                    "u": log[2, :n].copy(), "i": log[3, :n].copy(), "i_cmd": log[4, :n].copy(),
                    "u_cmd": log[5, :n].copy(), "brake": brake}
         s = self.scenarios[k]
-        experiment = {"kind": "reverse-symmetric", **dataclasses.asdict(s.plan),
+        experiment = {"kind": "reverse-symmetric", **_plan_block(s.plan),
                       "t_release": float(self.t_release[k]), "t_brake": float(self.t_brake[k])}
         if past_free:
             experiment["stroke_fit_rms_rad"] = float(self.fit_rms[k])
