@@ -124,7 +124,8 @@ def check_plausible(rec: RunRecord) -> Limits:
     u_top = u_max_rig if u_max_rig is not None else u_seen
     hull_rate = math.sqrt((c * hull_amp**2 + 4.0 * k_t * i_top * hull_amp) / J_h)
     fly_rate = (u_top + R * i_top) / k_t + hull_rate
-    moving = _not_idle_steps(len(rec.phase), starts, labels)  # an operator may twist the rod by hand while idle
+    phase = rec.phase  # an operator may twist the rod by hand while idle (a phase column not an array: as compared)
+    moving = _not_idle_steps(len(phase), starts, labels) if isinstance(phase, np.ndarray) else phase[1:] != "idle"
     _refuse_steps(name, "phi", phi, dt, MARGIN * hull_rate, q_phi, mask=moving,
                   why=f"hull rate {MARGIN:g} x sqrt((c A^2 + 4 k_t i_max A) / J_hull) = {MARGIN * hull_rate:.3g} "
                       f"rad/s with A = {hull_amp:.3g} rad (spring energy + motor work)")
@@ -173,7 +174,7 @@ def _series(x: np.ndarray, steps: np.ndarray | None = None, mask: np.ndarray | N
     broadcasting and errors)."""
     ok = x.ndim == 1 and x.dtype == np.float64
     for other in (steps, mask):
-        ok = ok and (other is None or (other.ndim == 1 and len(other) == len(x) - 1))
+        ok = ok and (other is None or (isinstance(other, np.ndarray) and other.ndim == 1 and len(other) == len(x) - 1))
     return ok
 
 
