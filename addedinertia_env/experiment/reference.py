@@ -92,12 +92,6 @@ class StrokeLaw:
         """Fitted angle at the stop ``t_stop``, rad."""
         return float(self.phi(self.t_stop))
 
-    @property
-    def peak_rate(self) -> float:
-        """Largest fitted rate over the stroke, rad/s."""
-        tt = np.linspace(self.t_start, self.t_stop, 201)
-        return float(np.max(np.abs(self.rate(tt))))
-
     def inertia_prior(self, c: float, phi_neutral: float) -> float:
         """``J_h + lambda66`` seen at the stop, where rate-dependent damping vanishes:
         ``J = -c (phi2 - phi_n) / f''(t2)``. A prior, biased by any memory or dry friction."""

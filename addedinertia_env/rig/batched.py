@@ -282,30 +282,6 @@ class BatchedRig:
         self._constants = self._constant_table(p)
         self.sensors.set_envs(idx, batch_keys(list(seeds), len(idx)))
 
-    def set_env_params(self, k: int, rig: RigParams, seed=None) -> None:
-        """Give environment ``k`` new parameters (and, if given, a new sensor seed), keeping every state."""
-        keys = self.sensors.keys[[k]] if seed is None else None
-        history = self.sensors.history(k)
-        counter = self.sensors.counters[k]
-        self.set_envs([k], [rig], [0] if seed is None else [seed])
-        if keys is not None:
-            self.sensors.keys[k] = keys[0]
-            self.sensors.counters[k] = counter
-        self.sensors.set_history(k, history)
-
-    def copy_env(self, k: int, source: "BatchedRig", j: int = 0) -> None:
-        """Environment ``k`` takes the state of ``source``'s environment ``j`` (same parameters),
-        its noise stream and delay line included."""
-        self._X[:, k] = source._X[:, j]
-        self.water_rate[k] = source.water_rate[j]
-        self.radiation_x[:, k] = source.radiation_x[:, j]
-        self._w_prev[k] = source._w_prev[j]
-        self.t[k] = source.t[j]
-        self.brake[k] = source.brake[j]
-        self.sensors.keys[k] = source.sensors.keys[j]
-        self.sensors.counters[k] = source.sensors.counters[j]
-        self.sensors.set_history(k, source.sensors.history(j))
-
     # --- the state, by name -----------------------------------------------------------
     phi = property(lambda self: self._X[PHI], doc="rad, hull angle")
     w = property(lambda self: self._X[W], doc="rad/s, hull rate")

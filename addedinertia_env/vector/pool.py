@@ -177,10 +177,6 @@ class ExperimentPool:
         self._times = sample_times(1, self.dt, self.substeps)
 
     # --- slots ----------------------------------------------------------------------------
-    def n_log(self, k: int) -> int:
-        """Samples logged so far in slot ``k``'s current episode."""
-        return int(self._flushed[k] + self._stage_cnt[k])
-
     def times(self, n: int) -> np.ndarray:
         """The clock of a slot's first ``n`` log entries, s."""
         if len(self._times) < n:
@@ -453,10 +449,6 @@ class ExperimentPool:
     def reference(self, k: int) -> MirroredReference:
         """The mirrored reference slot ``k``'s episode drives (its free stroke must be fitted)."""
         return MirroredReference(self.laws[k], t_begin=float(self.t_brake[k] + self.hold_s[k]))
-
-    def stage_of(self, k: int) -> str:
-        """The protocol stage slot ``k`` is in (:data:`STAGE_NAMES`: ``empty``, ``settle``, ``free``, ``ready``, ``hold``, ``reverse``, ``ended``), by name."""
-        return STAGE_NAMES[int(self.stage[k])]
 
     def info(self, k: int) -> dict[str, Any]:
         """What identifies slot ``k``'s episode: scenario name and seed, sensor quality."""
