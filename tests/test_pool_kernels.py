@@ -117,11 +117,12 @@ def test_bookkeeping_equals_the_numpy_protocol_step():
 
 
 def test_reference_kernel_equals_chebval_column_by_column():
-    """MirroredReferences.phi / phi_rate_accel (compiled) against numpy's chebval of each slot's law."""
+    """reference_one (compiled; what the observation and the tabulation call) against numpy's chebval of
+    each slot's law and the scalar MirroredReference."""
     from numpy.polynomial import chebyshev as C
 
     from addedinertia_env.experiment.reference import MirroredReference, fit_stroke
-    from addedinertia_env.vector.reference import MirroredReferences
+    from addedinertia_env.vector.reference import MirroredReferences, reference_one
 
     refs = MirroredReferences(3)
     singles = []
@@ -130,18 +131,20 @@ def test_reference_kernel_equals_chebval_column_by_column():
         law = fit_stroke(t, amp * np.cos(w * t), 0.02, 0.45)
         refs.set(k, law, 1.0 + k)
         singles.append(MirroredReference(law, t_begin=1.0 + k))
+    columns = (refs.coef, refs.d1, refs.d2, refs.t_start, refs.t_stop, refs.t_begin, refs.t_end)
     t = np.array([1.1, 2.05, 3.3])
-    phi, rate, accel = refs.phi_rate_accel(t)
     for k, single in enumerate(singles):
-        assert phi[k] == single.phi(t[k])
+        phi, rate, accel = reference_one(t[k], k, *columns, True)
+        assert phi == single.phi(t[k])
         law = single.law
         x = (2.0 * (law.t_stop - (min(max(t[k], refs.t_begin[k]), refs.t_end[k]) - refs.t_begin[k]))
              - (law.t_start + law.t_stop)) / (law.t_stop - law.t_start)
         scale = 2.0 / (law.t_stop - law.t_start)
-        assert phi[k] == C.chebval(x, law.coef)
-        assert rate[k] == -(C.chebval(x, law._d1) * scale) and accel[k] == C.chebval(x, law._d2) * scale**2
-    many = refs.phi(np.linspace(1.9, 2.6, 7), 1)  # one slot at many times
-    assert np.array_equal(many, [singles[1].phi(x) for x in np.linspace(1.9, 2.6, 7)])
+        assert phi == C.chebval(x, law.coef)
+        assert rate == -(C.chebval(x, law._d1) * scale) and accel == C.chebval(x, law._d2) * scale**2
+        assert reference_one(t[k], k, *columns, False) == (phi, 0.0, 0.0)
+    times = np.linspace(1.9, 2.6, 7)  # one slot at many times
+    assert [reference_one(x, 1, *columns, False)[0] for x in times] == [singles[1].phi(x) for x in times]
 
 
 def test_slot_masks_equal_the_numpy_masks():

@@ -4,11 +4,11 @@ Each environment's fitted stroke law (a :class:`~addedinertia_env.experiment.ref
 from :func:`~addedinertia_env.experiment.reference.fit_stroke`, the single experiment's own
 fit) is stored as a column of coefficient arrays; the series are evaluated by the same
 Clenshaw recursion, in the same order of operations, as ``numpy.polynomial.chebyshev.chebval``,
-so each column equals the scalar :class:`MirroredReference` bit for bit. The per-slot
-evaluation runs as one compiled loop (:func:`reference_at`, one slot at a time :func:`reference_one`:
-the mirrored time mapped onto the law's interval, and
+so each column equals the scalar :class:`MirroredReference` bit for bit. A slot's reference at
+one time is :func:`reference_one` (the mirrored time mapped onto the law's interval, and
 :func:`~addedinertia_env.experiment.stroke_kernels.clenshaw_one`, the same operations in the
-same order, no gathers of coefficient columns).
+same order, no gathers of coefficient columns), called from the compiled loops of the
+observation (:mod:`.observe`) and of :meth:`MirroredReferences.tabulate`.
 """
 
 from __future__ import annotations
@@ -18,22 +18,6 @@ from numba import njit
 
 from ..experiment.reference import DEFAULT_DEGREE, StrokeLaw
 from ..experiment.stroke_kernels import clenshaw_one
-
-
-def clenshaw(c: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Chebyshev series with per-column coefficients ``c`` (terms x envs) at ``x`` (envs)."""
-    if len(c) == 1:
-        return c[0] + 0 * x
-    if len(c) == 2:
-        return c[0] + c[1] * x
-    x2 = 2 * x
-    c0 = c[-2]
-    c1 = c[-1]
-    for i in range(3, len(c) + 1):
-        tmp = c0
-        c0 = c[-i] - c1
-        c1 = tmp + c1 * x2
-    return c0 + c1 * x
 
 
 @njit(cache=True, inline="always")
@@ -48,20 +32,6 @@ def reference_one(t, k, coef, d1, d2, t_start, t_stop, t_begin, t_end, derivativ
         return phi, 0.0, 0.0
     scale = 2.0 / (ts - t0)
     return phi, -(clenshaw_one(d1, k, x) * scale), clenshaw_one(d2, k, x) * scale**2
-
-
-@njit(cache=True)
-def reference_at(t, cols, coef, d1, d2, t_start, t_stop, t_begin, t_end, derivatives,
-                 phi, rate, accel):  # pragma: no cover - compiled
-    """phi_ref (rad) of slot ``cols[j]`` at ``t[j]`` (s) into ``phi[j]``, and with ``derivatives``
-    its rate (rad/s) and acceleration (rad/s^2) into ``rate[j]``, ``accel[j]``
-    (:meth:`MirroredReferences.phi_rate_accel`, element by element: :func:`reference_one`)."""
-    for j in range(len(cols)):
-        p, r, a = reference_one(t[j], cols[j], coef, d1, d2, t_start, t_stop, t_begin, t_end, derivatives)
-        phi[j] = p
-        if derivatives:
-            rate[j] = r
-            accel[j] = a
 
 
 @njit(cache=True)
@@ -113,24 +83,3 @@ class MirroredReferences:
         (s) into ``row`` (:func:`tabulate_one`): returns ``(a, b)``, the span of ``t`` tabulated."""
         return tabulate_one(t, k, self.t_begin[k], until, self.coef, self.d1, self.d2, self.t_start, self.t_stop,
                             self.t_begin, self.t_end, row)
-
-    def phi(self, t: np.ndarray, sel=slice(None)) -> np.ndarray:
-        """phi_ref(t), rad, of slots ``sel``."""
-        return self._evaluate(t, sel, False)[0]
-
-    def phi_rate_accel(self, t: np.ndarray, sel=slice(None)):
-        """phi_ref, its rate and acceleration at ``t`` (rad, rad/s, rad/s^2)."""
-        return self._evaluate(t, sel, True)
-
-    def _evaluate(self, t, sel, derivatives: bool):
-        """phi_ref (and with ``derivatives`` its rate and acceleration) of slots ``sel`` (a slice, indices
-        or one slot) at ``t`` (s; one per slot, or many for one slot), by :func:`reference_at`."""
-        cols = np.arange(self.coef.shape[1])[sel] if isinstance(sel, slice) else np.asarray(sel, dtype=np.int64)
-        t = np.asarray(t, dtype=float)
-        shape = np.broadcast_shapes(t.shape, cols.shape)
-        cols, t = (np.ascontiguousarray(np.broadcast_to(a, shape)).reshape(-1) for a in (cols, t))
-        out = [np.empty(len(cols)) for _ in range(3 if derivatives else 1)]
-        rate, accel = (out[1], out[2]) if derivatives else (out[0], out[0])
-        reference_at(t, cols, self.coef, self.d1, self.d2, self.t_start, self.t_stop, self.t_begin, self.t_end,
-                     derivatives, out[0], rate, accel)
-        return tuple(o.reshape(shape) for o in out)
