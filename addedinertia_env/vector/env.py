@@ -52,9 +52,9 @@ from gymnasium.vector.utils import batch_space
 from ..envs.config import EnvConfig
 from ..identify import IdentificationError, identify
 from ..identify.common import prepare as prepare_identification
-from ..run_record import RecordError
 from ..metrics import episode_metrics
 from ..rig import forces
+from ..run_record import RecordError
 from ..scenarios import load_ranges
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
 from .observe import observe

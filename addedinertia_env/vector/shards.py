@@ -36,8 +36,8 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import time
-from collections import Counter
 import traceback
+from collections import Counter
 from typing import Any
 
 import numpy as np
