@@ -203,3 +203,30 @@ def test_experiment_on_the_single_view_gives_the_mujoco_estimate():
     assert abs(est_mj - p.hull.lambda66) < 0.05 * p.hull.lambda66  # a real estimate, not a degenerate one
 
 
+
+
+@pytest.mark.parametrize("effects", [E.Effects(), ALL_EFFECTS], ids=["plain", "every effect"])
+def test_a_paused_environment_resumes_as_if_never_paused(effects):
+    """Two copies of one rig, the second paused (``active`` False, given ``passive`` as the
+    pool gives its paused slots) for 37 samples in the middle of a driven stretch: its state,
+    clock and readings stay as they were, so sample by sample of its own it is the first copy.
+    (Before, open terminals were applied to paused environments: a driven one lost its current.)"""
+    rig = RigParams(effects=effects)
+    batch = BatchedRig([rig, rig], seed=[5, 5])
+    batch.reset(phi0=-0.1, brake=False)
+    mine: list[list[np.ndarray]] = [[], []]
+    pause = range(100, 137)
+    for k in range(300 + len(pause)):
+        active = np.array([True, k not in pause])
+        if not active[1]:
+            frozen = np.stack([batch.phi, batch.w, batch.psi, batch.omega, batch.i])[:, 1].copy()
+        modes = np.array([CURRENT, CURRENT if active[1] else PASSIVE])
+        r = batch.step(modes, np.array([1.5, 1.5]), active=active)
+        state = np.stack([batch.phi, batch.w, batch.psi, batch.omega, batch.i]).astype(float)
+        for e in (0, 1):
+            if active[e]:
+                mine[e].append(np.concatenate([state[:, e], [batch.t[e], r.phi[e], r.psi[e], r.u[e], r.i[e]]]))
+        if not active[1]:
+            assert np.array_equal(state[:, 1], frozen)
+    n = len(mine[1])
+    assert n == 300 and np.array_equal(np.array(mine[1]), np.array(mine[0][:n]))

@@ -75,20 +75,21 @@ def linear_substep(X, G, brake, driven, running, k_t, q_hull, spring_offset, f2,
     N m, the rotor friction; ``w_prev`` (n,) rad/s, the hull rate one step ago (updated
     here where running); ``t`` (n,) s, advanced by ``h`` where running.
 
-    Equals, per environment: open terminals (not driven) show the back-EMF ``k_t Omega``
-    and carry no current; ``F1 = q_hull + c phi_n``, ``F2 = f2``; then, where running,
-    ``(phi, w, psi, omega, i) = G[kind] @ X`` (summed in the order j = 0..7).
+    Equals, per running environment: open terminals (not driven) show the back-EMF ``k_t Omega``
+    and carry no current; ``F1 = q_hull + c phi_n``, ``F2 = f2``; then
+    ``(phi, w, psi, omega, i) = G[kind] @ X`` (summed in the order j = 0..7). The others
+    (paused) keep their state as it is.
     """
     n = X.shape[1]
     shared = G.shape[0] == 1
     for k in range(n):
+        if not running[k]:  # paused: its state as it is (open terminals too)
+            continue
         if not driven[k]:
             X[_U, k] = k_t[k] * X[_OMEGA, k]
             X[_I, k] = 0.0
         X[_F1, k] = q_hull[k] + spring_offset[k]
         X[_F2, k] = f2[k]
-        if not running[k]:
-            continue
         w_prev[k] = X[_W, k]
         kind = 2 * np.int64(brake[k]) + np.int64(driven[k])
         col = 0 if shared else k
@@ -193,6 +194,8 @@ def rig_sample(X, G, G_now, kind_now, brake, mode, value, running, const, w_prev
     n = X.shape[1]
     shared = G.shape[0] == 1
     for k in range(n):
+        if not running[k]:  # paused: its state as it is (the drive's voltage and open terminals too)
+            continue
         c = const[k]
         driven = mode[k] != 0
         if driven:
@@ -208,8 +211,6 @@ def rig_sample(X, G, G_now, kind_now, brake, mode, value, running, const, w_prev
             if not driven:  # open circuit: no current, the terminals show the back-EMF
                 X[_U, k] = c[_K_T] * X[_OMEGA, k]
                 X[_I, k] = 0.0
-            if not running[k]:
-                continue
             w = X[_W, k]
             X[_F1, k] = hydrodynamic_torque(centred_rate(w, w_prev[k]), water_rate[k], p) + c[_OFFSET]
             X[_F2, k] = flywheel_friction_torque(X[_OMEGA, k], p)
