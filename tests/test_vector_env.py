@@ -313,22 +313,25 @@ def test_balance_plan_evens_the_identification_work_between_shards():
     assert max(totals) == 9000 and len({(s, i) for s, i, _ in moves}) == len(moves)
 
 
-def test_deferred_spare_starts_run_the_same_episodes():
-    """advance(defer_spares=True) then start_spares() later in the step (what each process of the
-    sharded env does while it would wait) gives the same observations, rewards, scenario seeds and
-    estimates as a plain step, spare episodes (after autoresets) included; a forgotten call is made
-    by the next step."""
+def test_deferred_spare_starts_and_stroke_fits_run_the_same_episodes():
+    """advance(defer_spares=True) then start_spares() later in the step, and the spares' stroke
+    fits done at odd times in between (fit_spare_stops: what each process of the sharded env does
+    while it would wait) give the same observations, rewards, scenario seeds and estimates as a
+    plain step, spare episodes (after autoresets) included; a forgotten call is made by the next
+    step, and a fit not done yet by the environment that takes the slot."""
     kw = dict(SHORT, spare_fraction=0.5)
     plain = ReverseStrokeVectorEnv(4, **kw)
     split = ReverseStrokeVectorEnv(4, **kw)
     plain.reset(seed=3)
     split.reset(seed=3)
     rng = np.random.default_rng(2)
-    ended = 0
+    ended = fitted = 0
     for step in range(700):
         a = rng.uniform(-0.3, 0.3, size=(4, 1))
         r1 = plain.step(a)
         pending = split.advance(a, defer_spares=True)
+        budget = [step % 4]  # 0..3 fits now, the rest later
+        fitted += split.fit_spare_stops(lambda: budget.__setitem__(0, budget[0] - 1) or budget[0] < 0)
         estimates = [estimate_lambda66(r) for r in pending.records]
         if step % 3:  # otherwise left for the next step's advance to start
             split.start_spares()
@@ -340,6 +343,7 @@ def test_deferred_spare_starts_run_the_same_episodes():
                 assert np.array_equal(r1[4][key], r2[4][key], equal_nan=key != "scenario_seed")
         ended += int(r1[2].sum())
     assert ended > 8, "the run should reach spare episodes"
+    assert fitted > 0, "some fits should be done early"
     assert np.array_equal(plain.slot_seed, split.slot_seed)
 
 

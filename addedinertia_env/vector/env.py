@@ -214,6 +214,16 @@ class ReverseStrokeVectorEnv(VectorEnv):
             self._spares_due = False
             self._start_spares(minimum=self.spare_batch)
 
+    def fit_spare_stops(self, stop=None) -> int:
+        """The stroke fits of spare episodes that reached their stop, one after another until
+        ``stop()`` is true (:meth:`~.pool.ExperimentPool.fit_stops`): a process of the sharded env
+        does them while it waits for another, not in its sampling. The same numbers whenever they
+        run (an environment taking a slot has its fit done first). Returns how many were done."""
+        if self.pool is None:
+            return 0
+        with _BLAS.limit(limits=1, user_api="blas"):  # the fits' small least squares
+            return self.pool.fit_stops(stop=stop)
+
     def _claim(self, envs: np.ndarray) -> None:
         """Environments ``envs`` take ready slots (running the spares on until enough are ready)."""
         self.start_spares()

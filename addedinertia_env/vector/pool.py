@@ -160,6 +160,7 @@ class ExperimentPool:
             raise ValueError(f"rate window of {self.n_rate} samples exceeds the ring of {RING}")
         self._w_rate = endpoint_slope_weights(self.n_rate, self.dt)
         self._was_active = np.zeros(n, dtype=bool)
+        self._unfitted = np.zeros(n, dtype=bool)  # ready slots whose stroke fit is still to do (fit_stops)
         self._events = np.zeros((len(EVENTS), n), dtype=np.int64)  # slot_bookkeeping's event lists
         self._n_events = np.zeros(len(EVENTS), dtype=np.int64)
         self._no_slots = np.zeros(0, dtype=np.int64)
@@ -238,6 +239,7 @@ class ExperimentPool:
             self._log_arrays[k][:, 0] = (reading.phi[j], reading.psi[j], reading.u[j], reading.i[j], 0.0, 0.0)
         self.stage[slots] = SETTLE
         self._was_active[slots] = False
+        self._unfitted[slots] = False
         done = slots[self.settle_left[slots] <= 0]
         if len(done):
             self._release(done)
@@ -330,24 +332,44 @@ class ExperimentPool:
         return self._stop_fit[0], self._stop_fit[1]
 
     def _brake_at_stop(self, slots: np.ndarray) -> None:
+        """Slots whose free stroke ends here: brake set (released at once if they hold for 0 s),
+        ready. Their stroke fits wait for :meth:`fit_stops` (a slot's stroke is fixed from now on)."""
         self.fly_rate[slots] = self._rate(1, slots)  # the first observation's (ring current now)
         self.rig.set_brake(True, envs=slots)
         self.t_brake[slots] = self.t[slots]
         self._flush(slots)
-        for k in slots:
-            k = int(k)
-            n = int(self._flushed[k])
-            t, phi = self.times(n), self._log_arrays[k][0, :n]
-            law = self.laws[k] = fit_stroke(t, phi, float(self.t_cross[k] - self.lead_s[k]), float(self.t_brake[k]))
-            self.fit_rms[k] = law.fit_rms
-            self.inertia_prior[k] = law.inertia_prior(float(self.c_known[k]), float(self.phi_n[k]))
-            self.refs.set(k, law, float(self.t_brake[k] + self.hold_s[k]))
-            self._tabulate_reference(k, n)
-            self.k_hold[k] = n
-            if self.hold_s[k] <= 0:
-                self.rig.set_brake(False, envs=[k])
-                self.k_reverse[k] = n
+        self.k_hold[slots] = self._flushed[slots]
+        no_hold = slots[self.hold_s[slots] <= 0]
+        for k in no_hold.tolist():
+            self.rig.set_brake(False, envs=[k])
+        self.k_reverse[no_hold] = self._flushed[no_hold]
+        self._unfitted[slots] = True
         self.stage[slots] = READY
+
+    def fit_stops(self, slots: np.ndarray | None = None, stop=None) -> int:
+        """The stroke fits of ready slots not fitted yet (``slots``, or all), one after another
+        until ``stop()`` is true (None: all): the mirrored reference each slot's reverse stroke
+        will track, its fit residual and inertia prior (``fit_stroke`` on the slot's logged free
+        stroke). :meth:`take` does those of its slots first; a process that would otherwise wait
+        does them earlier (the same numbers whenever it runs). Returns how many were done."""
+        pending = np.nonzero(self._unfitted)[0] if slots is None else slots[self._unfitted[slots]]
+        done = 0
+        for k in pending.tolist():
+            if stop is not None and stop():
+                break
+            self._fit_stop(k)
+            done += 1
+        return done
+
+    def _fit_stop(self, k: int) -> None:
+        n = int(self.k_hold[k])  # the log up to the stop
+        t, phi = self.times(n), self._log_arrays[k][0, :n]
+        law = self.laws[k] = fit_stroke(t, phi, float(self.t_cross[k] - self.lead_s[k]), float(self.t_brake[k]))
+        self.fit_rms[k] = law.fit_rms
+        self.inertia_prior[k] = law.inertia_prior(float(self.c_known[k]), float(self.phi_n[k]))
+        self.refs.set(k, law, float(self.t_brake[k] + self.hold_s[k]))
+        self._tabulate_reference(k, n)
+        self._unfitted[k] = False
 
     def _tabulate_reference(self, k: int, first: int) -> None:
         """phi_ref of slot ``k`` at every sample of its reverse stroke (the samples with
@@ -368,7 +390,9 @@ class ExperimentPool:
         self._ref_first[k], self._ref_len[k] = first + a, b - a
 
     def take(self, slots: np.ndarray) -> None:
-        """Ready slots start their controlled part (hold, or reverse when ``hold_s`` is 0)."""
+        """Ready slots start their controlled part (hold, or reverse when ``hold_s`` is 0); their
+        stroke fits first, if not done yet (:meth:`fit_stops`)."""
+        self.fit_stops(np.asarray(slots, dtype=np.int64))
         self.stage[slots] = np.where(self.hold_s[slots] > 0, HOLD, REVERSE)
 
     # --- rates and logs --------------------------------------------------------------------

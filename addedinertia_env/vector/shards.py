@@ -114,6 +114,9 @@ def _settle(conn, env: ReverseStrokeVectorEnv, pending, export: list[int], n_imp
     if export:
         conn.send(("ok", [records[i] for i in export]))
         clock.lap("transfer")
+    if n_import:
+        env.fit_spare_stops(conn.poll)
+        clock.lap("fits")
     foreign = _expect(conn, "foreign") if n_import else []
     clock.lap("wait")
     moved = set(export)
@@ -128,6 +131,8 @@ def _settle(conn, env: ReverseStrokeVectorEnv, pending, export: list[int], n_imp
         conn.send(("ok", results))
         clock.lap("transfer")
     if export:
+        env.fit_spare_stops(conn.poll)
+        clock.lap("fits")
         for i, estimate in zip(export, _expect(conn, "estimates")):
             estimates[i] = estimate
         clock.lap("wait")
@@ -155,6 +160,8 @@ def _worker(conn, num_envs: int, kwargs: dict) -> None:
                 if not conn.poll():  # the step's spare starts while the other shards still sample
                     env.start_spares()
                     clock.lap("spares")
+                env.fit_spare_stops(conn.poll)
+                clock.lap("fits")
                 continue
             if command == "settle":
                 out, pending = _settle(conn, env, pending, *args, clock), None
@@ -162,6 +169,8 @@ def _worker(conn, num_envs: int, kwargs: dict) -> None:
                 clock.lap("transfer")
                 env.start_spares()  # if still due: while the parent joins the shards' results
                 clock.lap("spares")
+                env.fit_spare_stops(conn.poll)  # until the next command
+                clock.lap("fits")
                 continue
             if command == "clock":  # switch the step clock on or off; its seconds so far
                 out = dict(clock.seconds)
@@ -290,9 +299,11 @@ class ShardedVectorEnv(VectorEnv):
         try:
             pending = self.local.advance(parts[0], defer_spares=True)
             clock.lap("sample")
-            if not all(conn.poll() for conn in self._conns):  # the spare starts while the workers still sample
+            if not self._answered():  # the spare starts while the workers still sample
                 self.local.start_spares()
                 clock.lap("spares")
+            self.local.fit_spare_stops(self._answered)
+            clock.lap("fits")
         finally:
             loads = [None] + self._gather()
             clock.lap("wait")
@@ -302,6 +313,8 @@ class ShardedVectorEnv(VectorEnv):
         clock.lap("finish")
         self.local.start_spares()  # if still due
         clock.lap("spares")
+        self.local.fit_spare_stops(self._answered)
+        clock.lap("fits")
         outs = [mine] + self._gather()
         clock.lap("wait")
         obs, rew, term, trunc, infos = zip(*outs)
@@ -331,6 +344,10 @@ class ShardedVectorEnv(VectorEnv):
         clock = self._clock
         clock.lap("transfer")
         self._send_all("settle", [(exports.get(k, []), len(imports.get(k, []))) for k in range(1, len(self.sizes))])
+        senders = [self._conns[k - 1] for k in exports if k]
+        if senders:
+            self.local.fit_spare_stops(lambda: all(conn.poll() for conn in senders))
+            clock.lap("fits")
         sent = {k: self._gather_one(k) for k in exports if k}
         clock.lap("wait")
         if 0 in exports:
@@ -348,6 +365,10 @@ class ShardedVectorEnv(VectorEnv):
         for src, pos in imports.get(0, []):
             back[src][pos] = estimate_lambda66(sent[src][pos])
         clock.lap("identify")
+        importers = [self._conns[k - 1] for k in imports if k]
+        if importers:
+            self.local.fit_spare_stops(lambda: all(conn.poll() for conn in importers))
+            clock.lap("fits")
         for dst, items in imports.items():
             if dst:
                 for (src, pos), estimate in zip(items, self._gather_one(dst)):
@@ -359,6 +380,10 @@ class ShardedVectorEnv(VectorEnv):
         for i, estimate in zip(exports.get(0, []), back.get(0, [])):
             estimates[i] = estimate
         return estimates
+
+    def _answered(self) -> bool:
+        """Whether every worker's next answer is waiting to be read."""
+        return all(conn.poll() for conn in self._conns)
 
     def _plan(self, loads: list[list[int]]) -> list[tuple[int, int, int]]:
         """The records to identify in another shard this step (:func:`balance_plan`)."""
