@@ -61,6 +61,22 @@ def value_change_starts(x):
 
 
 @njit(cache=True, error_model="numpy")
+def _all_equal_bits(bits):
+    """Whether every element of a 1-D int64 array equals the first (True for none)."""
+    for k in range(1, len(bits)):
+        if bits[k] != bits[0]:
+            return False
+    return True
+
+
+def bitwise_constant(x: np.ndarray) -> bool:
+    """Whether every element of a 1-D float64 array has the bits of the first (``-0.0`` differs from
+    ``0.0``, a nan equals only a nan of the same bits): ``np.all(x.view(np.int64) == x.view(np.int64)[0])``,
+    stopping at the first difference. True for no elements."""
+    return bool(_all_equal_bits(x.view(np.int64)))
+
+
+@njit(cache=True, error_model="numpy")
 def first_beyond(x, limit):
     """The first ``k`` with ``abs(x[k]) > limit`` (``argmax(np.abs(x) > limit)``; nan is not beyond), or -1."""
     for k in range(len(x)):
@@ -239,6 +255,7 @@ def warm_up() -> None:
     block_starts(np.array(["a", "a", "b"]))
     value_change_starts(x)
     first_beyond(x, 1.0)
+    bitwise_constant(x)
     abs_max(x, 0.5)
     median_abs_deviation_sorted(second_differences(x), 0.0)
     first_step_beyond(x, abs_rates(x, np.ones(7)), 1.0, 0.0, 0.0, np.zeros(0, dtype=np.bool_))

@@ -19,7 +19,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 from addedinertia_env.daq import Quirks, apply_quirks
 from addedinertia_env.identify import identify
 from addedinertia_env.identify import energy
-from addedinertia_env.identify.common import savgol
+from addedinertia_env.identify.common import _valid_convolution, savgol
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv
 
@@ -65,6 +65,26 @@ def test_savgol_equals_scipys_filter(n, window, degree, deriv):
     taps = savgol_coeffs(window, degree, deriv=deriv)
     same = np.convolve(x, taps, "same") / 1e-3**deriv if deriv else np.convolve(x, taps, "same")
     np.testing.assert_array_equal(ours[half:n - half], same[half:n - half])
+
+
+@pytest.mark.parametrize("value", [0.123456789, -1.75, 0.0, -0.0, 1e-300, np.nan, np.inf])
+@pytest.mark.parametrize("n, window, degree, deriv", [(4700, 201, 5, 0), (260, 201, 5, 0), (900, 101, 3, 1),
+                                                      (60, 41, 3, 0)])
+def test_savgol_of_a_constant_block_is_numpys_convolution(value, n, window, degree, deriv):
+    # a braked hull's angle: every window the same numbers, one dot product copied (or every one computed)
+    x = np.full(n, value)
+    taps = savgol_coeffs(window, degree, deriv=deriv)
+    np.testing.assert_array_equal(_valid_convolution(x, taps), np.convolve(x, taps, "valid"))
+    for view in (x, np.full(2 * n, value)[::2], np.r_[7.0, x][1:]):  # strided, and offset by one sample
+        with np.errstate(invalid="ignore"):  # inf: the edge maps' products are nan (and warn) either way
+            got = savgol(view, window, degree, deriv, 1e-3)
+        half = window // 2
+        expected = np.convolve(view, taps, "valid") / 1e-3**deriv if deriv else np.convolve(view, taps, "valid")
+        np.testing.assert_array_equal(got[half:n - half], expected)
+    # one sample off the constant: the full convolution
+    y = x.copy()
+    y[n // 2] = 0.5
+    np.testing.assert_array_equal(_valid_convolution(y, taps), np.convolve(y, taps, "valid"))
 
 
 def _one_fit(t, phi, k, level, half_width, degree):

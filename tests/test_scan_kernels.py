@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.scan_kernels import (abs_max, abs_rates, block_starts, first_beyond, first_step_beyond,
+from addedinertia_env.scan_kernels import (abs_max, abs_rates, bitwise_constant, block_starts, first_beyond, first_step_beyond,
                                            gap_counts, median_abs_deviation_sorted, negative_step_ratios,
                                            reaction_work, relaxed_interval_means, second_differences,
                                            squared_step_sums, true_counts, value_change_starts)
@@ -114,3 +114,13 @@ def test_motor_work_and_relaxed_current_equal_the_numpy_expressions():
         torque = k_t * (scale * i_mean) - (f_visc * omega + f_coul * np.sign(omega))
         expected = np.concatenate([[0.0], np.cumsum(-torque * np.diff(phi_s))])
         np.testing.assert_array_equal(reaction_work(t, i_mean, scale, phi_s, psi_s, k_t, f_visc, f_coul), expected)
+
+
+def test_bitwise_constant_equals_comparing_the_bits():
+    rng = np.random.default_rng(5)
+    cases = [np.zeros(0), np.full(1, 3.0), np.full(50, 0.25), np.full(50, np.nan), np.full(7, -0.0),
+             np.array([0.0, -0.0, 0.0]), np.array([1.0, 1.0, np.nan]), np.array([np.inf, np.inf]),
+             np.full(30, 2.0)[::3], _series(rng, 40), np.r_[np.full(999, 0.5), 0.5 + 1e-16]]
+    for x in cases:
+        bits = x.view(np.int64)
+        assert bitwise_constant(x) == bool(np.all(bits == bits[0]) if len(x) else True), x

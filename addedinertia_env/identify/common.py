@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..record import RunRecord
+from ..scan_kernels import bitwise_constant
 from ..series_stats import median_step
 
 
@@ -244,9 +245,29 @@ def savgol(x: np.ndarray, window: int, degree: int, deriv: int = 0, delta: float
     y = np.empty(len(x))
     # the outputs whose window lies inside x ('valid': the same dot products as the interior of 'same',
     # whose edge outputs the maps replace)
-    y[half:len(x) - half] = np.convolve(x, taps, "valid")
+    y[half:len(x) - half] = _valid_convolution(x, taps)
     y[:half] = left @ x[:window]
     y[len(x) - half:] = right @ x[len(x) - window:]
     if deriv:
         y /= delta**deriv
     return y
+
+
+ALIGNMENT_PROBES = 8  # windows at 8 consecutive samples: every alignment of a float64 in a 64-byte line
+
+
+def _valid_convolution(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
+    """``np.convolve(x, taps, "valid")`` of a 1-D float64 series, the same numbers.
+
+    Every output is one dot product of ``len(taps)`` samples with the reversed taps (numpy's
+    correlate calls the BLAS ``dot`` once per output). When every sample of ``x`` has the same bits
+    (the hull's angle while the brake holds it), every window holds the same numbers, so every
+    output is the same dot product: it is computed at :data:`ALIGNMENT_PROBES` consecutive
+    windows (each memory alignment a vector kernel could see) and, when those agree bit for
+    bit, copied to every output; otherwise (or for a short series) every output is computed."""
+    m = len(x) - len(taps) + 1
+    if m > 4 * ALIGNMENT_PROBES and x.dtype == np.float64 and x.ndim == 1 and bitwise_constant(x):
+        probe = np.convolve(x[:len(taps) + ALIGNMENT_PROBES - 1], taps, "valid")
+        if bitwise_constant(probe):
+            return np.full(m, probe[0])
+    return np.convolve(x, taps, "valid")
