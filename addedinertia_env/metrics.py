@@ -20,7 +20,7 @@ import numpy as np
 
 from .experiment.reference import MirroredReference, fit_stroke
 from .record import RunRecord
-from .record_kernels import masked_power_steps, phase_mask
+from .record_kernels import masked_limit_count, masked_power_steps, phase_mask
 
 # A command at 99.9 % of its limit or more counts as at the limit (saturated).
 SATURATION_FRACTION = 0.999
@@ -106,7 +106,33 @@ def saturated_fraction(rec: RunRecord, mask: np.ndarray | None = None) -> float:
     """Fraction of the controlled samples whose command was at its limit; 0 if there are none
     (``mask``: :func:`controlled` of ``rec`` if the caller has it)."""
     mask = controlled(rec) if mask is None else mask
-    return float(np.mean(samples_at_limit(rec)[mask])) if mask.any() else 0.0
+    if not mask.any():
+        return 0.0
+    counted = _limit_count(rec, mask)
+    if counted is not None:  # np.mean of the mask's booleans: their count (exact) over the mask's
+        return counted / int(np.count_nonzero(mask))
+    return float(np.mean(samples_at_limit(rec)[mask]))
+
+
+def _limit_count(rec: RunRecord, mask: np.ndarray) -> int | None:
+    """``np.count_nonzero(samples_at_limit(rec)[mask])`` in one compiled pass
+    (:func:`~addedinertia_env.record_kernels.masked_limit_count`) when the columns are 1-D float64 arrays
+    of the mask's length and the limits floats; None otherwise (the numpy expressions then run)."""
+    n = len(mask)
+    columns = [rec.samples.get(name) for name in ("i_cmd", "u_cmd", "i")]
+    voltage = columns[1] is not None
+    if not voltage:
+        columns[1] = columns[2] = columns[0]
+    if not (isinstance(mask, np.ndarray) and mask.dtype == bool and mask.ndim == 1 and all(
+            isinstance(c, np.ndarray) and c.dtype == np.float64 and c.shape == (n,) for c in columns)):
+        return None
+    known = rec.known
+    i_max = known.current_limit
+    u_max = (known.u_max if known.u_max is not None else math.inf) if voltage else math.inf
+    if not all(isinstance(x, float) for x in (i_max, u_max)):
+        return None
+    return int(masked_limit_count(mask, columns[0], SATURATION_FRACTION * i_max, columns[1], columns[2],
+                                  SATURATION_FRACTION * u_max, i_max, voltage))
 
 
 def stroke_reference(rec: RunRecord) -> MirroredReference:

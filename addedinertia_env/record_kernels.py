@@ -46,6 +46,21 @@ def masked_power_steps(t, u, i, mask, out):  # pragma: no cover - compiled
             m += 1
 
 
+@njit(cache=True)
+def masked_limit_count(mask, i_cmd, i_threshold, u_cmd, i, u_threshold, i_max, voltage):  # pragma: no cover
+    """How many samples ``j`` with ``mask[j]`` have their command at its limit: ``np.count_nonzero(at[mask])``
+    with ``at = np.abs(i_cmd) >= i_threshold``, or'ed (when ``voltage``) with ``(u_cmd != 0.0) &
+    ((np.abs(u_cmd) >= u_threshold) | (np.abs(i) >= i_max))`` (:func:`~addedinertia_env.metrics.samples_at_limit`)."""
+    count = 0
+    for j in range(len(mask)):
+        if mask[j]:
+            if abs(i_cmd[j]) >= i_threshold:
+                count += 1
+            elif voltage and u_cmd[j] != 0.0 and (abs(u_cmd[j]) >= u_threshold or abs(i[j]) >= i_max):
+                count += 1
+    return count
+
+
 def _codes(names, width: int) -> np.ndarray:
     """``names`` as rows of UCS-4 code points, zero-padded to ``width`` (uint32)."""
     rows = np.zeros((len(names), width), dtype=np.uint32)

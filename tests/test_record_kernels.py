@@ -7,7 +7,7 @@ import numpy as np
 from numpy.polynomial import chebyshev as C
 
 from addedinertia_env.experiment.reference import fit_stroke, series
-from addedinertia_env.metrics import electric_energy
+from addedinertia_env.metrics import electric_energy, samples_at_limit, saturated_fraction
 from addedinertia_env.record import RunRecord
 from addedinertia_env.record_kernels import phase_mask
 
@@ -52,3 +52,28 @@ def test_series_equals_chebval():
         assert np.array_equal(series(x, coef), C.chebval(x, coef))
     assert np.array_equal(law.phi(t), C.chebval(law._x(t), law.coef))
     assert law.phi(0.3) == C.chebval(law._x(0.3), law.coef)  # a scalar: numpy's own
+
+
+def _limit_record(rng, n, u_max, i_max, voltage=True):
+    """A record whose commands sit at, near and past their limits (with nan and signed zeros)."""
+    i_cmd = rng.choice([0.0, -0.0, i_max, -i_max, 0.999 * i_max, 0.998 * i_max, np.nan, 2.0 * i_max], n)
+    samples = {"t": np.arange(n) * 1e-3, "i_cmd": i_cmd, "i": rng.choice([0.0, i_max, -i_max, 0.5, np.nan], n),
+               "phase": np.array(rng.choice(NAMES, n).tolist(), dtype="<U7")}
+    if voltage:
+        samples["u_cmd"] = rng.choice([0.0, -0.0, 12.0, -12.0, 0.999 * 12.0, 11.0, np.nan], n)
+    rig = {"J_hull": 0.1, "J_flywheel": 0.01, "c_torsion": 1.0, "phi_neutral": 0.0, "k_t": 0.1, "R": 1.0,
+           "sample_rate": 1000.0, "i_max": i_max, "u_max": u_max}
+    return RunRecord(samples=samples, meta={"rig": {k: v for k, v in rig.items() if v is not None}})
+
+
+def test_saturated_fraction_equals_the_numpy_mean():
+    rng = np.random.default_rng(3)
+    for u_max, i_max, voltage in ((12.0, 5.0, True), (None, 5.0, True), (12.0, 5.0, False), (12.0, None, True)):
+        rec = _limit_record(rng, 2000, u_max, i_max if i_max is not None else 5.0, voltage)
+        if i_max is None:
+            del rec.meta["rig"]["i_max"]
+        for mask in ((rec.phase == "hold") | (rec.phase == "reverse"), np.ones(2000, dtype=bool),
+                     np.eye(1, 2000, 7, dtype=bool)[0]):
+            expected = float(np.mean(samples_at_limit(rec)[mask]))
+            assert saturated_fraction(rec, mask) == expected
+        assert saturated_fraction(rec, np.zeros(2000, dtype=bool)) == 0.0
