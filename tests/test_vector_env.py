@@ -371,3 +371,14 @@ def test_an_episode_whose_record_fails_the_plausibility_check_is_scored_as_faile
     single.record = lambda *a, **k: bad
     out = single._score()
     assert out["failed"] and "column 'psi'" in out["failure"] and np.isnan(out["rel_error"])
+
+
+def test_shard_sizes_cover_every_environment_with_shard_0_a_little_lighter():
+    from addedinertia_env.vector.shards import LIGHTER_SHARD_0, shard_sizes
+
+    for n, w in [(3, 2), (40, 2), (1024, 2), (1000, 3), (4096, 4)]:
+        sizes = shard_sizes(n, w)
+        assert sum(sizes) == n and len(sizes) == w and min(sizes) >= 1
+        assert max(sizes[1:]) - min(sizes[1:]) <= 1  # the workers' shards even
+        assert sizes[0] == -(-n // w) - round(LIGHTER_SHARD_0 * -(-n // w))
+    assert shard_sizes(1024, 2) == [499, 525] and shard_sizes(3, 2) == [2, 1]
