@@ -275,6 +275,28 @@ def accumulated_kernels(indices, weights, lengths, factors, size):
 
 
 @njit(cache=True, error_model="numpy")
+def accumulated_windows(first, sizes, offsets, weights, fits, factors, size):
+    """:func:`accumulated_kernels` of kernels over consecutive samples: kernel ``r`` is fit ``f = fits[r]``'s,
+    indices ``first[f] + arange(sizes[f])`` and weights ``weights[offsets[f]:offsets[f] + sizes[f]]``, scaled
+    by ``factors[r]`` and added sample by sample, kernel after kernel (the same sums in the same order)."""
+    top = size
+    for r in range(len(fits)):
+        f = fits[r]
+        if sizes[f] > 0:
+            if first[f] < 0:
+                raise ValueError("'list' argument must have no negative elements")
+            if first[f] + sizes[f] > top:
+                top = first[f] + sizes[f]
+    out = np.zeros(top)
+    for r in range(len(fits)):
+        f = fits[r]
+        start, at, c = first[f], offsets[f], factors[r]
+        for j in range(sizes[f]):
+            out[start + j] += c * weights[at + j]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
 def calibration_target(tt, th, psi, f_visc, f_coul, J_f):
     """The angle the flywheel calibration (``energy._flywheel_calibration``) explains, and the half sample
     intervals: with ``om = gradient(psi, tt)`` and the friction ``f_visc om + f_coul sign(om)``, ``th +
@@ -315,6 +337,8 @@ def warm_up() -> None:
     the first identification in a process costs what the others do."""
     t = np.arange(8) * 1e-3
     twice_integrated(np.ones((1, 8)), 0.5 * np.diff(t))
+    one = np.ones(1, dtype=np.int64)
+    accumulated_windows(one, one, one - 1, t, one - 1, t[:1], 8)
     fit_windows(t, t[:2], 2e-3)
     polynomial_roots_near_zero(np.ones((1, 3)), np.ones((1, 2)), np.zeros(1), 8)
     gradient(t, t)

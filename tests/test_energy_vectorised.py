@@ -123,6 +123,10 @@ def test_crossing_fits_equal_the_fits_one_at_a_time(records):
             assert got["sigma_rate"][j] == pytest.approx(sigma, rel=1e-8), name
             assert np.array_equal(got["kernel"][j][0], sel), name
             np.testing.assert_allclose(got["kernel"][j][1], kernel, rtol=0, atol=1e-10 * np.abs(kernel).max())
+        first, size, offset, weights = got["windows"]  # the same kernels, over consecutive samples
+        for j, (idx, kernel) in enumerate(got["kernel"]):
+            np.testing.assert_array_equal(idx, first[j] + np.arange(size[j]))
+            np.testing.assert_array_equal(kernel, weights[offset[j]:offset[j] + size[j]])
 
 
 def test_all_angles_at_once_equal_each_angle_alone(records):
@@ -331,3 +335,46 @@ def test_angle_columns_equal_the_numpy_expressions():
                               k_t * noise_i, gain_u, J_h)
     for ours, theirs in zip(got, (s_independent, s_common, np.hypot(s_independent, s_common), s_current)):
         np.testing.assert_array_equal(ours, theirs)
+
+
+def test_rate_sigma_from_windows_equals_it_from_the_kernel_lists(records):
+    for name, rec in records.items():
+        balance, phi1, weights, first = energy.prepared_balance(rec.without_truth())
+        cols = balance.interval_columns(np.asarray(phi1))
+        rows = np.nonzero(~cols["rejected"])[0][::2]  # every other usable angle: a subset of the fits
+        g = np.asarray(weights)[cols["good"][rows]]
+        g = g / g.sum()
+        lam, w1f, w1r = (np.asarray(cols[k])[rows].tolist() for k in ("lam", "w1f", "w1r"))
+        kernels = [[cols["fits"][side]["kernel"][r] for r in rows.tolist()] for side in "fr"]
+        fits = np.ravel(np.stack([2 * rows, 2 * rows + 1], axis=1))
+        assert (balance.rate_sigma_of_windows(g, lam, w1f, w1r, cols["windows"], fits)
+                == balance.rate_sigma(g, lam, w1f, w1r, *kernels)), name
+
+
+def test_shared_savgol_equals_savgol():
+    from addedinertia_env.identify.common import SharedSavgol  # noqa: PLC0415
+
+    rng = np.random.default_rng(8)
+    x = np.cumsum(rng.normal(size=3000)) * 1e-3
+    x[2000:2600] = x[2000]  # a constant stretch
+    shared = SharedSavgol(x)
+    # later slices start before, after and at the known ones (the same end), other ends, other filters
+    for start, stop, window, degree, deriv in [(900, 2900, 101, 3, 1), (300, 2900, 101, 3, 1), (1200, 2900, 101, 3, 1),
+                                               (300, 2900, 101, 3, 1), (0, 2900, 101, 3, 1), (0, 2900, 101, 3, 2),
+                                               (100, 2500, 51, 3, 1), (2000, 2700, 201, 5, 0), (0, 3000, 7, 3, 1)]:
+        expected = savgol(x[start:stop], window, degree, deriv, 1e-3)
+        np.testing.assert_array_equal(shared.savgol(start, stop, window, degree, deriv, 1e-3), expected)
+    with pytest.raises(ValueError, match="window"):
+        shared.savgol(2900, 2950, 101, 3, 1, 1e-3)
+    np.testing.assert_array_equal(SharedSavgol(x.astype(np.float32)).savgol(0, 900, 101, 3, 1, 1e-3),
+                                  savgol(x.astype(np.float32)[:900], 101, 3, 1, 1e-3))
+
+
+def test_dense_fractions_are_those_computed_afresh():
+    for lo, hi in [(0.25, 0.75), (0.1, 0.9), (0.25, 0.75)]:
+        f, w = energy._dense_fractions(lo, hi, energy.DENSE_ANGLES)
+        np.testing.assert_array_equal(f, np.linspace(lo, hi, energy.DENSE_ANGLES))
+        np.testing.assert_array_equal(w, energy.hann_weights(np.linspace(lo, hi, energy.DENSE_ANGLES), lo, hi))
+        assert not f.flags.writeable and not w.flags.writeable
+    f, w = energy._dense_fractions(np.float32(0.25), 1, 5)  # other kinds of numbers: computed as before
+    np.testing.assert_array_equal(w, energy.hann_weights(np.linspace(np.float32(0.25), 1, 5), np.float32(0.25), 1))

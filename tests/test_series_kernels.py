@@ -229,6 +229,28 @@ def test_accumulated_kernels_equal_bincount():
         accumulated_kernels(idx - 600, kern, lengths, factors, 520)
 
 
+def test_accumulated_windows_equal_accumulated_kernels():
+    from addedinertia_env.series_kernels import accumulated_kernels, accumulated_windows  # noqa: PLC0415
+
+    rng = np.random.default_rng(18)
+    sizes = rng.integers(0, 40, size=30)
+    first = rng.integers(0, 500, size=30)
+    offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    weights = rng.normal(size=int(sizes.sum()))
+    fits = rng.permutation(30)[:24]  # a subset, in another order
+    factors = rng.normal(size=24) * 10.0 ** rng.uniform(-3, 3, size=24)
+    idx = np.concatenate([first[f] + np.arange(sizes[f]) for f in fits])
+    kern = np.concatenate([weights[offsets[f]:offsets[f] + sizes[f]] for f in fits])
+    expected = accumulated_kernels(idx, kern, sizes[fits], factors, 520)
+    np.testing.assert_array_equal(accumulated_windows(first, sizes, offsets, weights, fits, factors, 520), expected)
+    np.testing.assert_array_equal(expected, np.bincount(idx, weights=np.repeat(factors, sizes[fits]) * kern,
+                                                        minlength=520))
+    np.testing.assert_array_equal(accumulated_windows(first, sizes, offsets, weights, fits[:0], factors[:0], 520),
+                                  np.zeros(520))
+    with pytest.raises(ValueError, match="negative"):
+        accumulated_windows(first - 600, sizes, offsets, weights, fits, factors, 520)
+
+
 @pytest.mark.parametrize("even", [True, False])
 def test_calibration_target_equals_the_numpy_expressions(even):
     from addedinertia_env.series_kernels import calibration_target  # noqa: PLC0415

@@ -231,11 +231,14 @@ def _savgol_maps(window: int, degree: int, deriv: int) -> tuple[np.ndarray, np.n
     return taps, left, right
 
 
-def savgol(x: np.ndarray, window: int, degree: int, deriv: int = 0, delta: float = 1.0) -> np.ndarray:
+def savgol(x: np.ndarray, window: int, degree: int, deriv: int = 0, delta: float = 1.0, *,
+           interior: np.ndarray | None = None) -> np.ndarray:
     """Savitzky-Golay filter of a 1-D series: ``scipy.signal.savgol_filter(x, window, degree,
     deriv, delta)`` (mode ``interp``) to float rounding, about 5x faster (cached maps, one
     ``np.convolve``). ``window`` odd and at most ``len(x)``; ``delta``: the sample spacing
-    (the derivative's unit is x's per ``delta``'s unit to the ``deriv``).
+    (the derivative's unit is x's per ``delta``'s unit to the ``deriv``). ``interior``: the
+    filter's ``np.convolve(x, taps, "valid")`` when the caller already has it
+    (:class:`SharedSavgol`), before the division by ``delta``.
     """
     x = np.asarray(x, dtype=float)
     if window % 2 != 1 or window > len(x) or degree >= window:
@@ -245,7 +248,7 @@ def savgol(x: np.ndarray, window: int, degree: int, deriv: int = 0, delta: float
     y = np.empty(len(x))
     # the outputs whose window lies inside x ('valid': the same dot products as the interior of 'same',
     # whose edge outputs the maps replace)
-    y[half:len(x) - half] = _valid_convolution(x, taps)
+    y[half:len(x) - half] = _valid_convolution(x, taps) if interior is None else interior
     y[:half] = left @ x[:window]
     y[len(x) - half:] = right @ x[len(x) - window:]
     if deriv:
@@ -271,3 +274,39 @@ def _valid_convolution(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
         if bitwise_constant(probe):
             return np.full(m, probe[0])
     return np.convolve(x, taps, "valid")
+
+
+class SharedSavgol:
+    """:func:`savgol` of slices ``x[start:stop]`` of one float series, each window's dot product computed once.
+
+    An interior output is one dot product of the samples in its window with the taps (numpy's
+    correlate calls the BLAS ``dot`` per output, at the samples' own addresses), so the ``"valid"``
+    outputs of ``x[start:stop]`` are those of ``x[start0:stop]`` from ``start - start0`` on: slices
+    that end at the same sample, filtered with the same window, degree and derivative, share them
+    (the longer slice computes only the windows the shorter lacked). Every result is :func:`savgol`'s.
+    """
+
+    def __init__(self, x: np.ndarray):
+        self.x = x
+        self._valid: dict = {}  # (stop, window, degree, deriv) -> (first window's start, 'valid' outputs)
+
+    def savgol(self, start: int, stop: int, window: int, degree: int, deriv: int = 0,
+               delta: float = 1.0) -> np.ndarray:
+        """``savgol(x[start:stop], window, degree, deriv, delta)`` (``0 <= start <= stop <= len(x)``)."""
+        x = self.x
+        seg = x[start:stop]
+        if not (isinstance(x, np.ndarray) and x.dtype == np.float64 and x.ndim == 1 and 0 <= start <= stop <= len(x)
+                and window % 2 == 1 and degree < window <= len(seg)):
+            return savgol(seg, window, degree, deriv, delta)  # its conversions and errors
+        taps = _savgol_maps(int(window), int(degree), int(deriv))[0]
+        key = (stop, int(window), int(degree), int(deriv))
+        hit = self._valid.get(key)
+        if hit is None:
+            valid = _valid_convolution(seg, taps)
+        elif hit[0] <= start:
+            valid = hit[1][start - hit[0]:]
+        else:  # the windows starting before the known ones, then those
+            valid = np.concatenate([_valid_convolution(x[start:hit[0] + window - 1], taps), hit[1]])
+        if hit is None or start < hit[0]:
+            self._valid[key] = (start, valid)
+        return savgol(seg, window, degree, deriv, delta, interior=valid)

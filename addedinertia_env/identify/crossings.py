@@ -63,14 +63,18 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     ``|t - t[k]| <= half_width``, then Newton (8 steps from ``t[k]``) for the crossing.
     Returns arrays over the fits: ``t`` (s), ``rate`` (rad/s), ``sigma_rate`` (rad/s, from
     the fit's residual scatter), and ``kernel``: per fit the rate's linear kernel over the
-    samples, ``(indices, weights)``. Raises :class:`IdentificationError` for the first fit
+    samples, ``(indices, weights)``; ``windows``: the same kernels as ``(first, size, offset, weights)``
+    (fit ``j``'s indices are ``first[j] + arange(size[j])``, its weights ``weights[offset[j]:offset[j] +
+    size[j]]``). Raises :class:`IdentificationError` for the first fit
     with fewer than ``degree + 3`` samples.
     """
     ks = np.asarray(ks, dtype=np.int64)
     levels = np.asarray(levels, dtype=float)
     n_fit = len(ks)
     if not n_fit:
-        return {"t": np.zeros(0), "rate": np.zeros(0), "sigma_rate": np.zeros(0), "kernel": []}
+        none = np.zeros(0, dtype=np.int64)
+        return {"t": np.zeros(0), "rate": np.zeros(0), "sigma_rate": np.zeros(0), "kernel": [],
+                "windows": (none, none, none, np.zeros(0))}
     tc = t[ks]
     ascending = is_ascending(t)
     if ascending:
@@ -115,6 +119,10 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     rate[:] = _polyval(dcoef, x) / half_width
     out_t[:] = tc + x * half_width
     grad_all = np.where(powers > 0, powers * x[:, None] ** np.maximum(powers - 1, 0), 0.0) / half_width
+    first, size = np.asarray(first, dtype=np.int64), np.asarray(size, dtype=np.int64)
+    offsets = np.zeros(n_fit, dtype=np.int64)  # every kernel's weights, fit after fit, in one array
+    np.cumsum(size[:-1], out=offsets[1:])
+    flat = np.empty(int(size.sum()))
     for g, idx, y, X, P, is_shared in groups:
         m = idx.shape[1]
         grad = grad_all[g]
@@ -127,9 +135,10 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         resid = y - fitted
         var = np.maximum(np.einsum("ij,ij->i", resid, resid) / max(m - degree - 1, 1), 1e-24)
         sigma[g] = np.sqrt(var) * np.linalg.norm(kernel, axis=1)
+        flat[offsets[g][:, None] + np.arange(m)] = kernel
         for j, idx_row, kernel_row in zip(g.tolist(), idx, kernel):
             kernels[j] = (idx_row, kernel_row)
-    return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": kernels}
+    return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": kernels, "windows": (first, size, offsets, flat)}
 
 
 _DESIGNS: dict = {}  # (degree, canonical abscissae as bytes) -> (design, pseudo-inverse), across records

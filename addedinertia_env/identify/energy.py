@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -62,12 +63,12 @@ from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
 from ..rig.known import KnownRigError
 from ..scan_kernels import (block_starts, gap_counts, negative_step_ratios, reaction_work, relaxed_interval_means,
                             squared_step_sums, true_counts, value_change_starts)
-from ..series_kernels import (accumulated_kernels, calibration_target, count_crossings, lag_ranking,
-                              twice_integrated)
+from ..series_kernels import (accumulated_kernels, accumulated_windows, calibration_target, count_crossings,
+                              lag_ranking, twice_integrated)
 from ..series_stats import median_step
 from .balance_kernels import angle_uncertainties, angle_values
-from .common import (IdentificationError, Result, largest_gap, line_fit, local_fit, pooled_interval, power_fit,
-                     savgol, smooth_angle, smooth_angles)
+from .common import (IdentificationError, Result, SharedSavgol, largest_gap, line_fit, local_fit, pooled_interval,
+                     power_fit, savgol, smooth_angle, smooth_angles)
 from .crossings import crossing_fits, first_crossings
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
@@ -229,9 +230,8 @@ def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_F
     if given:
         phi1_list, weights = [float(x) for x in given], None
     elif dense:
-        f = np.linspace(fractions[0], fractions[1], DENSE_ANGLES)
+        f, weights = _dense_fractions(fractions[0], fractions[1], DENSE_ANGLES)
         phi1_list = list(balance.phi_n + f * (balance.phi2 - balance.phi_n))
-        weights = hann_weights(f, fractions[0], fractions[1])
     else:
         phi1_list, weights = [balance.phi_n + x * (balance.phi2 - balance.phi_n) for x in fractions], None
     first = None
@@ -244,6 +244,24 @@ def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_F
     if np.isfinite(first.value):
         balance.use_total_inertia(first.value + balance.J_h)
     return balance, phi1_list, weights, first
+
+
+def _dense_fractions(lo, hi, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.linspace(lo, hi, n)`` and their :func:`hann_weights` over ``(lo, hi)``: kept (read-only) for
+    float bounds, which give the same arrays every time; computed afresh for any other kind of number."""
+    if type(lo) is float and type(hi) is float:
+        return _dense_fractions_of_floats(lo, hi, n)
+    f = np.linspace(lo, hi, n)
+    return f, hann_weights(f, lo, hi)
+
+
+@lru_cache(maxsize=16)
+def _dense_fractions_of_floats(lo: float, hi: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    f = np.linspace(lo, hi, n)
+    weights = hann_weights(f, lo, hi)
+    for x in (f, weights):
+        x.flags.writeable = False
+    return f, weights
 
 
 def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> _RunEstimate:
@@ -300,22 +318,26 @@ def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) 
     def pick(name):
         return np.asarray(cols[name], dtype=float)[rows].tolist()
 
-    kern_f, kern_r = cols["fits"]["f"]["kernel"], cols["fits"]["r"]["kernel"]
+    fits = np.empty(2 * len(rows), dtype=np.int64)  # the used angles' forward and reverse fits, in turn
+    fits[0::2], fits[1::2] = 2 * rows, 2 * rows + 1
     value, sigma = _dense_estimate(balance, g, np.array(lam_list), cols["phi1"][good[rows]].tolist(), lam_list,
                                    pick("w1f"), pick("w1r"), pick("s_current"), pick("s_common"),
-                                   pick("s_independent"), [kern_f[r] for r in rows.tolist()],
-                                   [kern_r[r] for r in rows.tolist()])
+                                   pick("s_independent"), None, None, (cols["windows"], fits))
     return _RunEstimate(value, sigma, [], counts)
 
 
 def _dense_estimate(balance: "RunBalance", g: np.ndarray, lam: np.ndarray, phi1: list, lam_list: list,
                     w1f: list, w1r: list, s_current: list, s_common: list, s_independent: list,
-                    kernels_f: list, kernels_r: list) -> tuple[float, float]:
+                    kernels_f: list | None, kernels_r: list | None, windows=None) -> tuple[float, float]:
     """The Hann-weighted lambda66 of a run and its 1-sigma (kg m^2) from its usable angles: normalised
     weights ``g``, per-angle values ``lam`` (array) and, per angle, ``phi1``, ``lam_list`` (the same values
-    as Python floats), rates, uncertainty parts and rate kernels ``(indices, weights)``."""
+    as Python floats), rates, uncertainty parts and rate kernels ``(indices, weights)``; or, instead of
+    the kernels' lists, ``windows``: ``(crossing_fits' windows, the used fits in order)``."""
     value = float(g @ lam)
-    s_rate = balance.rate_sigma(g, lam_list, w1f, w1r, kernels_f, kernels_r)
+    if windows is not None:
+        s_rate = balance.rate_sigma_of_windows(g, lam_list, w1f, w1r, *windows)
+    else:
+        s_rate = balance.rate_sigma(g, lam_list, w1f, w1r, kernels_f, kernels_r)
     s_cur = float(g @ np.array(s_current))
     s_com = float(g @ np.array(s_common))
     # Angles further apart than the rate windows see independent noise: their scatter about
@@ -425,9 +447,10 @@ class RunBalance:
         acceleration does not dilute it) behind the dissipation-mismatch correction."""
         self.hull_rest = 0.5 * J_total * self.rest_rates_sq
         if self.asymmetry_correction:
-            self.law = _forward_damping_law(self.rec, self.free, self.k2, J_total, self.c, self.phi_n)
+            rates = SharedSavgol(self.phi)  # the free stroke's rate filter: both fits see the same windows
+            self.law = _forward_damping_law(self.rec, self.free, self.k2, J_total, self.c, self.phi_n, rates)
             self.dW_of = (_DissipationMismatch(self.t, self.phi, self.free, self.k2, self.k3, self.rev, self.law,
-                                               self.direction) if self.law else None)
+                                               self.direction, rates) if self.law else None)
 
     # --- per boundary angle ----------------------------------------------------------
     def terms(self, phi1: float) -> tuple[BalanceTerms, dict] | str:
@@ -466,14 +489,16 @@ class RunBalance:
                              RATE_HALF_WIDTH, RATE_DEGREE)
         fits = {side: {"t": both["t"][j::2], "rate": both["rate"][j::2], "sigma_rate": both["sigma_rate"][j::2],
                        "kernel": both["kernel"][j::2]} for j, side in enumerate("fr")}
-        self._fits[key] = got = {"ok": ok, "reason": reason, "good": good, "fits": fits}
+        self._fits[key] = got = {"ok": ok, "reason": reason, "good": good, "fits": fits, "windows": both["windows"]}
         return got
 
     def terms_many(self, phi1: np.ndarray) -> dict:
         """The balance terms at every angle of ``phi1`` (rad) that both strokes pass: a
         :class:`BalanceTerms` of arrays over the usable angles ``good`` (indices into
         ``phi1``), their fits (``fits["f"]``, ``fits["r"]``: crossing time, rate, its sigma,
-        kernel), ``s_dW``, ``k1s``, ``k4s``; ``reason`` says why each other angle cannot be used."""
+        kernel), ``s_dW``, ``k1s``, ``k4s``; ``reason`` says why each other angle cannot be used; ``windows``:
+        the fits' kernels as :func:`~.crossings.crossing_fits` gives them (forward and reverse fit of each
+        usable angle in turn)."""
         phi1 = np.asarray(phi1, dtype=float)
         got = self._fits_at(phi1)
         good, fits = got["good"], got["fits"]
@@ -507,7 +532,7 @@ class RunBalance:
         if self.dW_of is not None:
             T.dW, s_dW = self.dW_of(p)
         return {"terms": T, "fits": fits, "good": good, "reason": got["reason"], "s_dW": s_dW,
-                "k1s": np.searchsorted(t, t1), "k4s": np.searchsorted(t, t4)}
+                "k1s": np.searchsorted(t, t1), "k4s": np.searchsorted(t, t4), "windows": got["windows"]}
 
     def interval(self, phi1: float) -> Interval:
         """One boundary angle's estimate with its uncertainty parts, or a rejected interval."""
@@ -517,12 +542,13 @@ class RunBalance:
         """What :meth:`intervals` reports, as arrays over the angles both strokes pass (``good``,
         indices into ``phi1``): ``lam``, ``w1f``, ``w1r`` and the uncertainty parts ``s_independent``,
         ``s_common``, ``sigma``, ``s_current`` (kg m^2), the rejection tests' ``sat`` and ``mismatch`` and
-        ``rejected`` (bool), the ``terms`` and ``fits`` of :meth:`terms_many`; ``reason`` per angle of
+        ``rejected`` (bool), the ``terms``, ``fits`` and ``windows`` of :meth:`terms_many`; ``reason`` per angle of
         ``phi1`` why it cannot be used ('' when both strokes pass it)."""
         phi1 = np.asarray(phi1, dtype=float)
         got = self.terms_many(phi1)
         good = got["good"]
-        cols = {"phi1": phi1, "reason": got["reason"], "good": good, "terms": got["terms"], "fits": got["fits"]}
+        cols = {"phi1": phi1, "reason": got["reason"], "good": good, "terms": got["terms"], "fits": got["fits"],
+                "windows": got["windows"]}
         if not len(good):
             return cols
         T, fit = got["terms"], got["fits"]
@@ -622,12 +648,8 @@ class RunBalance:
     def rate_sigma(self, g: np.ndarray, lam: list, w1f: list, w1r: list, kernels_f: list, kernels_r: list) -> float:
         """:meth:`averaged_rate_sigma` from per-angle lists: weights ``g``, lambda66 (kg m^2), forward and
         reverse rates (rad/s) and their fits' kernels ``(indices, weights)``; kg m^2."""
-        factors, kernels = [], []
-        for gk, lam_k, wf, wr, kf, kr in zip(g, lam, w1f, w1r, kernels_f, kernels_r):
-            denom = 0.5 * (wf**2 + wr**2)
-            J_total = lam_k + self.J_h
-            factors += [gk * (-J_total * wf / denom), gk * (-J_total * wr / denom)]  # each kernel's weight
-            kernels += [kf, kr]
+        factors = self._rate_factors(g, lam, w1f, w1r)
+        kernels = [k for pair in zip(kernels_f, kernels_r) for k in pair][:len(factors)]
         # summed sample by sample in the order above (as adding the kernels one after another)
         if kernels:
             idx, kern = zip(*kernels)
@@ -637,6 +659,29 @@ class RunBalance:
         else:
             combined = np.zeros(len(self.t))
         return self.angle_noise * float(np.linalg.norm(combined))
+
+    def rate_sigma_of_windows(self, g: np.ndarray, lam: list, w1f: list, w1r: list, windows: tuple,
+                              fits: np.ndarray) -> float:
+        """:meth:`rate_sigma` (kg m^2, the same number) with the kernels given as :func:`~.crossings.crossing_fits`'
+        ``windows`` (kernels over consecutive samples) and the fits used, in order (angle ``k``'s forward and
+        reverse fit: ``fits[2k]``, ``fits[2k + 1]``)."""
+        factors = self._rate_factors(g, lam, w1f, w1r)
+        first, sizes, offsets, weights = windows
+        used = np.asarray(fits, dtype=np.int64)[:len(factors)]
+        combined = accumulated_windows(first, sizes, offsets, weights, used, np.array(factors, dtype=float),
+                                       len(self.t))
+        return self.angle_noise * float(np.linalg.norm(combined))
+
+    def _rate_factors(self, g: np.ndarray, lam: list, w1f: list, w1r: list) -> list:
+        """Each rate kernel's weight in :meth:`rate_sigma`: per angle, ``g_k (-J_total w / denom)`` for its
+        forward and its reverse rate (``denom = (w1f^2 + w1r^2) / 2``, ``J_total = lambda66 + J_hull``)."""
+        weights = g.tolist() if isinstance(g, np.ndarray) and g.dtype == np.float64 and g.ndim == 1 else g
+        factors = []  # (a float64 array's elements as Python floats: the same products)
+        for gk, lam_k, wf, wr in zip(weights, lam, w1f, w1r):
+            denom = 0.5 * (wf**2 + wr**2)
+            J_total = lam_k + self.J_h
+            factors += [gk * (-J_total * wf / denom), gk * (-J_total * wr / denom)]
+        return factors
 
     @property
     def angle_noise(self) -> float:
@@ -1019,14 +1064,15 @@ def _quantum(angle: np.ndarray, counts: int) -> float:
 
 
 def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c: float,
-                         phi_n: float) -> dict | None:
+                         phi_n: float, rates: SharedSavgol | None = None) -> dict | None:
     """Damping torque magnitude ``D(w) = d1 |w| + d2 w^2`` (N m) seen on the forward stroke.
 
     From ``J phi'' + c (phi - phi_n) = -D(w) sign(w)`` with the total inertia ``J_total``
     (kg m^2) given (a first estimate): least squares for ``d1, d2`` on smoothed derivatives
     of the free stroke's second half. Fitting ``J`` jointly would put the acceleration's
     noise among the regressors and shrink ``J`` (and inflate ``d2`` several-fold) when the
-    encoder's quantisation is a sizeable part of the acceleration.
+    encoder's quantisation is a sizeable part of the acceleration. ``rates``: the rate filter of
+    the record's ``phi`` shared with the dissipation mismatch (:class:`~.common.SharedSavgol`).
     """
     t, phi = rec.t, rec["phi"]
     a = free.start + (k2 - free.start) // 3
@@ -1034,8 +1080,12 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c
     win = max(7, int(round(DAMPING_FIT_WINDOW_S / dt)) | 1)
     if k2 - a < 2 * win:
         return None
-    seg = phi[a - win:k2 + 1] if a >= win else phi[a:k2 + 1]
-    w = savgol(seg, win, 3, deriv=1, delta=dt)
+    start = a - win if a >= win else a
+    seg = phi[start:k2 + 1]
+    if rates is not None and rates.x is phi:
+        w = rates.savgol(start, k2 + 1, win, 3, deriv=1, delta=dt)
+    else:
+        w = savgol(seg, win, 3, deriv=1, delta=dt)
     acc = savgol(seg, win, 3, deriv=2, delta=dt)
     keep = slice(win, len(seg) - win // 2)
     w, acc, ph = w[keep], acc[keep], seg[keep]
@@ -1055,14 +1105,18 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c
 
 class _DissipationMismatch:
     """``dW(phi1) = W_reverse - W_forward`` between ``phi1`` and the stop, from the two strokes'
-    speed profiles over angle and the forward stroke's damping law; returns (dW, sigma) in J."""
+    speed profiles over angle and the forward stroke's damping law; returns (dW, sigma) in J.
+    ``rates``: the rate filter of ``phi`` shared with the damping law (:class:`~.common.SharedSavgol`)."""
 
-    def __init__(self, t, phi, free, k2, k3, rev, law, direction):
+    def __init__(self, t, phi, free, k2, k3, rev, law, direction, rates: SharedSavgol | None = None):
         def speed_over_angle(a: int, b: int):
             lo, hi = max(a, 0), min(b, len(t) - 1)
             dt = float(median_step(t[lo:hi]))
             win = max(7, int(round(DAMPING_FIT_WINDOW_S / dt)) | 1)
-            speed = np.abs(savgol(phi[lo:hi + 1], win, 3, deriv=1, delta=dt))
+            if rates is not None and rates.x is phi:
+                speed = np.abs(rates.savgol(lo, hi + 1, win, 3, deriv=1, delta=dt))
+            else:
+                speed = np.abs(savgol(phi[lo:hi + 1], win, 3, deriv=1, delta=dt))
             ang = phi[lo:hi + 1]
             order = np.argsort(ang)
             return ang[order], speed[order]
