@@ -378,3 +378,21 @@ def test_dense_fractions_are_those_computed_afresh():
         assert not f.flags.writeable and not w.flags.writeable
     f, w = energy._dense_fractions(np.float32(0.25), 1, 5)  # other kinds of numbers: computed as before
     np.testing.assert_array_equal(w, energy.hann_weights(np.linspace(np.float32(0.25), 1, 5), np.float32(0.25), 1))
+
+
+def test_terms_of_the_second_pass_are_those_computed_afresh(records):
+    """The parts of the balance the total inertia does not change are kept from the first pass."""
+    for name, rec in records.items():
+        balance, phi1, weights, first = energy.prepared_balance(rec.without_truth())
+        again = balance.terms_many(np.asarray(phi1))
+        again["terms"].A_f[:] = np.nan  # a caller's changes stay in its own copy
+        again["k1s"][:] = -1
+        got = balance.terms_many(np.asarray(phi1))
+        fresh = energy.RunBalance(rec.without_truth())
+        fresh.use_total_inertia(first.value + fresh.J_h)
+        expected = fresh.terms_many(np.asarray(phi1))
+        for key in ("k1s", "k4s", "s_dW", "good"):
+            np.testing.assert_array_equal(got[key], expected[key], err_msg=name)
+        for field in energy.BalanceTerms.__dataclass_fields__:
+            np.testing.assert_array_equal(getattr(got["terms"], field), getattr(expected["terms"], field),
+                                          err_msg=f"{name} {field}")

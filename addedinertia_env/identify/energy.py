@@ -502,18 +502,21 @@ class RunBalance:
         phi1 = np.asarray(phi1, dtype=float)
         got = self._fits_at(phi1)
         good, fits = got["good"], got["fits"]
-        p = phi1[good]
         t = self.t
         t1, w1f, t4, w1r = fits["f"]["t"], fits["f"]["rate"], fits["r"]["t"], fits["r"]["rate"]
-        t2, t3 = t[self.k2], t[self.k3]
-        # the cumulative works at t2, t3, every t1 and every t4, each interpolated in one call
-        at = np.concatenate([[t2, t3], t1, t4])
-        n1 = len(t1)
-        W, B = np.interp(at, t, self.work_cum), np.interp(at, t, self.bearing_cum)
-        A_f, A_r = W[0] - W[2:2 + n1], W[2 + n1:] - W[1]
-        B_f, B_r = B[0] - B[2:2 + n1], B[2 + n1:] - B[1]
-        c, n, p2, p3 = self.c, self.phi_n, self.phi_rest2, self.phi_rest3
-        spring = 0.5 * c * ((p2 - n) ** 2 - (p - n) ** 2 + (p3 - n) ** 2 - (p - n) ** 2)
+        if "fixed" not in got:  # what the total inertia does not change (the second pass gets copies)
+            p = phi1[good]
+            t2, t3 = t[self.k2], t[self.k3]
+            # the cumulative works at t2, t3, every t1 and every t4, each interpolated in one call
+            at = np.concatenate([[t2, t3], t1, t4])
+            n1 = len(t1)
+            W, B = np.interp(at, t, self.work_cum), np.interp(at, t, self.bearing_cum)
+            A_f, A_r = W[0] - W[2:2 + n1], W[2 + n1:] - W[1]
+            B_f, B_r = B[0] - B[2:2 + n1], B[2 + n1:] - B[1]
+            c, n, p2, p3 = self.c, self.phi_n, self.phi_rest2, self.phi_rest3
+            spring = 0.5 * c * ((p2 - n) ** 2 - (p - n) ** 2 + (p3 - n) ** 2 - (p - n) ** 2)
+            got["fixed"] = (p, spring, A_f, A_r, B_f, B_r, np.searchsorted(t, t1), np.searchsorted(t, t4))
+        p, spring, A_f, A_r, B_f, B_r, k1s, k4s = (x.copy() for x in got["fixed"])
         zero = np.zeros(len(good))
         T = BalanceTerms(phi1=p, t1=t1, t4=t4, w1f=w1f, w1r=w1r, spring=spring, A_f=A_f, A_r=A_r, B_f=B_f,
                          B_r=B_r, K1=zero.copy(), K2=zero.copy(), K3=zero.copy(), K4=zero.copy(),
@@ -532,7 +535,7 @@ class RunBalance:
         if self.dW_of is not None:
             T.dW, s_dW = self.dW_of(p)
         return {"terms": T, "fits": fits, "good": good, "reason": got["reason"], "s_dW": s_dW,
-                "k1s": np.searchsorted(t, t1), "k4s": np.searchsorted(t, t4), "windows": got["windows"]}
+                "k1s": k1s, "k4s": k4s, "windows": got["windows"]}
 
     def interval(self, phi1: float) -> Interval:
         """One boundary angle's estimate with its uncertainty parts, or a rejected interval."""
