@@ -297,6 +297,16 @@ def accumulated_windows(first, sizes, offsets, weights, fits, factors, size):
 
 
 @njit(cache=True, error_model="numpy")
+def place_rows(out, offsets, rows):
+    """``out[offsets[r]:offsets[r] + rows.shape[1]] = rows[r]`` for every row ``r`` (a copy)."""
+    m = rows.shape[1]
+    for r in range(rows.shape[0]):
+        at = offsets[r]
+        for j in range(m):
+            out[at + j] = rows[r, j]
+
+
+@njit(cache=True, error_model="numpy")
 def calibration_target(tt, th, psi, f_visc, f_coul, J_f):
     """The angle the flywheel calibration (``energy._flywheel_calibration``) explains, and the half sample
     intervals: with ``om = gradient(psi, tt)`` and the friction ``f_visc om + f_coul sign(om)``, ``th +
@@ -339,6 +349,7 @@ def warm_up() -> None:
     twice_integrated(np.ones((1, 8)), 0.5 * np.diff(t))
     one = np.ones(1, dtype=np.int64)
     accumulated_windows(one, one, one - 1, t, one - 1, t[:1], 8)
+    place_rows(np.empty(8), one - 1, np.ones((1, 8)))
     fit_windows(t, t[:2], 2e-3)
     polynomial_roots_near_zero(np.ones((1, 3)), np.ones((1, 2)), np.zeros(1), 8)
     gradient(t, t)

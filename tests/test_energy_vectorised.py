@@ -124,9 +124,18 @@ def test_crossing_fits_equal_the_fits_one_at_a_time(records):
             assert np.array_equal(got["kernel"][j][0], sel), name
             np.testing.assert_allclose(got["kernel"][j][1], kernel, rtol=0, atol=1e-10 * np.abs(kernel).max())
         first, size, offset, weights = got["windows"]  # the same kernels, over consecutive samples
+        assert len(got["kernel"]) == len(ks)
         for j, (idx, kernel) in enumerate(got["kernel"]):
             np.testing.assert_array_equal(idx, first[j] + np.arange(size[j]))
             np.testing.assert_array_equal(kernel, weights[offset[j]:offset[j] + size[j]])
+        odd = got["kernel"][1::2]  # a slice: those fits' kernels
+        assert len(odd) == len(ks[1::2])
+        for (idx, kernel), (idx2, kernel2) in zip(odd, [got["kernel"][j] for j in range(1, len(ks), 2)]):
+            np.testing.assert_array_equal(idx, idx2)
+            np.testing.assert_array_equal(kernel, kernel2)
+        assert np.array_equal(got["kernel"][-1][1], got["kernel"][len(ks) - 1][1])
+        with pytest.raises(IndexError):
+            got["kernel"][len(ks)]
 
 
 def test_all_angles_at_once_equal_each_angle_alone(records):

@@ -251,6 +251,18 @@ def test_accumulated_windows_equal_accumulated_kernels():
         accumulated_windows(first - 600, sizes, offsets, weights, fits, factors, 520)
 
 
+def test_place_rows_equals_fancy_assignment():
+    from addedinertia_env.series_kernels import place_rows  # noqa: PLC0415
+
+    rng = np.random.default_rng(20)
+    rows = rng.normal(size=(6, 9))
+    offsets = np.array([40, 0, 9, 25, 60, 18])
+    expected, got = np.full(80, np.nan), np.full(80, np.nan)
+    expected[offsets[:, None] + np.arange(9)] = rows
+    place_rows(got, offsets, rows)
+    np.testing.assert_array_equal(got, expected)
+
+
 @pytest.mark.parametrize("even", [True, False])
 def test_calibration_target_equals_the_numpy_expressions(even):
     from addedinertia_env.series_kernels import calibration_target  # noqa: PLC0415

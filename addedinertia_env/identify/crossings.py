@@ -13,9 +13,11 @@ float rounding only).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
-from ..series_kernels import (canonical_abscissae, first_at_or_past, fit_windows, is_ascending,
+from ..series_kernels import (canonical_abscissae, first_at_or_past, fit_windows, is_ascending, place_rows,
                               polynomial_roots_near_zero, scaled_deviation, window_rows)
 from .common import IdentificationError
 
@@ -63,7 +65,7 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     ``|t - t[k]| <= half_width``, then Newton (8 steps from ``t[k]``) for the crossing.
     Returns arrays over the fits: ``t`` (s), ``rate`` (rad/s), ``sigma_rate`` (rad/s, from
     the fit's residual scatter), and ``kernel``: per fit the rate's linear kernel over the
-    samples, ``(indices, weights)``; ``windows``: the same kernels as ``(first, size, offset, weights)``
+    samples, ``(indices, weights)`` (a :class:`WindowKernels`); ``windows``: the same kernels as ``(first, size, offset, weights)``
     (fit ``j``'s indices are ``first[j] + arange(size[j])``, its weights ``weights[offset[j]:offset[j] +
     size[j]]``). Raises :class:`IdentificationError` for the first fit
     with fewer than ``degree + 3`` samples.
@@ -91,7 +93,6 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         j = int(short[0])
         raise IdentificationError(f"too few samples ({int(size[j])}) around t = {tc[j]:.4f} s for a local fit")
     out_t, rate, sigma = np.empty(n_fit), np.empty(n_fit), np.empty(n_fit)
-    kernels: list = [None] * n_fit
     powers = np.arange(degree + 1)
     coef = np.empty((n_fit, degree + 1))
     groups = []  # (fits, sample indices, angles, design, pseudo-inverse): P0/X0 shared, or P/X per fit
@@ -135,10 +136,29 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         resid = y - fitted
         var = np.maximum(np.einsum("ij,ij->i", resid, resid) / max(m - degree - 1, 1), 1e-24)
         sigma[g] = np.sqrt(var) * np.linalg.norm(kernel, axis=1)
-        flat[offsets[g][:, None] + np.arange(m)] = kernel
-        for j, idx_row, kernel_row in zip(g.tolist(), idx, kernel):
-            kernels[j] = (idx_row, kernel_row)
-    return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": kernels, "windows": (first, size, offsets, flat)}
+        place_rows(flat, offsets[g], kernel)  # flat[offsets[g][:, None] + arange(m)] = kernel
+    windows = (first, size, offsets, flat)
+    return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": WindowKernels(windows), "windows": windows}
+
+
+class WindowKernels(Sequence):
+    """The fits' rate kernels as a sequence of ``(sample indices, weights)``, each pair made when it is
+    read, from :func:`crossing_fits`' ``windows`` (``fits``: which fits, in order; all by default).
+    Slicing gives the kernels of those fits (``kernels[0::2]``: every other fit)."""
+
+    def __init__(self, windows: tuple, fits: np.ndarray | None = None):
+        self.windows = windows
+        self.fits = np.arange(len(windows[0])) if fits is None else fits
+
+    def __len__(self) -> int:
+        return len(self.fits)
+
+    def __getitem__(self, j):
+        if isinstance(j, slice):
+            return WindowKernels(self.windows, self.fits[j])
+        first, size, offsets, flat = self.windows
+        f = int(self.fits[j])
+        return np.arange(first[f], first[f] + size[f]), flat[offsets[f]:offsets[f] + size[f]]
 
 
 _DESIGNS: dict = {}  # (degree, canonical abscissae as bytes) -> (design, pseudo-inverse), across records
