@@ -38,10 +38,11 @@ CRLF, non-uniform ``t``, gaps) are not refused here for that form.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from .rig.known import KnownRig
 from .run_record import RecordError, RunRecord
 from .scan_kernels import (abs_max, abs_rates, block_starts, first_beyond, first_step_beyond,
                            median_abs_deviation_sorted, second_differences)
@@ -62,7 +63,10 @@ PHASE_ORDER = {
 
 @dataclass(frozen=True)
 class Limits:
-    """Limits of one record, SI units; ``why_*`` say how each was derived (for messages)."""
+    """Limits of one record, SI units; ``why_*`` say how each was derived (for messages). ``known``
+    and ``phase_blocks`` are what the check read from the record: its typed ``rig`` block and the
+    first sample and label of each contiguous block of one phase (an estimator run right after the
+    check may take them instead of deriving them again)."""
 
     i_max: float
     why_i: str
@@ -71,6 +75,8 @@ class Limits:
     hull_rate: float
     flywheel_rate: float
     psi_abs: float
+    known: KnownRig | None = field(default=None, compare=False, repr=False)
+    phase_blocks: tuple[tuple[int, ...], tuple[str, ...]] | None = field(default=None, compare=False, repr=False)
 
 
 def check_plausible(rec: RunRecord) -> Limits:
@@ -131,7 +137,7 @@ def check_plausible(rec: RunRecord) -> Limits:
                       f"rad/s with A = {hull_amp:.3g} rad (spring energy + motor work)")
     _refuse_steps(name, "psi", psi, dt, MARGIN * fly_rate, q_psi, mask=None,
                   why=f"flywheel rate {MARGIN:g} x ((u_max + R i_max) / k_t + hull rate) = {MARGIN * fly_rate:.3g} rad/s")
-    return Limits(i_lim, why_i, u_lim, why_u, hull_rate, fly_rate, psi_abs)
+    return Limits(i_lim, why_i, u_lim, why_u, hull_rate, fly_rate, psi_abs, known, (tuple(starts), tuple(labels)))
 
 
 # --- helpers ---------------------------------------------------------------------------

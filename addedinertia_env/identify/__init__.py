@@ -29,10 +29,12 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     from ..plausibility import check_plausible  # noqa: PLC0415
 
-    for rec in records:  # also records made in memory (benchmark episodes), not only those read from files
-        check_plausible(rec)
+    # also records made in memory (benchmark episodes), not only those read from files
+    checked = [check_plausible(rec) for rec in records]
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
+    if method == "energy" and "checked" not in options:  # it reuses the check's typed rig and phase blocks
+        options = {**options, "checked": checked}
     try:
         result = estimator([r.without_truth() for r in records], **options)
     except IdentificationError as e:  # every refusal names the records it is about

@@ -166,7 +166,7 @@ class _RunEstimate:
 
 
 def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=DEFAULT_FRACTIONS,
-                    asymmetry_correction: bool = True, interval_details: bool = True) -> Result:
+                    asymmetry_correction: bool = True, interval_details: bool = True, checked=None) -> Result:
     """lambda66 (kg m^2) from one or more reverse-symmetric runs, with a 95 % interval.
 
     ``fractions``: the range ``(lo, hi)`` of boundary angles as fractions of the stroke
@@ -175,12 +175,19 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
     ``interval_details=False``: the result's ``details`` leave out the per-angle ``intervals``
     (the same lambda66, interval and counts; a caller that only needs the numbers, such as
     the batched env scoring every episode, skips building a record per angle).
+    ``checked``: per record, the :class:`~addedinertia_env.plausibility.Limits` its plausibility check
+    returned (:func:`~addedinertia_env.identify.identify` passes them): the typed rig and phase blocks
+    the check read are used instead of being derived again (None: derived here).
     """
     if work not in WORK_FORMS:
         raise ValueError(f"work={work!r}: expected one of {WORK_FORMS}")
     if work != "reaction":
         warnings.warn(DIAGNOSTIC_FORM_WARNING.format(work=work), stacklevel=2)
-    runs = [_run_estimate(rec, work, fractions, asymmetry_correction, interval_details) for rec in records]
+    checked = [None] * len(records) if checked is None else list(checked)
+    if len(checked) != len(records):
+        raise ValueError(f"checked: {len(checked)} check results for {len(records)} records; expected one per record")
+    runs = [_run_estimate(rec, work, fractions, asymmetry_correction, interval_details, limits)
+            for rec, limits in zip(records, checked)]
     intervals = [iv for r in runs for iv in r.intervals]
     good = [r for r in runs if np.isfinite(r.value)]
     if not good:
@@ -200,9 +207,9 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
 
 
 def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool,
-                  interval_details: bool = True) -> _RunEstimate:
+                  interval_details: bool = True, checked=None) -> _RunEstimate:
     balance, phi1_list, weights, first = prepared_balance(rec, work, fractions, asymmetry_correction,
-                                                          first_value_only=True)
+                                                          first_value_only=True, checked=checked)
     if not np.isfinite(first.value):
         return first
     phi1 = np.asarray(phi1_list, dtype=float)
@@ -215,16 +222,17 @@ def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bo
 
 
 def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_FRACTIONS,
-                     asymmetry_correction: bool = True, first_value_only: bool = False):
+                     asymmetry_correction: bool = True, first_value_only: bool = False, checked=None):
     """A record's :class:`RunBalance` after the first pass, its boundary angles (rad), their
     weights (None: pooled by inverse variance) and the first pass's estimate.
 
     The first pass (no dissipation-mismatch correction) gives the total inertia that the
     damping-law fit and the hull's energy at rest then use. ``first_value_only``: when the
     first estimate is finite, only its value is computed (its ``sigma`` is nan and it holds
-    no intervals; the value is the same number); the full estimate otherwise.
+    no intervals; the value is the same number); the full estimate otherwise. ``checked``: the
+    record's plausibility check result (:class:`RunBalance`).
     """
-    balance = RunBalance(rec, work, asymmetry_correction)
+    balance = RunBalance(rec, work, asymmetry_correction, checked)
     given = rec.experiment.get("phi1")
     dense = not given and len(fractions) == 2
     if given:
@@ -370,11 +378,14 @@ class RunBalance:
     """The energy balance of one reverse-symmetric record, evaluated at any boundary angle.
 
     Everything that does not depend on the boundary angle (calibrated current, smoothed
-    angles, cumulative motor work, damping law, speed profiles) is prepared once.
+    angles, cumulative motor work, damping law, speed profiles) is prepared once. ``checked``: the
+    :class:`~addedinertia_env.plausibility.Limits` of the record's plausibility check, whose typed rig
+    and phase blocks are then taken as read (the same the record gives).
     """
 
-    def __init__(self, rec: RunRecord, work: str = "reaction", asymmetry_correction: bool = True):
-        rig = self.known = rec.known
+    def __init__(self, rec: RunRecord, work: str = "reaction", asymmetry_correction: bool = True, checked=None):
+        known = getattr(checked, "known", None)
+        rig = self.known = known if known is not None else rec.known
         self.rec, self.work = rec, work
         self.J_h, self.J_f, self.c = rig.J_hull, rig.J_flywheel, rig.c_torsion
         self.phi_n, self.k_t, self.R = rig.phi_neutral, rig.k_t, rig.R
@@ -394,7 +405,7 @@ class RunBalance:
                                           f"(winding inductance, H); the record gives {self.L!r}; use work='reaction'")
         t, phi, psi = rec.t, rec["phi"], rec["psi"]
         self.t, self.phi, self.psi = t, phi, psi
-        first_blocks, phase_starts = _first_blocks(rec)
+        first_blocks, phase_starts = _first_blocks(rec, getattr(checked, "phase_blocks", None))
         free, hold, rev = first_blocks.get("free"), first_blocks.get("hold"), first_blocks.get("reverse")
         if free is None or rev is None:
             raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
@@ -867,14 +878,19 @@ def phase_blocks(rec: RunRecord, starts: np.ndarray | None = None) -> np.ndarray
     return np.concatenate([[0], inner, [n]]).astype(np.int64)
 
 
-def _first_blocks(rec: RunRecord) -> tuple[dict[str, slice], np.ndarray]:
+def _first_blocks(rec: RunRecord, blocks=None) -> tuple[dict[str, slice], np.ndarray]:
     """The first contiguous block of each phase (what :func:`~.common.segment` gives, for every
-    phase from one scan), and every phase block's first sample (:func:`phase_blocks` takes them)."""
+    phase from one scan), and every phase block's first sample (:func:`phase_blocks` takes them).
+    ``blocks``: the blocks' first samples and labels when already known (the plausibility check's)."""
     phase = np.asarray(rec.phase)
-    starts = block_starts(phase)
+    if blocks is None:
+        starts = block_starts(phase)
+        labels = phase[starts].tolist()
+    else:
+        starts, labels = np.array(blocks[0], dtype=np.int64), blocks[1]
     first: dict[str, slice] = {}
     bounds = starts.tolist() + [len(phase)]
-    for a, b, label in zip(bounds, bounds[1:], phase[starts].tolist()):
+    for a, b, label in zip(bounds, bounds[1:], labels):
         first.setdefault(str(label), slice(a, b))
     return first, starts
 
