@@ -103,10 +103,10 @@ def test_linear_substep_equals_the_map_per_environment():
     brake, driven, running = rng.random(n) < 0.5, rng.random(n) < 0.5, rng.random(n) < 0.7
     k_t, q_hull, offset, f2 = (rng.normal(size=n) for _ in range(4))
     w_prev, t = rng.normal(size=n), np.zeros(n)
-    want = X.copy()
-    want[5] = np.where(driven, X[5], k_t * X[3])
-    want[4] = np.where(driven, X[4], 0.0)
-    want[6], want[7] = q_hull + offset, f2
+    want = X.copy()  # a paused environment (not running) keeps its state as it is
+    want[5] = np.where(driven | ~running, X[5], k_t * X[3])
+    want[4] = np.where(driven | ~running, X[4], 0.0)
+    want[6], want[7] = np.where(running, q_hull + offset, X[6]), np.where(running, f2, X[7])
     kind = 2 * brake + driven
     for k in np.nonzero(running)[0]:
         want[:N_OUT, k] = table[kind[k], :, :, k] @ want[:, k]

@@ -395,10 +395,10 @@ class BatchedRig:
             driven = self._none if code == PASSIVE else self._all
         else:
             driven = code != PASSIVE
-        if code != PASSIVE if np.isscalar(code) else driven.any():
-            self._set_terminal_voltage(code, np.asarray(value, dtype=self.dtype))
         running = self._all if active is None else np.asarray(active, dtype=bool)
         paused = None if active is None or running.all() else ~running
+        if code != PASSIVE if np.isscalar(code) else driven.any():
+            self._set_terminal_voltage(code, np.asarray(value, dtype=self.dtype), paused)
         h = self.physics_dt
         memory = forces.has_radiation_memory(p)
         water = forces.has_water_memory(p)
@@ -427,17 +427,19 @@ class BatchedRig:
             return value
         return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=self.dtype), (self.n,)))
 
-    def _set_terminal_voltage(self, code, value) -> None:
-        """The drive's voltage for the coming sample (motor.terminal_voltage), into row U."""
+    def _set_terminal_voltage(self, code, value, paused=None) -> None:
+        """The drive's voltage for the coming sample (motor.terminal_voltage), into row U (not where ``paused``)."""
         m = self.params.motor
         X = self._X
         kw = dict(R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max, i_max=m.i_max, sample_dt=self.dt,
                   decay=self._drive_decay)
-        if np.isscalar(code):
+        if np.isscalar(code) and paused is None:
             X[U] = terminal_voltage(_Command(mode=MODES[code], value=value), X[I], X[OMEGA], **kw)
             return
         for c in (CURRENT, VOLTAGE):
             mask = code == c
+            if paused is not None:
+                mask = mask & ~paused
             if mask.any():
                 u = terminal_voltage(_Command(mode=MODES[c], value=value), X[I], X[OMEGA], **kw)
                 np.copyto(X[U], u, where=mask, casting="unsafe")  # u broadcasts to the batch
