@@ -292,7 +292,8 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
         if head.get("time_shares"):
             lines += ["", "Where the headline row's wall time went, per process (" + _time_shares(head["time_shares"])
                       + "; `StepClock` in `vector/shards.py`). *wait* is a process blocked until another answers: "
-                      "the step waits for the slower shard."]
+                      "the step waits for the slower shard; *spares* and *fits* are the spare episodes' starts and "
+                      "stroke fits, done while a process would otherwise wait."]
         if head.get("repeat_samples_per_s") and len(head["repeat_samples_per_s"]) > 1:
             lines += [f"The headline row is the median of {len(head['repeat_samples_per_s'])} runs, each from a fresh "
                       "env: " + ", ".join(f"{v:,.0f}" for v in head["repeat_samples_per_s"])
@@ -311,15 +312,17 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
                   "to do), but a record is identified in one piece, so in a step where an odd number of episodes "
                   "ended (" + (f"{100 * head['odd_end_steps_frac']:.0f} % of the timed steps" if "odd_end_steps_frac" in head
                                else "about half the steps") + ") one process waits for the other's last record; the "
-                  "shards' sampling halves also differ from step to step (the stroke fits at the free strokes' stops, "
-                  "the records of the ended episodes; the spare starts run while a process waits), "
+                  "shards' sampling halves also differ from step to step (the records of the ended episodes; the "
+                  "spare starts and the stroke fits at the free strokes' stops run while a process waits, as far as "
+                  "it waits), "
                   "and other jobs on the machine take turns (load average above). "
                   + (f"Per sample the {head.get('workers', 1)} processes used "
                      f"{abs(100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1)):.0f} % "
                      f"{'more' if b['samples_per_cpu_s'] > head['samples_per_cpu_s'] else 'less'} CPU than one: each "
                      "shard pays the fixed cost of the Python and array calls of every rig sample, whatever its number "
-                     "of slots, and the parent process, which steps shard 0 itself, also relays the other shards' "
-                     "actions, results and moved records. " if head.get("workers", 1) > 1 else "")
+                     "of slots, and the parent process, which steps shard 0 itself (2.5 % fewer environments than "
+                     "the others), also relays the other shards' actions, results and moved records. "
+                     if head.get("workers", 1) > 1 else "")
                   + "Per episode "
                   f"the identification ({ident_ms:,.1f} CPU-ms) costs "
                   f"{'more' if ident_ms > per_episode / e['samples_per_cpu_s'] * 1e3 else 'less'} than stepping its "

@@ -24,6 +24,10 @@ slowest shard, so without this the shard that happens to have more episodes endi
 A shard starts its step's spare episodes (:meth:`~.env.ReverseStrokeVectorEnv.start_spares`, a
 few ms every few steps) while it waits for the others, not in its sampling half: the same
 episodes, and the halves are more even (measured: 715k -> 735k samples/s, 6 alternating runs).
+So does it with the stroke fits of the spares that reached their stop
+(:meth:`~.env.ReverseStrokeVectorEnv.fit_spare_stops`, one fit at a time while nobody has answered; an
+environment taking a slot whose fit is not done does it then): 900k -> 933k samples/s, 3
+alternating runs each.
 
 Shard 0 is a little smaller than the others (:func:`shard_sizes`), since this process also relays
 the records and joins the shards' results.
@@ -97,7 +101,7 @@ def balance_plan(loads: list[list[float]], margin: float = MOVE_MARGIN) -> list[
 class StepClock:
     """Where one process's wall time goes in the sharded steps, while ``on``: :meth:`lap` gives the
     time since the previous lap to an activity (``sample``: the sampling half, ``spares``: spare
-    starts, ``identify``, ``transfer``: records and results to and from other processes, the plan,
+    starts, ``fits``: the spares' stroke fits, ``identify``, ``transfer``: records and results to and from other processes, the plan,
     ``finish``, ``join``: the shards' results put together, ``wait``: blocked until another process
     answers, ``caller``: between two steps, in the caller's code), summed in ``seconds``."""
 
