@@ -316,10 +316,14 @@ def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) 
     counts = (len(ok), len(cols["phi1"]))
     if not ok:
         return _RunEstimate(float("nan"), float("inf"), [], counts)
-    g = np.array([weights[k] for k in ok])
-    if g.sum() <= 0:
+    if isinstance(weights, np.ndarray) and weights.dtype == np.float64 and weights.ndim == 1:
+        g = weights[good[rows]]  # the same numbers as np.array([weights[k] for k in ok])
+    else:
+        g = np.array([weights[k] for k in ok])
+    total = g.sum()
+    if total <= 0:
         return _RunEstimate(float("nan"), float("inf"), [], counts)
-    g = g / g.sum()
+    g = g / total
     lam = np.asarray(cols["lam"], dtype=float)[rows]
     lam_list = lam.tolist()  # the Python floats the Interval records hold
 
@@ -328,7 +332,7 @@ def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) 
 
     fits = np.empty(2 * len(rows), dtype=np.int64)  # the used angles' forward and reverse fits, in turn
     fits[0::2], fits[1::2] = 2 * rows, 2 * rows + 1
-    value, sigma = _dense_estimate(balance, g, np.array(lam_list), cols["phi1"][good[rows]].tolist(), lam_list,
+    value, sigma = _dense_estimate(balance, g, lam, cols["phi1"][good[rows]].tolist(), lam_list,
                                    pick("w1f"), pick("w1r"), pick("s_current"), pick("s_common"),
                                    pick("s_independent"), None, None, (cols["windows"], fits))
     return _RunEstimate(value, sigma, [], counts)
@@ -366,7 +370,7 @@ def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarra
     # The mean over the range equals the line's value at the weighted centre; a slope means
     # the estimate depends on where the boundary is taken: a quarter of the end-to-end change
     # is kept as uncertainty.
-    slope_part = 0.25 * abs(coef[0]) * float(np.ptp(phi1))
+    slope_part = 0.25 * abs(coef[0]) * float(phi1.max() - phi1.min())  # np.ptp's two reductions
     return float(np.hypot(np.sqrt(max(excess, 0.0)) / np.sqrt(max(len(lam) / 8.0, 1.0)), slope_part))
 
 
