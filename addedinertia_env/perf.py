@@ -301,11 +301,13 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
         median = head.get("median_abs_rel_error")
         if isinstance(median, float) and np.isfinite(median):
             lines += [f"Median |rel_error| under the random policy: {100 * median:.2f} %."]
-        met = result["vector_env_samples_per_s"] >= 1e6 and result["vector_ratio_to_sync"] >= 100
-        lines += ["", "**Against the targets** (1 M samples/s at n = 1024 and 100 x `make_vec` sync, whole task with",
-                  f"identification, same run): **{'met' if met else 'not met'}** in this run: "
-                  f"{result['vector_env_samples_per_s']:,.0f} samples/s wall and "
-                  f"{result['vector_ratio_to_sync']:,.0f} x. In {head.get('workers', 1)} process(es) the wall figure is at most "
+        speed_met = result["vector_env_samples_per_s"] >= 1e6
+        ratio_met = result["vector_ratio_to_sync"] >= 100
+        lines += ["", "**Against the targets** (whole task with identification, n = 1024, same run): 1 M samples/s "
+                  f"**{'met' if speed_met else 'not met'}** ({result['vector_env_samples_per_s']:,.0f} samples/s wall); "
+                  f"100 x `make_vec` sync **{'met' if ratio_met else 'not met'}** "
+                  f"({result['vector_ratio_to_sync']:,.0f} x; the sync figure itself moves by about 10 % between runs on "
+                  f"this machine). In {head.get('workers', 1)} process(es) the wall figure is at most "
                   f"{head.get('workers', 1)} x the per-CPU-second one ({head['samples_per_cpu_s']:,.0f}); here the processes "
                   f"kept {head['cpu_s'] / head['wall_s']:.1f} cores busy: every step waits for the slower shard. The shards "
                   "share the identification of the episodes that ended in a step (records move to the shard with less "
