@@ -423,3 +423,7 @@ def test_the_checks_rig_and_phase_blocks_give_what_the_record_gives(records):
                (plain.lambda66, plain.ci95, plain.n_intervals, plain.details), name
     with pytest.raises(ValueError, match="one per record"):
         energy.identify_energy([bare], checked=[limits, limits])
+    from addedinertia_env.identify import identify  # noqa: PLC0415
+
+    with pytest.raises(ValueError, match="passed by identify"):  # only identify() itself gives it
+        identify([rec], "energy", checked=[limits])

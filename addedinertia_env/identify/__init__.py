@@ -33,7 +33,10 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
     checked = [check_plausible(rec) for rec in records]
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
-    if method == "energy" and "checked" not in options:  # it reuses the check's typed rig and phase blocks
+    if "checked" in options:
+        raise ValueError("identify(): option 'checked' is the plausibility check's own result, passed by "
+                         "identify() itself; call the method's function directly to give it")
+    if method == "energy":  # it reuses the check's typed rig and phase blocks
         options = {**options, "checked": checked}
     try:
         result = estimator([r.without_truth() for r in records], **options)
