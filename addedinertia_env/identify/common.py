@@ -12,6 +12,7 @@ import numpy as np
 from ..record import RunRecord
 from ..scan_kernels import bitwise_constant
 from ..series_stats import median_step
+from .fit_kernels import lstsq as rounded_lstsq
 
 
 class IdentificationError(ValueError):
@@ -101,7 +102,7 @@ def local_fit(t: np.ndarray, y: np.ndarray, tc: float, half_width: float, full: 
         raise IdentificationError(f"too few samples ({int(sel.sum())}) around t = {tc:.4f} s for a local fit")
     s = t[sel] - tc
     X = np.vander(s, degree + 1, increasing=True)
-    coef, *_ = np.linalg.lstsq(X, y[sel], rcond=None)
+    coef, *_ = rounded_lstsq(X, y[sel], rcond=None)
     if not full:
         return coef
     resid = y[sel] - X @ coef
@@ -126,7 +127,7 @@ def power_fit(x: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
         columns[j] = columns[j - 1] * x if j > 1 else x
     scale = np.sqrt(np.square(columns).sum(1))
     scale[scale == 0] = 1
-    coef, _, rank, _ = np.linalg.lstsq(columns.T / scale, y, len(x) * np.finfo(x.dtype).eps)
+    coef, _, rank, _ = rounded_lstsq(columns.T / scale, y, len(x) * np.finfo(x.dtype).eps)
     if rank != degree + 1:
         warnings.warn("The fit may be poorly conditioned", np.exceptions.RankWarning, stacklevel=2)
     return coef / scale
@@ -144,7 +145,7 @@ def line_fit(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     design[:, 0] = x
     scale = np.sqrt((design * design).sum(axis=0))
     design /= scale
-    coef, _, rank, _ = np.linalg.lstsq(design, y, len(x) * np.finfo(x.dtype).eps)
+    coef, _, rank, _ = rounded_lstsq(design, y, len(x) * np.finfo(x.dtype).eps)
     if rank != 2:
         warnings.warn("Polyfit may be poorly conditioned", np.exceptions.RankWarning, stacklevel=2)
     return coef / scale
@@ -201,6 +202,9 @@ def prepare() -> None:
     warm_up()
     warm_up_scans()
     warm_up_balance()
+    from .fit_kernels import warm_up as warm_up_fits  # noqa: PLC0415
+
+    warm_up_fits()
 
 
 @lru_cache(maxsize=64)

@@ -20,6 +20,7 @@ import numpy as np
 from ..series_kernels import (canonical_abscissae, first_at_or_past, fit_windows, is_ascending, place_rows,
                               polynomial_roots_near_zero, scaled_deviation, window_rows)
 from .common import IdentificationError
+from .fit_kernels import shared_design_fits
 
 SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
 
@@ -93,6 +94,10 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         j = int(short[0])
         raise IdentificationError(f"too few samples ({int(size[j])}) around t = {tc[j]:.4f} s for a local fit")
     out_t, rate, sigma = np.empty(n_fit), np.empty(n_fit), np.empty(n_fit)
+    if degree >= 1:  # evenly sampled (every group shares its design): one compiled pass per group
+        fused = _fused_fits(t, phi, ks, levels, half_width, degree, tc, first, size, out_t, rate, sigma)
+        if fused is not None:
+            return fused
     powers = np.arange(degree + 1)
     coef = np.empty((n_fit, degree + 1))
     groups = []  # (fits, sample indices, angles, design, pseudo-inverse): P0/X0 shared, or P/X per fit
@@ -137,6 +142,29 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         var = np.maximum(np.einsum("ij,ij->i", resid, resid) / max(m - degree - 1, 1), 1e-24)
         sigma[g] = np.sqrt(var) * np.linalg.norm(kernel, axis=1)
         place_rows(flat, offsets[g], kernel)  # flat[offsets[g][:, None] + arange(m)] = kernel
+    windows = (first, size, offsets, flat)
+    return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": WindowKernels(windows), "windows": windows}
+
+
+def _fused_fits(t, phi, ks, levels, half_width, degree, tc, first, size, out_t, rate, sigma):
+    """:func:`crossing_fits` by one compiled pass per window length (:func:`~.fit_kernels.shared_design_fits`,
+    equal to the numpy path below it to float rounding), when every group of fits shares one design; None
+    otherwise (the numpy path then runs)."""
+    designs = []
+    for m in sorted(set(size.tolist())):
+        g = np.nonzero(size == m)[0]
+        shared = _shared_design(t, first[g], tc[g], m, half_width, degree)
+        if shared is None:
+            return None
+        designs.append((g, shared))
+    first, size = np.asarray(first, dtype=np.int64), np.asarray(size, dtype=np.int64)
+    offsets = np.zeros(len(ks), dtype=np.int64)
+    np.cumsum(size[:-1], out=offsets[1:])
+    flat = np.empty(int(size.sum()))
+    phi = np.ascontiguousarray(phi, dtype=float)
+    for g, (X0, P0) in designs:
+        shared_design_fits(phi, first, tc, levels, X0, P0, float(half_width), 8, g, flat, offsets,
+                           out_t, rate, sigma)
     windows = (first, size, offsets, flat)
     return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": WindowKernels(windows), "windows": windows}
 

@@ -70,6 +70,8 @@ from .balance_kernels import angle_uncertainties, angle_values
 from .common import (IdentificationError, Result, SharedSavgol, largest_gap, line_fit, local_fit, pooled_interval,
                      power_fit, savgol, smooth_angle, smooth_angles)
 from .crossings import crossing_fits, first_crossings
+from .fit_kernels import lstsq as rounded_lstsq
+from .fit_kernels import project_out_line
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
 # the patent drops the nearly uniform middle of the stroke, and too near the stop the
@@ -933,21 +935,14 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
 
     lags = np.arange(-2e-3, MAX_LAG_S + 1e-9, 2.5e-4)
     # Least squares on (1, t - t_a, the lagged current's column), every lag at once: the first two
-    # columns are shared, so they are projected out (twice, for orthogonality to rounding) and
-    # each lag's column is then a one-column fit; the residuals are formed explicitly.
-    Q, _ = np.linalg.qr(np.column_stack([np.ones_like(tt), tt - tt[0]]))
+    # columns are shared, so they are projected out (twice, for orthogonality to rounding;
+    # fit_kernels.project_out_line) and each lag's column is then a one-column fit.
 
-    def projected(x):  # the rows with the first two columns projected out: x - (x @ Q) @ Q.T, twice
-        out, fit = np.empty(np.shape(x)), np.empty(np.shape(x))  # written in place (no fresh temporaries)
-        src = x
-        for _ in range(2):
-            np.matmul(src @ Q, Q.T, out=fit)
-            np.subtract(src, fit, out=out)
-            src = out
-        return out
+    def projected(x):  # the rows with the first two columns projected out
+        return project_out_line(np.atleast_2d(x), tt).reshape(np.shape(x))
 
     y = projected(y)
-    rss = _lag_rss(t, i, a, b, lags, lambda x: projected(twice(x)), y)  # k_t / J_f leaves the residuals
+    rss = _lag_rss(t, i, a, b, lags, twice, projected, tt, y)  # k_t / J_f leaves the residuals
     j = int(np.argmin(rss))
     if not 0 < j < len(lags) - 1 or np.sqrt(rss[j] / len(tt)) > 1e-3:
         return None
@@ -958,41 +953,46 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
         return None  # a smooth current: lag and scale trade off against each other
     frac = 0.5 * (rss[j - 1] - rss[j + 1]) / den if den > 0 else 0.0
     lag = float(lags[j] + frac * (lags[1] - lags[0]))
-    X = np.column_stack([np.ones_like(tt), tt - tt[0], k_t * twice(np.interp(tt + lag, t, i)) / J_f])
-    coef, *_ = np.linalg.lstsq(X, target, rcond=None)
-    scale = float(coef[2])
+    # the third coefficient of the fit on (1, t - t_a, z) by the projection theorem (y is projected already)
+    z = projected(k_t * twice(np.interp(tt + lag, t, i)) / J_f)
+    scale = float((z @ y) / (z @ z))
     if not 0.5 < scale < 2.0:
         return None
     return scale, lag
 
 
-def _lag_rss(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray, linear, y: np.ndarray) -> np.ndarray:
+def _lag_rss(t, i, a, b, lags, twice, projected, tt, y):
     """Residual sum of squares of the one-column fit ``y ~ c z_lag`` for every lag, where
-    ``z_lag = linear(np.interp(t[a:b + 1] + lag, t, i))`` (the calibration's lagged current, twice
-    integrated and projected); the residuals of the lags that can be the best one or its
-    neighbours are formed explicitly (no cancellation), the others only bounded.
+    ``z_lag = projected(twice(np.interp(t[a:b + 1] + lag, t, i)))`` (the calibration's lagged current,
+    twice integrated and projected; ``y`` projected already); the residuals of the lags that can be
+    the best one or its neighbours are formed explicitly (no cancellation), the others only bounded.
 
-    On an evenly sampled stretch each ``z_lag`` blends two whole-sample shifts ``(1 - f) B_k + f
-    B_(k+1)`` (:func:`_lagged_twice`), so ``z.y`` and ``z.z`` follow for every lag from the ~16
-    shifts' products, and ``|y|^2 - (z.y)^2 / z.z`` ranks the lags; the rows within rounding of
-    the smallest (and their neighbours) are then formed and their residuals summed as before.
-    Otherwise (or if the ranking is not clear-cut) every row is formed.
-    """
-    blended = _lagged_twice(t, i, a, b, lags, linear, blend=False)
-    if blended is not None:
-        base, k, frac = blended
-        # the bound |y|^2 - (z.y)^2 / z.z per lag, and the lags within tol = 1e-9 |y|^2 of the smallest
-        # (far above the bound's rounding, far below a step of rss between lags) with their neighbours;
-        # rss starts above every explicit one
-        rss, rows = lag_ranking(base @ y, base @ base.T, k, frac, float(y @ y))
-        g = 1.0 - frac
-        Z = g[rows, None] * base[k[rows]] + frac[rows, None] * base[k[rows] + 1]
-        rss[rows] = _explicit_rss(Z, y)
-        j = int(np.argmin(rss))
-        formed = set(rows.tolist())
-        if all(r in formed for r in (max(j - 1, 0), j, min(j + 1, len(lags) - 1))):
-            return rss
-    return _explicit_rss(_lagged_twice(t, i, a, b, lags, linear), y)
+    On an evenly sampled stretch each lag's row blends two whole-sample shifts (:func:`_lagged_twice`),
+    so the ~16 shifts ``B`` are twice integrated but not projected: with ``P = I - Q Q^T`` (``Q``: the
+    orthonormal ``1`` and centred ``tt``), ``z.y`` and ``z.z`` follow for every lag from ``B y`` and
+    ``B B^T - (B Q)(B Q)^T``, ``|y|^2 - (z.y)^2 / z.z`` ranks the lags, and the rows within rounding of
+    the smallest (and their neighbours) are formed, projected and summed. Otherwise (or if the ranking
+    is not clear-cut) every row is formed."""
+    blended = _lagged_twice(t, i, a, b, lags, twice, blend=False)
+    if blended is None:
+        return _explicit_rss(_lagged_twice(t, i, a, b, lags, lambda x: projected(twice(x))), y)
+    base, k, frac = blended
+    m = len(tt)
+    Q = np.empty((m, 2))
+    Q[:, 0] = 1.0 / np.sqrt(m)
+    c = tt - tt[0]
+    c = c - c.mean()
+    Q[:, 1] = c / np.sqrt(c @ c)
+    BQ = base @ Q
+    rss, rows = lag_ranking(base @ y, base @ base.T - BQ @ BQ.T, k, frac, float(y @ y))
+    g = 1.0 - frac
+    Z = projected(g[rows, None] * base[k[rows]] + frac[rows, None] * base[k[rows] + 1])
+    rss[rows] = _explicit_rss(Z, y)
+    j = int(np.argmin(rss))
+    formed = set(rows.tolist())
+    if all(r in formed for r in (max(j - 1, 0), j, min(j + 1, len(lags) - 1))):
+        return rss
+    return _explicit_rss(_lagged_twice(t, i, a, b, lags, lambda x: projected(twice(x))), y)
 
 
 def _explicit_rss(Z: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -1071,7 +1071,7 @@ def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: flo
     X[:, -1] = tau**2
     if span_s < 0:
         X[:, 1] = tau
-    coef, *_ = np.linalg.lstsq(X, levels, rcond=None)
+    coef, *_ = rounded_lstsq(X, levels, rcond=None)
     if span_s < 0:
         return coef
     return np.array([coef[0], 0.0, coef[1]])
@@ -1117,12 +1117,12 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c
     X[:, 0] = w
     np.multiply(w, np.abs(w), out=X[:, 1])
     y = -c * (ph - phi_n) - J_total * acc
-    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    coef, *_ = rounded_lstsq(X, y, rcond=None)
     d1, d2 = (float(x) for x in coef)
     if not (np.isfinite(d1) and np.isfinite(d2)):
         return None
     if d2 < 0:  # refit linear only
-        d1, d2 = float(np.linalg.lstsq(X[:, :1], y, rcond=None)[0][0]), 0.0
+        d1, d2 = float(rounded_lstsq(X[:, :1], y, rcond=None)[0][0]), 0.0
     return {"J": J_total, "d1": max(d1, 0.0), "d2": d2}
 
 
