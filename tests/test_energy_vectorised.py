@@ -207,8 +207,8 @@ def test_lag_search_ranks_like_every_residual_formed(records, monkeypatch):
     original = energy._lag_rss
     checked = []
 
-    def spy(t, i, a, b, lags, twice, projected, tt, y):
-        rss = original(t, i, a, b, lags, twice, projected, tt, y)
+    def spy(t, i, a, b, lags, twice, projected, Q, y):
+        rss = original(t, i, a, b, lags, twice, projected, Q, y)
         full = energy._explicit_rss(energy._lagged_twice(t, i, a, b, lags, lambda x: projected(twice(x))), y)
         j = int(np.argmin(full))
         assert int(np.argmin(rss)) == j

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from addedinertia_env.identify import crossings
-from addedinertia_env.identify.fit_kernels import lstsq, project_out_line
+from addedinertia_env.identify.fit_kernels import line_basis, lstsq, project_out_line
 
 
 def test_lstsq_equals_numpys_and_falls_back_on_rank_deficient_designs():
@@ -36,7 +36,10 @@ def test_projection_equals_the_qr_projection():
     want = x.copy()
     for _ in range(2):
         want = want - (want @ Q) @ Q.T
-    got = project_out_line(x, tt)
+    basis = line_basis(tt)
+    np.testing.assert_allclose(basis.T @ basis, np.eye(2), atol=1e-13)  # orthonormal
+    np.testing.assert_allclose(basis @ (basis.T @ Q), Q, atol=1e-12)  # the span of (1, tt - tt[0])
+    got = project_out_line(x, basis)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.max(np.abs(x)))
     np.testing.assert_allclose(got @ Q, 0.0, atol=1e-10)  # nothing of the line is left
 

@@ -125,10 +125,7 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
     rate[:] = _polyval(dcoef, x) / half_width
     out_t[:] = tc + x * half_width
     grad_all = np.where(powers > 0, powers * x[:, None] ** np.maximum(powers - 1, 0), 0.0) / half_width
-    first, size = np.asarray(first, dtype=np.int64), np.asarray(size, dtype=np.int64)
-    offsets = np.zeros(n_fit, dtype=np.int64)  # every kernel's weights, fit after fit, in one array
-    np.cumsum(size[:-1], out=offsets[1:])
-    flat = np.empty(int(size.sum()))
+    first, size, offsets, flat = _kernel_windows(first, size)
     for g, idx, y, X, P, is_shared in groups:
         m = idx.shape[1]
         grad = grad_all[g]
@@ -142,7 +139,20 @@ def crossing_fits(t: np.ndarray, phi: np.ndarray, ks: np.ndarray, levels: np.nda
         var = np.maximum(np.einsum("ij,ij->i", resid, resid) / max(m - degree - 1, 1), 1e-24)
         sigma[g] = np.sqrt(var) * np.linalg.norm(kernel, axis=1)
         place_rows(flat, offsets[g], kernel)  # flat[offsets[g][:, None] + arange(m)] = kernel
-    windows = (first, size, offsets, flat)
+    return _fits_result(out_t, rate, sigma, (first, size, offsets, flat))
+
+
+def _kernel_windows(first, size) -> tuple:
+    """``(first, size, offsets, flat)``: the fits' windows and room for every kernel's weights, fit after
+    fit, in one array (fit ``j``'s at ``flat[offsets[j]:offsets[j] + size[j]]``, to be filled)."""
+    first, size = np.asarray(first, dtype=np.int64), np.asarray(size, dtype=np.int64)
+    offsets = np.zeros(len(size), dtype=np.int64)
+    np.cumsum(size[:-1], out=offsets[1:])
+    return first, size, offsets, np.empty(int(size.sum()))
+
+
+def _fits_result(out_t, rate, sigma, windows) -> dict:
+    """What :func:`crossing_fits` returns, from its arrays and the filled ``windows``."""
     return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": WindowKernels(windows), "windows": windows}
 
 
@@ -157,16 +167,12 @@ def _fused_fits(t, phi, ks, levels, half_width, degree, tc, first, size, out_t, 
         if shared is None:
             return None
         designs.append((g, shared))
-    first, size = np.asarray(first, dtype=np.int64), np.asarray(size, dtype=np.int64)
-    offsets = np.zeros(len(ks), dtype=np.int64)
-    np.cumsum(size[:-1], out=offsets[1:])
-    flat = np.empty(int(size.sum()))
+    first, size, offsets, flat = windows = _kernel_windows(first, size)
     phi = np.ascontiguousarray(phi, dtype=float)
     for g, (X0, P0) in designs:
         shared_design_fits(phi, first, tc, levels, X0, P0, float(half_width), 8, g, flat, offsets,
                            out_t, rate, sigma)
-    windows = (first, size, offsets, flat)
-    return {"t": out_t, "rate": rate, "sigma_rate": sigma, "kernel": WindowKernels(windows), "windows": windows}
+    return _fits_result(out_t, rate, sigma, windows)
 
 
 class WindowKernels(Sequence):

@@ -71,7 +71,7 @@ from .common import (IdentificationError, Result, SharedSavgol, largest_gap, lin
                      power_fit, savgol, smooth_angle, smooth_angles)
 from .crossings import crossing_fits, first_crossings
 from .fit_kernels import lstsq as rounded_lstsq
-from .fit_kernels import project_out_line
+from .fit_kernels import line_basis, project_out_line
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:
 # the patent drops the nearly uniform middle of the stroke, and too near the stop the
@@ -938,11 +938,13 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     # columns are shared, so they are projected out (twice, for orthogonality to rounding;
     # fit_kernels.project_out_line) and each lag's column is then a one-column fit.
 
+    Q = line_basis(tt)
+
     def projected(x):  # the rows with the first two columns projected out
-        return project_out_line(np.atleast_2d(x), tt).reshape(np.shape(x))
+        return project_out_line(np.atleast_2d(x), Q).reshape(np.shape(x))
 
     y = projected(y)
-    rss = _lag_rss(t, i, a, b, lags, twice, projected, tt, y)  # k_t / J_f leaves the residuals
+    rss = _lag_rss(t, i, a, b, lags, twice, projected, Q, y)  # k_t / J_f leaves the residuals
     j = int(np.argmin(rss))
     if not 0 < j < len(lags) - 1 or np.sqrt(rss[j] / len(tt)) > 1e-3:
         return None
@@ -961,7 +963,7 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     return scale, lag
 
 
-def _lag_rss(t, i, a, b, lags, twice, projected, tt, y):
+def _lag_rss(t, i, a, b, lags, twice, projected, Q, y):
     """Residual sum of squares of the one-column fit ``y ~ c z_lag`` for every lag, where
     ``z_lag = projected(twice(np.interp(t[a:b + 1] + lag, t, i)))`` (the calibration's lagged current,
     twice integrated and projected; ``y`` projected already); the residuals of the lags that can be
@@ -969,7 +971,7 @@ def _lag_rss(t, i, a, b, lags, twice, projected, tt, y):
 
     On an evenly sampled stretch each lag's row blends two whole-sample shifts (:func:`_lagged_twice`),
     so the ~16 shifts ``B`` are twice integrated but not projected: with ``P = I - Q Q^T`` (``Q``: the
-    orthonormal ``1`` and centred ``tt``), ``z.y`` and ``z.z`` follow for every lag from ``B y`` and
+    projection's :func:`~.fit_kernels.line_basis`), ``z.y`` and ``z.z`` follow for every lag from ``B y`` and
     ``B B^T - (B Q)(B Q)^T``, ``|y|^2 - (z.y)^2 / z.z`` ranks the lags, and the rows within rounding of
     the smallest (and their neighbours) are formed, projected and summed. Otherwise (or if the ranking
     is not clear-cut) every row is formed."""
@@ -977,12 +979,6 @@ def _lag_rss(t, i, a, b, lags, twice, projected, tt, y):
     if blended is None:
         return _explicit_rss(_lagged_twice(t, i, a, b, lags, lambda x: projected(twice(x))), y)
     base, k, frac = blended
-    m = len(tt)
-    Q = np.empty((m, 2))
-    Q[:, 0] = 1.0 / np.sqrt(m)
-    c = tt - tt[0]
-    c = c - c.mean()
-    Q[:, 1] = c / np.sqrt(c @ c)
     BQ = base @ Q
     rss, rows = lag_ranking(base @ y, base @ base.T - BQ @ BQ.T, k, frac, float(y @ y))
     g = 1.0 - frac

@@ -6,7 +6,7 @@ order of its own, so the results are the same on every machine and differ from t
 replaced in the last bits (lambda66 by at most 3e-14 relative over 792 records, no lag, acceptance,
 rejection or error outcome changed; /work/notes of session 7, "i13round"). What they save is numpy's
 per-call overhead on small problems: the crossing fits of one record in one pass
-(:func:`shared_design_fits`), the calibration's projection (:func:`project_out_line`), and the small
+(:func:`shared_design_fits`), the calibration's projection (:func:`line_basis`, :func:`project_out_line`), and the small
 full-rank least-squares fits (:func:`lstsq`). tests/test_fit_kernels.py holds each to its numpy form.
 """
 
@@ -14,9 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-
-LANES = 8  # partial sums per dot product (vectorisable, fixed order: lane sums then a pairwise tree)
-
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _dot(a, a0, b, b0, n):
@@ -105,24 +102,33 @@ def shared_design_fits(phi, first, tc, levels, X0, P0, half_width, steps, fits, 
 
 
 @njit(cache=True, error_model="numpy")
-def project_out_line(x, tt):
-    """Each row of ``x`` with its least-squares fit on ``(1, tt - tt[0])`` removed, twice (the calibration's
-    ``projected``, to float rounding): the orthonormal pair ``q1 = 1/sqrt(m)``, ``q2`` = centred ``tt``
-    normalised, built here (no QR)."""
-    rows, m = x.shape
-    q1 = 1.0 / np.sqrt(m)
+def line_basis(tt):
+    """The orthonormal pair spanning ``(1, tt - tt[0])`` over the samples ``tt`` (s), as the columns of
+    an ``(m, 2)`` array: ``1/sqrt(m)`` and the centred ``tt`` normalised (no QR)."""
+    m = len(tt)
     mean = 0.0
     for k in range(m):
         mean += tt[k] - tt[0]
     mean /= m
-    q2 = np.empty(m)
+    Q = np.empty((m, 2))
     nn = 0.0
     for k in range(m):
-        q2[k] = (tt[k] - tt[0]) - mean
-        nn += q2[k] * q2[k]
+        Q[k, 0] = 1.0 / np.sqrt(m)
+        Q[k, 1] = (tt[k] - tt[0]) - mean
+        nn += Q[k, 1] * Q[k, 1]
     nrm = np.sqrt(nn)
     for k in range(m):
-        q2[k] /= nrm
+        Q[k, 1] /= nrm
+    return Q
+
+
+@njit(cache=True, error_model="numpy")
+def project_out_line(x, Q):
+    """Each row of ``x`` with its least-squares fit on ``(1, tt - tt[0])`` removed, twice (the calibration's
+    ``projected``, to float rounding); ``Q``: :func:`line_basis` of ``tt``."""
+    rows, m = x.shape
+    q1 = Q[0, 0]
+    q2 = np.ascontiguousarray(Q[:, 1])
     out = np.empty((rows, m))
     for r in range(rows):
         for k in range(m):
@@ -207,5 +213,5 @@ def warm_up() -> None:
     X0 = np.vander(np.linspace(-1, 1, 9), 6, increasing=True)
     shared_design_fits(x, one, x[:1], x[:1], X0, np.linalg.pinv(X0), 1.0, 8, one, np.empty(9), one,
                        np.empty(1), np.empty(1), np.empty(1))
-    project_out_line(np.ones((2, 16)), x)
+    project_out_line(np.ones((2, 16)), line_basis(x))
     qr_least_squares(np.vander(x, 3), x)
