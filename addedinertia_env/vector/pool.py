@@ -340,8 +340,8 @@ class ExperimentPool:
         self._flush(slots)
         self.k_hold[slots] = self._flushed[slots]
         no_hold = slots[self.hold_s[slots] <= 0]
-        for k in no_hold.tolist():
-            self.rig.set_brake(False, envs=[k])
+        if len(no_hold):
+            self.rig.set_brake(False, envs=no_hold)
         self.k_reverse[no_hold] = self._flushed[no_hold]
         self._unfitted[slots] = True
         self.stage[slots] = READY

@@ -369,7 +369,7 @@ class ShardedVectorEnv(VectorEnv):
         self._send_all("settle", [(exports.get(k, []), len(imports.get(k, []))) for k in range(1, len(self.sizes))])
         senders = [self._conns[k - 1] for k in exports if k]
         if senders:
-            self.local.fit_spare_stops(lambda: all(conn.poll() for conn in senders))
+            self.local.fit_spare_stops(lambda: self._answered(senders))
             clock.lap("fits")
         sent = {k: self._gather_one(k) for k in exports if k}
         clock.lap("wait")
@@ -390,7 +390,7 @@ class ShardedVectorEnv(VectorEnv):
         clock.lap("identify")
         importers = [self._conns[k - 1] for k in imports if k]
         if importers:
-            self.local.fit_spare_stops(lambda: all(conn.poll() for conn in importers))
+            self.local.fit_spare_stops(lambda: self._answered(importers))
             clock.lap("fits")
         for dst, items in imports.items():
             if dst:
@@ -404,9 +404,9 @@ class ShardedVectorEnv(VectorEnv):
             estimates[i] = estimate
         return estimates
 
-    def _answered(self) -> bool:
-        """Whether every worker's next answer is waiting to be read."""
-        return all(conn.poll() for conn in self._conns)
+    def _answered(self, conns: list | None = None) -> bool:
+        """Whether the next answer of every worker (of ``conns``, or all) is waiting to be read."""
+        return all(conn.poll() for conn in (self._conns if conns is None else conns))
 
     def _plan(self, loads: list[list[int]]) -> list[tuple[int, int, int]]:
         """The records to identify in another shard this step (:func:`balance_plan`)."""
