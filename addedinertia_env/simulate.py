@@ -10,6 +10,7 @@ import numpy as np
 
 from agents.registry import DEFAULT_CONTROLLER
 
+from .experiment.controller import Controller
 from .experiment.protocol import ExperimentPlan
 from .experiment.runner import run_experiment
 from .record import RunRecord, write_record
@@ -24,7 +25,7 @@ OTHER_KINDS = {
 }
 
 
-def simulate_run(rig_params: RigParams, controller: Any = DEFAULT_CONTROLLER, plan: ExperimentPlan | None = None,
+def simulate_run(rig_params: RigParams, controller: Controller | str = DEFAULT_CONTROLLER, plan: ExperimentPlan | None = None,
                  seed: int | np.random.SeedSequence = 0, kind: str = "reverse-symmetric",
                  run_id: str = "run") -> RunRecord:
     """One simulated experiment of ``kind`` on a fresh MuJoCo rig."""

@@ -6,6 +6,8 @@ from __future__ import annotations
 import importlib
 from typing import Any, Callable
 
+from addedinertia_env.experiment.controller import Controller
+
 # name -> "module:attribute" of a zero-argument factory (usually the class).
 CLASSICAL: dict[str, str] = {
     "pd": "agents.feedforward_pd:PD",
@@ -46,7 +48,7 @@ def controller_class(name: str) -> Callable[..., Any]:
     return load_factory(CLASSICAL[name])
 
 
-def make_plain_controller(name: str, **kwargs: Any) -> Any:
+def make_plain_controller(name: str, **kwargs: Any) -> Controller:
     """A classical controller by name, or an outside one by ``module:factory``, with ``kwargs``."""
     if name in CLASSICAL:
         return load_factory(CLASSICAL[name])(**kwargs)

@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from addedinertia_env.task import ControllerContext
+
 from .classical import make_plain_controller
 from .residual import policy_rate_context
 
@@ -32,7 +34,7 @@ class HeldController:
         self._calls, self._repeat = 0, self.every
         self._held = np.zeros(1, dtype=np.float32)
 
-    def reset(self, context) -> None:
+    def reset(self, context: ControllerContext) -> None:
         """Episode start: the inner controller gets the policy-rate context; called already at
         the policy rate (``context.policy_rate_hz`` equal to it) it decides at every call."""
         ctx = policy_rate_context(context, self.every)

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from addedinertia_env.experiment.controller import Controller
+
 from .classical import CLASSICAL, UnknownController, controller_class, load_factory, make_plain_controller
 
 __all__ = ["CLASSICAL", "DEFAULT_CONTROLLER", "REFERENCE_ROWS", "UnknownController", "controller_class",
@@ -17,7 +19,7 @@ DEFAULT_CONTROLLER = "lqr"
 REFERENCE_ROWS = ("oracle", "zero")  # benchmark references (addedinertia_env/bench/runner.py), not controllers
 
 
-def make_controller(name: str, **kwargs: Any) -> Any:
+def make_controller(name: str, **kwargs: Any) -> Controller:
     """A controller from its name; see the module docstring for the accepted forms."""
     if name in REFERENCE_ROWS:
         raise UnknownController(f"{name!r} is a reference row of the simulated benchmark suites "

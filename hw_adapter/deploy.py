@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import Experiment, ExperimentError
 from addedinertia_env.experiment.runner import drive
 from addedinertia_env.identify import IdentificationError, identify
@@ -67,7 +68,7 @@ class DeployOptions:
     board_mode: str | None = None  # two-rate: "zoh" or "pd" (None: the controller's own, else zoh)
 
 
-def rate_mismatch(controller: Any, caps: m.Caps, host_rate_hz: float | None, board_mode: str | None) -> str | None:
+def rate_mismatch(controller: Controller, caps: m.Caps, host_rate_hz: float | None, board_mode: str | None) -> str | None:
     """Why ``controller`` cannot run on this bench at this host rate (None if it can).
 
     A controller that declares a policy rate (an exported policy: ``policy_rate_hz``,
@@ -178,7 +179,7 @@ def warm_up(rig: BenchRig, seconds: float) -> dict[str, Any]:
     return stats
 
 
-def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
+def deploy(opts: DeployOptions, controller: Controller) -> tuple[dict[str, Any], int]:
     """Run one experiment on ``opts.bench``; returns (summary, exit status)."""
     t_start = time.perf_counter()
     plan = opts.lab.plan(hold_s=opts.hold_s, alpha=opts.alpha)
@@ -275,7 +276,7 @@ def deploy(opts: DeployOptions, controller: Any) -> tuple[dict[str, Any], int]:
     return summary, exit_status
 
 
-def _run(exp: Experiment, rig: BenchRig, controller: Any, host_rate_hz: float | None = None,
+def _run(exp: Experiment, rig: BenchRig, controller: Controller, host_rate_hz: float | None = None,
          board_mode: str | None = None) -> None:
     """The loop of ``run_experiment``, on the bench (two-rate: ``drive_two_rate``)."""
     exp.start()

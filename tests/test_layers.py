@@ -29,7 +29,7 @@ LAYERS: dict[str, int] = {
     "addedinertia_env.identify": 4, "addedinertia_env.discover": 4, "addedinertia_env.decay": 4, "agents": 4,
     # 5 applications: simulation runs, environments, training, benchmark, bench hardware
     "addedinertia_env.simulate": 5, "addedinertia_env.discover.dataset": 5, "addedinertia_env.envs": 5, "addedinertia_env.vector": 5,
-    "addedinertia_env.learning": 5, "addedinertia_env.bench": 5, "addedinertia_env.sweeps": 5,
+    "addedinertia_env.learning": 5, "addedinertia_env.bench": 5, "addedinertia_env.sweeps": 5, "addedinertia_env.scoring": 5,
     "addedinertia_env.perf": 5, "addedinertia_env.experiment.energy_budget": 5, "hw_adapter": 5,
     # 6 the command line
     "addedinertia_env.cli": 6,

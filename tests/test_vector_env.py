@@ -363,8 +363,8 @@ def test_an_episode_whose_record_fails_the_plausibility_check_is_scored_as_faile
     samples["psi"] = samples["psi"].copy()
     samples["psi"][len(samples["psi"]) // 2] = 1e15
     bad = dataclasses.replace(record, samples=samples)
-    est, lo, hi, failure = estimate_lambda66(bad)
-    assert np.isnan([est, lo, hi]).all() and "column 'psi'" in failure
+    est = estimate_lambda66(bad)
+    assert np.isnan([est.lambda66, *est.ci95]).all() and est.failed and "column 'psi'" in est.failure
 
     single = ReverseStrokeEnv(**SHORT)
     single.reset(seed=5)

@@ -2,9 +2,9 @@
 
 A row holds at least: controller, suite, scenario, seed, lambda66_true, lambda66_est,
 rel_error, energy_J, tracking_rms_rad, saturated_frac, wall_s, version (and commit).
-``lambda66_est`` comes from ``identify([record], "energy")``; ``lambda66_true`` from the
-scenario's own parameters (scoring only). A run or identification that fails gives a
-row with ``rel_error: null`` and the reason in ``failure``.
+Every number of the episode comes from the one scoring, :func:`addedinertia_env.scoring.score_episode`
+(``lambda66_true``: the records' truth block, scoring only). A run or identification that
+fails gives a row with ``rel_error: null`` and the reason in ``failure``.
 
 The ranked ``rel_error`` is the patent's energy method as written
 (``asymmetry_correction=False``); ``rel_error_corrected`` is the project's default
@@ -34,10 +34,10 @@ import numpy as np
 from agents import make_controller
 
 from .. import __version__
+from ..experiment.controller import Controller
 from ..experiment.runner import run_experiment
-from ..identify import identify
-from ..metrics import cycles_metrics
 from ..scenarios import build_rig
+from ..scoring import AS_WRITTEN, CORRECTED, score_episode
 from .suites import EpisodeTask
 
 # The ranked score: the patent's energy method as written (no model-based correction of the
@@ -74,7 +74,7 @@ REFERENCES = ("oracle", "zero")  # reference rows: truth-based tracking (the flo
 WARMUP_SEED_BASE = 1000
 
 
-def episode_controller(name: str, kwargs: dict[str, Any], rig: Any) -> Any:
+def episode_controller(name: str, kwargs: dict[str, Any], rig: Any) -> Controller:
     """The controller of an episode: a reference (``oracle`` needs the simulated ``rig``) or a
     registry name (agents/registry.py)."""
     if name == "oracle":
@@ -88,7 +88,7 @@ def episode_controller(name: str, kwargs: dict[str, Any], rig: Any) -> Any:
     return make_controller(name, **kwargs)
 
 
-def entry_kind(name: str, controller: Any = None) -> str:
+def entry_kind(name: str, controller: Controller | None = None) -> str:
     """``reference``, ``learned`` (a training cost is known) or ``classical``; see also ``task.entry``."""
     if name in REFERENCES:
         return "reference"
@@ -103,7 +103,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
     sc = task.scenario
     from ..rig.forces import true_lambda66  # noqa: PLC0415
 
-    truth = true_lambda66(sc.rig)  # scoring only (A66 at the swing frequency with radiation memory)
+    truth = true_lambda66(sc.rig)  # describes the scenario; the score's own (the records' truth block) replaces it
     row: dict[str, Any] = {
         "controller": task.controller, "suite": task.suite, "split": task.split, "scenario": sc.name,
         "seed": sc.seed, "preset": task.preset, "sensor_quality": sc.sensor_quality,
@@ -136,21 +136,20 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
             rec = run_experiment(rig, controller, sc.plan, run_id=f"{sc.name}/cycle-{k}")
             if n >= learning:
                 records.append(rec)
-        m = cycles_metrics(records)
-        row.update(energy_J=m.energy_J, saturated_frac=m.saturated_frac,
-                   tracking_rms_rad=m.tracking_rms_rad if math.isfinite(m.tracking_rms_rad) else None)
-        try:
-            corrected = identify(records, "energy")
-            row["lambda66_est_corrected"] = float(corrected.lambda66)
-            row["rel_error_corrected"] = float(corrected.lambda66) / truth - 1.0
-        except Exception as e:  # noqa: BLE001 - reported beside the ranked score, never instead of it
-            row["failure_corrected"] = f"{type(e).__name__}: {e}"
-        result = identify(records, "energy", asymmetry_correction=False)
-        est = float(result.lambda66)
-        if not math.isfinite(est):
-            raise ValueError("identification returned a non-finite lambda66")
-        row.update(lambda66_est=est, ci95=[float(x) for x in result.ci95], rel_error=est / truth - 1.0,
-                   abs_rel_error=abs(est / truth - 1.0))
+        # the one scoring (addedinertia_env/scoring.py): ranked as written, the corrected score beside it
+        ranked = score_episode(records, AS_WRITTEN)
+        row.update(lambda66_true=ranked.lambda66_true, energy_J=ranked.energy_J, saturated_frac=ranked.saturated_frac,
+                   tracking_rms_rad=ranked.tracking_rms_rad if math.isfinite(ranked.tracking_rms_rad) else None)
+        corrected = score_episode(records, CORRECTED, metrics=False)
+        if corrected.failed:  # reported beside the ranked score, never instead of it
+            row["failure_corrected"] = f"{corrected.failure_type}: {corrected.failure}"
+        else:
+            row.update(lambda66_est_corrected=corrected.lambda66_est, rel_error_corrected=corrected.rel_error)
+        if ranked.failed:
+            row["failure"] = f"{ranked.failure_type}: {ranked.failure}"
+        else:
+            row.update(lambda66_est=ranked.lambda66_est, ci95=list(ranked.ci95), rel_error=ranked.rel_error,
+                       abs_rel_error=abs(ranked.rel_error))
     except Exception as e:  # noqa: BLE001 - any failure of one episode is that episode's result
         row["failure"] = f"{type(e).__name__}: {e}"
     row["wall_s"] = time.perf_counter() - t0

@@ -7,10 +7,11 @@ from agents.registry import DEFAULT_CONTROLLER
 import time
 from pathlib import Path
 
-from ..identify import identify
+from ..identify import IdentificationError
 from ..plots import plot_run
 from ..record import write_record
 from ..rig.presets import load_preset, rig_from_mapping
+from ..scoring import CORRECTED, estimate, score_episode
 from ..experiment.protocol import plan_from_preset
 from ..simulate import simulate_run
 from .common import emit_json, info, non_negative_int
@@ -37,19 +38,21 @@ def run(args) -> int:
     record = simulate_run(rig, args.controller, plan, seed=args.seed, run_id="demo")
     csv_path = write_record(record, out / "demo.csv")
     figure = plot_run(record, out / "demo.png", title=f"{args.rig}, controller {args.controller}")
-    result = identify([record], "energy")
-    truth = rig.hull.lambda66  # scoring only: the simulator's own parameter
-    err = result.lambda66 / truth - 1.0
+    estimated = estimate([record], CORRECTED)
+    if estimated.failed:
+        raise IdentificationError(estimated.failure)
+    score = score_episode([record], CORRECTED, estimated=estimated, metrics=False)  # truth: the record's truth block
+    truth, err = score.lambda66_true, score.rel_error
     summary = {"rig": args.rig, "controller": args.controller, "record": str(csv_path), "figure": str(figure),
-               "lambda66_true": truth, "lambda66_est": result.lambda66, "ci95": list(result.ci95),
-               "rel_error": err, "n_intervals": result.n_intervals, "wall_s": time.perf_counter() - t0}
+               "lambda66_true": truth, "lambda66_est": score.lambda66_est, "ci95": list(score.ci95),
+               "rel_error": err, "n_intervals": estimated.n_intervals, "wall_s": time.perf_counter() - t0}
     if args.json:
         emit_json(summary)
     else:
-        lo, hi = result.ci95
+        lo, hi = score.ci95
         print(f"rig {args.rig}, controller {args.controller}")
         print(f"lambda66 true      {truth:.4f} kg m^2")
-        print(f"lambda66 estimated {result.lambda66:.4f} kg m^2  (95 % interval {lo:.4f} .. {hi:.4f})")
+        print(f"lambda66 estimated {score.lambda66_est:.4f} kg m^2  (95 % interval {lo:.4f} .. {hi:.4f})")
         print(f"relative error     {100 * err:+.3f} %")
         info(f"record {csv_path}, figure {figure}")
     return 0

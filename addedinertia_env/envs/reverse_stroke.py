@@ -13,12 +13,11 @@ from gymnasium import spaces
 
 from ..experiment.protocol import Experiment
 from ..experiment.runner import controller_context as _runner_context
-from ..identify import IdentificationError, identify
-from ..metrics import episode_metrics
-from ..record import RecordError, RunRecord
+from ..record import RunRecord
 from ..rig.interface import Rig
 from ..rig.mujoco_rig import MujocoRig
 from ..scenarios import Scenario, build_rig, load_ranges
+from ..scoring import REWARD, score_episode, truth_lambda66
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
 from .config import EnvConfig
 from .render import RigRenderer, plot_frame
@@ -120,7 +119,8 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         (about ``hold_s`` + half a period of samples: 2,000 to 8,000 at 1 kHz).
         Truncation only by the registered step limit (20,000 agent steps), which a
         valid configuration never reaches. The last ``info`` carries ``lambda66_est``,
-        ``lambda66_true`` (the simulator's own parameter; nan on a bench),
+        ``lambda66_true`` (the record's truth block; nan on a bench), scored by
+        :func:`addedinertia_env.scoring.score_episode` (the corrected score),
         ``rel_error``, ``ci95``, ``failed`` (the estimate could not be formed),
         ``energy_J``, ``tracking_rms_rad``, ``saturated_frac``.
 
@@ -311,34 +311,22 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         return self.experiment.record(run_id, extra_experiment={"scenario": self.scenario.name})
 
     def lambda66_true(self) -> float:
-        """The simulated hull's lambda66 (kg m^2): from this env's own parameters; nan on a bench."""
-        if self.scenario is None or getattr(self.rig, "source", "sim") != "sim":
+        """The episode's true lambda66 (kg m^2): its record's ``truth`` block, as the score reads it
+        (:func:`addedinertia_env.scoring.truth_lambda66`); nan on a bench or before ``reset()``."""
+        if self.experiment is None:
             return math.nan
-        from ..rig.forces import true_lambda66  # noqa: PLC0415
-
-        return true_lambda66(self.scenario.rig)  # A66 at the swing frequency with radiation memory
+        return truth_lambda66([self.record()])
 
     # --- internals --------------------------------------------------------------------
     def _score(self) -> dict[str, Any]:
-        """The benchmark numbers of the finished episode (:mod:`addedinertia_env.metrics`)."""
-        record = self.record()
-        out: dict[str, Any] = {"failed": False, "failure": ""}
-        try:
-            result = identify([record], "energy", interval_details=False)  # the numbers only
-            est, ci = float(result.lambda66), [float(result.ci95[0]), float(result.ci95[1])]
-        except (IdentificationError, RecordError) as e:  # refused by the method or by the plausibility check
-            est, ci = math.nan, [math.nan, math.nan]
-            out.update(failed=True, failure=str(e))
-        true = self.lambda66_true()
-        rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
-        m = episode_metrics(record)
-        out.update(lambda66_est=est, ci95=ci, lambda66_true=true, rel_error=rel, energy_J=m.energy_J,
-                   tracking_rms_rad=m.tracking_rms_rad, saturated_frac=m.saturated_frac)
-        return out
+        """The benchmark numbers of the finished episode: the one scoring
+        (:func:`addedinertia_env.scoring.score_episode`, the corrected score)."""
+        return score_episode([self.record()], REWARD).info()
 
     def _title(self) -> str:
         s = self.scenario
-        text = f"{s.name}: lambda66 true {self.lambda66_true():.3f} kg m^2"
+        true = self._summary["lambda66_true"] if self._summary is not None else self.lambda66_true()
+        text = f"{s.name}: lambda66 true {true:.3f} kg m^2"
         if self._summary is not None:
             text += f", estimate {self._summary['lambda66_est']:.3f} ({100 * self._summary['rel_error']:+.2f} %)"
         return text

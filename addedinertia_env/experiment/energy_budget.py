@@ -41,6 +41,7 @@ from ..record import RunRecord
 from ..rig import forces
 from ..rig.mujoco_rig import MujocoRig, TrueState
 from ..rig.params import RigParams
+from .controller import Controller
 from .protocol import ExperimentPlan
 from .runner import run_experiment
 
@@ -76,7 +77,7 @@ class TrueRun:
         return self.params.hull.lambda66
 
 
-def simulate_with_truth(params: RigParams, controller: str | Any, plan: ExperimentPlan | None = None,
+def simulate_with_truth(params: RigParams, controller: str | Controller, plan: ExperimentPlan | None = None,
                         seed: int = 0) -> TrueRun:
     """One reverse-symmetric run on ``params`` with ``controller`` (a name, or ``"oracle"``)."""
     rig = TruthLoggingRig(params, seed=seed)

@@ -7,6 +7,7 @@ from typing import Any
 from ..record import RunRecord
 from ..rig.interface import Rig
 from ..task import ControllerContext, ReverseStrokeTask
+from .controller import Controller
 from .protocol import Experiment, ExperimentPlan
 
 
@@ -25,13 +26,13 @@ def command_every(rig: Any) -> int:
     return max(1, int(getattr(rig, "command_every", 1)))
 
 
-def run_experiment(rig: Rig, controller: Any, plan: ExperimentPlan | None = None,
+def run_experiment(rig: Rig, controller: Controller, plan: ExperimentPlan | None = None,
                    run_id: str = "run", policy_rate_hz: float | None = None,
                    board_mode: str | None = None) -> RunRecord:
     """Twist, release, hold and reverse under ``controller``; returns the run record.
 
-    ``controller`` is anything with ``predict(obs) -> (action, state)``; if it also has
-    ``reset(context)``, it is called once the free stroke has been recorded.
+    ``controller``: a :class:`~.controller.Controller` (``reset(context)``, called once the free
+    stroke has been recorded, then ``predict(obs) -> (action, state)``).
     ``policy_rate_hz``: the controller acts at this rate through the two-rate board's
     inner loop (``rig/board_loop.py``, mode ``board_mode``, default ``zoh``), as on a
     two-rate bench (``deploy --host-rate-hz``); None: at every sample.
@@ -50,7 +51,7 @@ def run_experiment(rig: Rig, controller: Any, plan: ExperimentPlan | None = None
     return exp.record(run_id)
 
 
-def drive(exp: Experiment, controller: Any) -> None:
+def drive(exp: Experiment, controller: Controller) -> None:
     """The controlled part of a started experiment: hold and reverse stroke under ``controller``.
 
     The simulator (:func:`run_experiment`), the environment's classical baselines and the

@@ -29,17 +29,18 @@ from typing import Any
 from ..rig.board_loop import BOARD_MODES, HORIZON_PERIODS, Segment, zoh_segment
 from ..task import ControllerContext, ReverseStrokeTask
 from .feedforward import stroke_feedforward_current
+from .controller import Controller
 from .protocol import Experiment
 
 KNOTS = 7  # knots per pd segment (6 pieces over HORIZON_PERIODS = 3 host periods)
 
 
-def supports_board_pd(controller: Any) -> bool:
+def supports_board_pd(controller: Controller) -> bool:
     """True if ``controller`` can run in board mode ``pd`` (it has ``board_pd``)."""
     return callable(getattr(controller, "board_pd", None))
 
 
-def default_board_mode(controller: Any) -> str:
+def default_board_mode(controller: Controller) -> str:
     """The controller's own board mode if it declares one (an exported policy's card), else
     ``zoh``. (``pd`` with the classical controllers' gains is available but not the default:
     with the board's alpha-beta rate estimate on a 17-bit encoder the LQR's rate gain
@@ -57,7 +58,7 @@ def two_rate_context(exp: Experiment, host_rate_hz: float, board_mode: str):
 class SegmentPlanner:
     """Turns the controller's decision at one host tick into a :class:`Segment`."""
 
-    def __init__(self, exp: Experiment, controller: Any, task: ReverseStrokeTask, board_mode: str,
+    def __init__(self, exp: Experiment, controller: Controller, task: ReverseStrokeTask, board_mode: str,
                  host_rate_hz: float):
         if board_mode not in BOARD_MODES:
             raise ValueError(f"board mode {board_mode!r}: expected one of {BOARD_MODES}")
@@ -117,7 +118,7 @@ class SegmentPlanner:
                        brake=exp.phase == "hold", brake_switch_us=switch, end_passive=end_passive)
 
 
-def drive_two_rate(exp: Experiment, controller: Any, host_rate_hz: float, board_mode: str | None = None) -> None:
+def drive_two_rate(exp: Experiment, controller: Controller, host_rate_hz: float, board_mode: str | None = None) -> None:
     """The controlled part of a started experiment at ``host_rate_hz``.
 
     ``exp.rig`` is a two-rate rig (``send_segment``, ``poll``, ``board_time_us``,

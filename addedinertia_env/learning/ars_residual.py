@@ -39,12 +39,13 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 
 from ..atomic import atomic_target, atomic_write_text
+from ..experiment.controller import Controller
 from ..task import OBSERVATION_FIELDS
 from .paired_batch import run_batch
 
@@ -83,7 +84,7 @@ def base_params(suite, base: str) -> dict[str, Any]:
     return {k: (v.item() if hasattr(v, "item") else v) for k, v in getattr(c, "params", {}).items()} if tuned else {}
 
 
-def base_factory(base: str, params: dict[str, Any]):
+def base_factory(base: str, params: dict[str, Any]) -> Callable[[], Controller]:
     """A maker of fresh ``base`` controllers with the pinned gains ``params`` (:func:`base_params`;
     empty: the controller's defaults), as the batched trainers (ARS, DAgger) build their base."""
     from agents import make_controller  # noqa: PLC0415

@@ -37,6 +37,7 @@ from gymnasium import spaces
 from agents import make_controller
 from agents.residual import BASE_RATES, policy_rate_context, residual_action
 
+from ..experiment.controller import Controller
 from .toy import TOY_ENV_ID, register_toy
 
 
@@ -97,7 +98,7 @@ def pinned_base_params(base: str) -> dict[str, Any]:
     return {k: (v.item() if hasattr(v, "item") else v) for k, v in getattr(make_controller(base), "params", {}).items()}
 
 
-def make_base(base: str, params: dict[str, Any] | None):
+def make_base(base: str, params: dict[str, Any] | None) -> Controller:
     """Controller ``base`` with exactly ``params`` (no tuned file read); ``None``: as registered."""
     if not params:
         return make_controller(base)

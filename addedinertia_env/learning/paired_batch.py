@@ -14,9 +14,9 @@ each slot driven by
 Both act once per drive set-point period (``action_repeat`` samples: 100 Hz on hard-v0),
 with the :class:`~addedinertia_env.task.ControllerContext` that
 ``experiment.runner.controller_context`` gives on the benchmark. Each episode is scored
-by the benchmark's ranked method (``identify(..., "energy", asymmetry_correction=False)``,
-``e = lambda66_est / lambda66_true - 1``). The scenario's truth (lambda66, the oracle's
-state) is used here for scoring and the oracle only: this is a trainer, not an estimator.
+by the benchmark's ranked score (:func:`addedinertia_env.scoring.score_episode`,
+``"as-written"``: ``e = (lambda66_est - lambda66_true) / lambda66_true``, the truth from the
+record's truth block). The scenario's truth (lambda66, the oracle's state) is used here for scoring and the oracle only: this is a trainer, not an estimator.
 
 One difference from the benchmark, by design of the batched pool: the record has no
 passive tail after the reverse stroke (tests/test_vector_env.py bounds its effect on
@@ -36,9 +36,10 @@ from threadpoolctl import ThreadpoolController
 from agents.residual import residual_action
 
 from ..bench.runner import cycle_seed
+from ..experiment.controller import Controller
 from ..experiment.oracle import OracleController
-from ..identify import identify
 from ..rig import forces
+from ..scoring import AS_WRITTEN, score_episode
 from ..task import ControllerContext, ReverseStrokeTask
 from ..vector.observe import observe
 from ..vector.pool import READY, ExperimentPool
@@ -111,7 +112,7 @@ def slot_context(pool: ExperimentPool, k: int, action_repeat: int) -> Controller
                              inertia_prior=float(pool.inertia_prior[k]), dt=dt, hold_s=sc.plan.hold_s, **slow)
 
 
-def run_batch(suite, seeds: Sequence[int], make_base: Callable[[], Any] | None, *, split: str = "train",
+def run_batch(suite, seeds: Sequence[int], make_base: Callable[[], Controller] | None, *, split: str = "train",
               oracle: Sequence[bool] | None = None, policy: Policy | None = None, residual_scale: float = 0.0,
               action_repeat: int = 10, keep_observations: bool = False, teacher_labels: bool = False,
               teacher_mix: float = 0.0, mix_seed: int = 0,
@@ -201,10 +202,8 @@ def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep, la
         obs = observe(pool, slots)
     rel = np.full(n, math.nan)
     for k in range(n):
-        try:
-            result = identify([pool.record(k)], "energy", asymmetry_correction=False)
-            est = float(result.lambda66)
-            rel[k] = est / scenarios[k].rig.hull.lambda66 - 1.0 if math.isfinite(est) else math.nan
+        try:  # the benchmark's ranked score, by the one scoring (its energy: pool.energy, below)
+            rel[k] = score_episode([pool.record(k)], AS_WRITTEN, metrics=False).rel_error
         except Exception:  # noqa: BLE001 - any failure of one episode is that episode's result (bench/runner.py)
             rel[k] = math.nan
     observations = np.concatenate(kept) if kept else np.zeros((0, 0), np.float32)

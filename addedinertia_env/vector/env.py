@@ -50,12 +50,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..envs.config import EnvConfig
-from ..identify import IdentificationError, identify
 from ..identify.common import prepare as prepare_identification
-from ..metrics import episode_metrics
-from ..rig import forces
-from ..run_record import RecordError
 from ..scenarios import load_ranges
+from ..scoring import REWARD, Estimate, estimate, score_episode
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
 from .observe import observe
 from .pool import ENDED, READY, SETTLE, FREE, EMPTY, ExperimentPool
@@ -71,21 +68,14 @@ SPARE_BATCH_DIVISOR = 32  # spares start in batches of n_spare / this (fewer, la
 METRIC_KEYS = ("lambda66_est", "lambda66_true", "rel_error", "energy_J", "tracking_rms_rad", "saturated_frac")
 
 
-def estimate_lambda66(record) -> tuple[float, float, float, str | None]:
-    """``identify([record], "energy")`` of one ended episode, as the single environment scores it:
-    ``(lambda66 kg m^2, ci95 low, ci95 high, None)``, or ``(nan, nan, nan, message)`` when the
-    identification fails. Runs on one BLAS thread; any process may compute it (the sharded env
-    sends records to whichever worker has the least to do)."""
+def estimate_lambda66(record) -> Estimate:
+    """The estimate of one ended episode, as the single environment scores it
+    (:func:`addedinertia_env.scoring.estimate`, the corrected score): lambda66 kg m^2 and its
+    95 % interval, or nan and the failure when the identification fails. Runs on one BLAS
+    thread; any process may compute it (the sharded env sends records to whichever worker
+    has the least to do)."""
     with _BLAS.limit(limits=1, user_api="blas"):
-        return _estimate(record)
-
-
-def _estimate(record) -> tuple[float, float, float, str | None]:
-    try:
-        result = identify([record], "energy", interval_details=False)  # the numbers only: no record per angle
-    except (IdentificationError, RecordError) as err:  # refused by the method or by the plausibility check
-        return math.nan, math.nan, math.nan, str(err)
-    return float(result.lambda66), float(result.ci95[0]), float(result.ci95[1]), None
+        return estimate([record], REWARD)
 
 
 @dataclass
@@ -302,7 +292,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
 
     def _step(self, actions):
         pending = self._advance(actions)  # step() holds the one-BLAS-thread limit for all three parts
-        return self._finish(pending, [_estimate(r) for r in pending.records])
+        return self._finish(pending, [estimate([r], REWARD) for r in pending.records])
 
     def advance(self, actions, defer_spares: bool = False) -> "PendingStep":
         """The first half of :meth:`step`: every environment's samples, up to the identification of
@@ -361,7 +351,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
         return PendingStep(resetting=resetting, ended_envs=ended_envs, scored_envs=scored, terms=terms,
                            records=records)
 
-    def finish(self, pending: "PendingStep", estimates: list[tuple[float, float, float, str | None]]):
+    def finish(self, pending: "PendingStep", estimates: list[Estimate]):
         """The second half of :meth:`step`: the ended episodes' benchmark numbers from ``estimates``
         (:func:`estimate_lambda66` of ``pending.records``, in order), rewards, observations, infos and
         autoresets; returns ``(obs, rewards, terminated, truncated, info)``."""
@@ -411,7 +401,8 @@ class ReverseStrokeVectorEnv(VectorEnv):
 
     def _score(self, envs: np.ndarray, records: list, estimates: list) -> dict[str, Any]:
         """The benchmark numbers of the episodes that ended (ReverseStrokeEnv._score), as info arrays,
-        from their records and :func:`estimate_lambda66` estimates."""
+        from their records and :func:`estimate_lambda66` estimates
+        (:func:`addedinertia_env.scoring.score_episode`, the corrected score)."""
         pool, n = self.pool, self.num_envs
         mask = np.zeros(n, dtype=bool)
         mask[envs] = True
@@ -424,21 +415,15 @@ class ReverseStrokeVectorEnv(VectorEnv):
         for j, e in enumerate(envs):
             k = int(self.env_slot[e])
             record = records[j]
-            est, lo, hi, failure = estimates[j]
-            failed = failure is not None
-            if failed:
-                out["failure"][e] = failure
-            true = forces.true_lambda66(pool.scenarios[k].rig)
-            rel = (est - true) / true if math.isfinite(est) and math.isfinite(true) else math.nan
-            m = episode_metrics(record, pool.reference(k))  # the one computation of the episode's numbers (metrics.py)
-            values = {"lambda66_est": est, "lambda66_true": true, "rel_error": rel, "energy_J": m.energy_J,
-                      "tracking_rms_rad": m.tracking_rms_rad, "saturated_frac": m.saturated_frac}
-            for key, v in values.items():
-                out[key][e] = v
-            out["ci95"][e] = [lo, hi]
-            out["failed"][e] = failed
+            score = score_episode([record], REWARD, references=[pool.reference(k)], estimated=estimates[j])
+            if score.failed:
+                out["failure"][e] = score.failure
+            for key in METRIC_KEYS:
+                out[key][e] = getattr(score, key)
+            out["ci95"][e] = list(score.ci95)
+            out["failed"][e] = score.failed
             out["scenario_seed"][e] = self.slot_seed[k]
-            accuracy[j] = self._task.accuracy_term(rel, failed=failed)
+            accuracy[j] = self._task.accuracy_term(score.rel_error, failed=score.failed)
         for key in list(out):
             out["_" + key] = mask.copy()
         out["_accuracy"] = accuracy
