@@ -407,26 +407,3 @@ def test_terms_of_the_second_pass_are_those_computed_afresh(records):
         for field in energy.BalanceTerms.__dataclass_fields__:
             np.testing.assert_array_equal(getattr(got["terms"], field), getattr(expected["terms"], field),
                                           err_msg=f"{name} {field}")
-
-
-def test_the_checks_rig_and_phase_blocks_give_what_the_record_gives(records):
-    """identify() hands the energy method the typed rig and phase blocks its plausibility check read."""
-    from addedinertia_env.plausibility import check_plausible  # noqa: PLC0415
-
-    for name, rec in records.items():
-        limits = check_plausible(rec)
-        assert limits.known == rec.known, name
-        starts = np.concatenate([[0], np.nonzero(rec.phase[1:] != rec.phase[:-1])[0] + 1])
-        assert limits.phase_blocks == (tuple(starts.tolist()), tuple(str(p) for p in rec.phase[starts])), name
-        bare = rec.without_truth()
-        plain = energy.identify_energy([bare], interval_details=False)
-        given = energy.identify_energy([bare], interval_details=False, checked=[limits])
-        assert (given.lambda66, given.ci95, given.n_intervals, given.details) == \
-               (plain.lambda66, plain.ci95, plain.n_intervals, plain.details), name
-    with pytest.raises(ValueError, match="one per record"):
-        energy.identify_energy([bare], checked=[limits, limits])
-    from addedinertia_env.identify import identify  # noqa: PLC0415
-
-    with pytest.raises(ValueError, match="passed by identify"):  # only identify() itself gives it
-        identify([rec], "energy", checked=[limits])
-

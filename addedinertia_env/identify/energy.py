@@ -59,9 +59,9 @@ from functools import lru_cache
 import numpy as np
 
 from ..metrics import current_at_limit
-from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
+from ..record import MAX_GAP_PERIODS, RunRecord
 from ..rig.known import KnownRigError
-from ..scan_kernels import (block_starts, gap_counts, negative_step_ratios, reaction_work, relaxed_interval_means,
+from ..scan_kernels import (gap_counts, negative_step_ratios, reaction_work, relaxed_interval_means,
                             squared_step_sums, true_counts, value_change_starts)
 from ..series_kernels import (accumulated_kernels, accumulated_windows, calibration_target, count_crossings,
                               lag_ranking, twice_integrated)
@@ -168,7 +168,7 @@ class _RunEstimate:
 
 
 def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=DEFAULT_FRACTIONS,
-                    asymmetry_correction: bool = True, interval_details: bool = True, checked=None) -> Result:
+                    asymmetry_correction: bool = True, interval_details: bool = True) -> Result:
     """lambda66 (kg m^2) from one or more reverse-symmetric runs, with a 95 % interval.
 
     ``fractions``: the range ``(lo, hi)`` of boundary angles as fractions of the stroke
@@ -177,19 +177,13 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
     ``interval_details=False``: the result's ``details`` leave out the per-angle ``intervals``
     (the same lambda66, interval and counts; a caller that only needs the numbers, such as
     the batched env scoring every episode, skips building a record per angle).
-    ``checked``: per record, the :class:`~addedinertia_env.plausibility.Limits` its plausibility check
-    returned (:func:`~addedinertia_env.identify.identify` passes them): the typed rig and phase blocks
-    the check read are used instead of being derived again (None: derived here).
+    Each record's typed rig and phase blocks are its views (``record.views``), derived once.
     """
     if work not in WORK_FORMS:
         raise ValueError(f"work={work!r}: expected one of {WORK_FORMS}")
     if work != "reaction":
         warnings.warn(DIAGNOSTIC_FORM_WARNING.format(work=work), stacklevel=2)
-    checked = [None] * len(records) if checked is None else list(checked)
-    if len(checked) != len(records):
-        raise ValueError(f"checked: {len(checked)} check results for {len(records)} records; expected one per record")
-    runs = [_run_estimate(rec, work, fractions, asymmetry_correction, interval_details, limits)
-            for rec, limits in zip(records, checked)]
+    runs = [_run_estimate(rec, work, fractions, asymmetry_correction, interval_details) for rec in records]
     intervals = [iv for r in runs for iv in r.intervals]
     good = [r for r in runs if np.isfinite(r.value)]
     if not good:
@@ -209,9 +203,9 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
 
 
 def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool,
-                  interval_details: bool = True, checked=None) -> _RunEstimate:
+                  interval_details: bool = True) -> _RunEstimate:
     balance, phi1_list, weights, first = prepared_balance(rec, work, fractions, asymmetry_correction,
-                                                          first_value_only=True, checked=checked)
+                                                          first_value_only=True)
     if not np.isfinite(first.value):
         return first
     phi1 = np.asarray(phi1_list, dtype=float)
@@ -224,17 +218,16 @@ def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bo
 
 
 def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_FRACTIONS,
-                     asymmetry_correction: bool = True, first_value_only: bool = False, checked=None):
+                     asymmetry_correction: bool = True, first_value_only: bool = False):
     """A record's :class:`RunBalance` after the first pass, its boundary angles (rad), their
     weights (None: pooled by inverse variance) and the first pass's estimate.
 
     The first pass (no dissipation-mismatch correction) gives the total inertia that the
     damping-law fit and the hull's energy at rest then use. ``first_value_only``: when the
     first estimate is finite, only its value is computed (its ``sigma`` is nan and it holds
-    no intervals; the value is the same number); the full estimate otherwise. ``checked``: the
-    record's plausibility check result (:class:`RunBalance`).
+    no intervals; the value is the same number); the full estimate otherwise.
     """
-    balance = RunBalance(rec, work, asymmetry_correction, checked)
+    balance = RunBalance(rec, work, asymmetry_correction)
     given = rec.experiment.get("phi1")
     dense = not given and len(fractions) == 2
     if given:
@@ -384,19 +377,17 @@ class RunBalance:
     """The energy balance of one reverse-symmetric record, evaluated at any boundary angle.
 
     Everything that does not depend on the boundary angle (calibrated current, smoothed
-    angles, cumulative motor work, damping law, speed profiles) is prepared once. ``checked``: the
-    :class:`~addedinertia_env.plausibility.Limits` of the record's plausibility check, whose typed rig
-    and phase blocks are then taken as read (the same the record gives).
+    angles, cumulative motor work, damping law, speed profiles) is prepared once. The typed rig and
+    the phase blocks are the record's views (``rec.views``).
     """
 
-    def __init__(self, rec: RunRecord, work: str = "reaction", asymmetry_correction: bool = True, checked=None):
-        known = getattr(checked, "known", None)
-        rig = self.known = known if known is not None else rec.known
+    def __init__(self, rec: RunRecord, work: str = "reaction", asymmetry_correction: bool = True):
+        rig = self.known = rec.known
         self.rec, self.work = rec, work
         self.J_h, self.J_f, self.c = rig.J_hull, rig.J_flywheel, rig.c_torsion
         self.phi_n, self.k_t, self.R = rig.phi_neutral, rig.k_t, rig.R
         self.L = float(rig.L or 0.0)  # 0: neglected or unknown; only the electric form needs it
-        self.current_sampling = current_sampling(rec.rig)[0]
+        self.current_sampling = rig.current_sampling_used
         self.f_visc, self.f_coul = rig.friction_viscous, rig.friction_coulomb
         if rec.experiment.get("kind") != "reverse-symmetric":
             raise IdentificationError(f"{rec.name}: the energy method needs a reverse-symmetric run, "
@@ -411,8 +402,8 @@ class RunBalance:
                                           f"(winding inductance, H); the record gives {self.L!r}; use work='reaction'")
         t, phi, psi = rec.t, rec["phi"], rec["psi"]
         self.t, self.phi, self.psi = t, phi, psi
-        first_blocks, phase_starts = _first_blocks(rec, getattr(checked, "phase_blocks", None))
-        free, hold, rev = first_blocks.get("free"), first_blocks.get("hold"), first_blocks.get("reverse")
+        blocks = rec.views.phase_blocks
+        free, hold, rev = blocks.first("free"), blocks.first("hold"), blocks.first("reverse")
         if free is None or rev is None:
             raise IdentificationError(f"{rec.name}: needs a 'free' and a 'reverse' phase")
         self.free, self.rev = free, rev
@@ -426,7 +417,7 @@ class RunBalance:
         self.direction = float(np.sign(self.phi2 - self.phi_n))
         # Smoothed angles for the work increments, smoothed phase by phase: a window across the
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
-        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec, phase_starts))
+        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec))
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         if work == "reaction" and FLYWHEEL_CALIBRATION:
@@ -492,7 +483,7 @@ class RunBalance:
         passed = (k1 >= 0) & (k4 >= 0)
         reason = ["" if p else "boundary angle not passed on both strokes" for p in passed.tolist()]
         # the work sums and rate fits assume the stroke was sampled throughout
-        period = 1.0 / float(self.rec.rig["sample_rate"])
+        period = self.known.dt
         big = gap_counts(t, MAX_GAP_PERIODS * period * (1 + 1e-6))  # long gaps before each sample
         gapped = passed & (((big[self.k2] - big[k1]) != 0) | ((big[k4] - big[self.k3]) != 0))
         for j in np.nonzero(gapped)[0].tolist():  # a long gap: the message names it
@@ -864,13 +855,12 @@ def _smooth_by_phase(rec: RunRecord, *angles: np.ndarray, cuts: np.ndarray | Non
     return out
 
 
-def phase_blocks(rec: RunRecord, starts: np.ndarray | None = None) -> np.ndarray:
+def phase_blocks(rec: RunRecord) -> np.ndarray:
     """Boundaries of the record's contiguous blocks of one phase and one brake state: sample
-    indices ``[0, ..., len]`` (block ``j`` is ``cuts[j]:cuts[j + 1]``). ``starts``: the first sample of
-    each phase block (:func:`~addedinertia_env.scan_kernels.block_starts` of ``phase``) when known."""
+    indices ``[0, ..., len]`` (block ``j`` is ``cuts[j]:cuts[j + 1]``), from the record's phase
+    blocks (``rec.views.phase_blocks``) and its ``brake`` column."""
     n = len(rec.phase)
-    if starts is None:
-        starts = block_starts(rec.phase)
+    starts = rec.views.phase_blocks.starts
     inner = np.asarray(starts, dtype=np.int64)[1:]
     if "brake" in rec.samples:
         b = np.asarray(rec["brake"], dtype=float)
@@ -882,23 +872,6 @@ def phase_blocks(rec: RunRecord, starts: np.ndarray | None = None) -> np.ndarray
         else:
             inner = np.union1d(inner, value_change_starts(b))
     return np.concatenate([[0], inner, [n]]).astype(np.int64)
-
-
-def _first_blocks(rec: RunRecord, blocks=None) -> tuple[dict[str, slice], np.ndarray]:
-    """The first contiguous block of each phase (what :func:`~.common.segment` gives, for every
-    phase from one scan), and every phase block's first sample (:func:`phase_blocks` takes them).
-    ``blocks``: the blocks' first samples and labels when already known (the plausibility check's)."""
-    phase = np.asarray(rec.phase)
-    if blocks is None:
-        starts = block_starts(phase)
-        labels = phase[starts].tolist()
-    else:
-        starts, labels = np.array(blocks[0], dtype=np.int64), blocks[1]
-    first: dict[str, slice] = {}
-    bounds = starts.tolist() + [len(phase)]
-    for a, b, label in zip(bounds, bounds[1:], labels):
-        first.setdefault(str(label), slice(a, b))
-    return first, starts
 
 
 def _n_samples(dt_median: float, span_s: float) -> int:
