@@ -29,7 +29,6 @@ experimenter-known constants (``RigParams.known()``, a ``KnownRig``; never the t
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
