@@ -2,7 +2,7 @@
 
 The energy method evaluates its balance at dozens of boundary angles at once
 (:func:`~addedinertia_env.identify.crossings.crossing_fits`, ``RunBalance.intervals``),
-fits the current's lag for every lag at once (``_flywheel_calibration``) and smooths with
+fits the current's lag for every lag at once (``flywheel_calibration``) and smooths with
 cached Savitzky-Golay maps (:func:`~addedinertia_env.identify.common.savgol`). Each is held
 here to the straightforward one-at-a-time computation (written out in this file, as the
 method was before it was vectorised) on batched-env episodes, clean and through DAQ
@@ -176,13 +176,13 @@ def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul):
 
 def test_flywheel_calibration_equals_a_fit_per_lag(records, monkeypatch):
     seen = []
-    original = energy_balance._flywheel_calibration
+    original = energy_balance.flywheel_calibration
 
     def spy(*args):
         seen.append(args)
         return original(*args)
 
-    monkeypatch.setattr(energy_balance, "_flywheel_calibration", spy)
+    monkeypatch.setattr(energy_balance, "flywheel_calibration", spy)
     calibrated = 0
     for name, rec in records.items():
         seen.clear()

@@ -42,12 +42,18 @@ diagnostics, and say so when used (:data:`DIAGNOSTIC_FORM_WARNING`).
 The current-sensor offset is calibrated on the free stroke, where the motor is open
 circuit and the true current is zero. The torque per logged ampere and the current
 channel's lag are calibrated on the flywheel's own balance ``J_f (w + Omega)' = k_t i - M_f``
-over the end of the hold and the reverse stroke (:func:`_flywheel_calibration`; physics.md
+over the end of the hold and the reverse stroke (:func:`~.energy_calibration.flywheel_calibration`; physics.md
 section 8): the flywheel's inertia, not the data-sheet ``k_t`` or the current sensor's gain,
 then sets the scale of the motor's work, and a lagging current channel is shifted back. When
 the current has too few fast changes to pin the lag (an ideal tracking controller's), the
 rig block's ``k_t`` and the record's ``current_sampling`` are used as they stand. Only the record's samples and its ``rig`` block are
 used; never ``truth``. ``rig.L`` may be 0 or absent: the reaction form does not need it.
+
+The method's parts, one subject each: :mod:`.energy_balance` (the terms at a boundary angle,
+:class:`RunBalance`), :mod:`.energy_pooling` (many angles to one run's value), :mod:`.energy_work`
+(the motor work), :mod:`.energy_calibration` (torque and current lag on the flywheel),
+:mod:`.energy_rest` (the rest angles at t2 and t3) and :mod:`.energy_dissipation` (the damping
+law and the dissipation mismatch); this module pools the runs.
 """
 
 from __future__ import annotations
@@ -65,7 +71,7 @@ from .energy_balance import (CALIBRATED_TORQUE_UNCERTAINTY, CURRENT_GAIN_UNCERTA
                              RATE_HALF_WIDTH, BalanceTerms, Interval, RunBalance, inertia_from_terms)
 from .energy_calibration import LAG_PRECISION, MAX_LAG_S  # noqa: F401
 from .energy_dissipation import DAMPING_FIT_WINDOW_S  # noqa: F401
-from .energy_pooling import DEFAULT_FRACTIONS, DENSE_ANGLES, _run_estimate, hann_weights, prepared_balance  # noqa: F401
+from .energy_pooling import DEFAULT_FRACTIONS, DENSE_ANGLES, run_estimate, hann_weights, prepared_balance  # noqa: F401
 from .energy_rest import REST_FIT_S  # noqa: F401
 from .energy_work import WORK_SMOOTHING_S, interval_mean_current, phase_blocks  # noqa: F401
 
@@ -93,7 +99,7 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
         raise ValueError(f"work={work!r}: expected one of {WORK_FORMS}")
     if work != "reaction":
         warnings.warn(DIAGNOSTIC_FORM_WARNING.format(work=work), stacklevel=2)
-    runs = [_run_estimate(rec, work, fractions, asymmetry_correction, interval_details) for rec in records]
+    runs = [run_estimate(rec, work, fractions, asymmetry_correction, interval_details) for rec in records]
     intervals = [iv for r in runs for iv in r.intervals]
     good = [r for r in runs if np.isfinite(r.value)]
     if not good:

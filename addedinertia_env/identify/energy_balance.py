@@ -22,10 +22,10 @@ from ..series_stats import median_step
 from .balance_kernels import angle_uncertainties, angle_values
 from .common import IdentificationError, SharedSavgol, largest_gap, local_fit, power_fit
 from .crossings import crossing_fits, first_crossings
-from .energy_calibration import MAX_LAG_S, _flywheel_calibration
-from .energy_dissipation import _DissipationMismatch, _forward_damping_law
-from .energy_rest import REST_FIT_S, _crossings_fit, _power_series, _power_series_derivative, _quantum
-from .energy_work import _electric_work_steps, _smooth_by_phase, _voltage_offset, interval_mean_current, phase_blocks
+from .energy_calibration import MAX_LAG_S, flywheel_calibration
+from .energy_dissipation import DissipationMismatch, forward_damping_law
+from .energy_rest import REST_FIT_S, crossings_fit, encoder_step, power_series, power_series_derivative
+from .energy_work import electric_work_steps, smooth_by_phase, voltage_offset, interval_mean_current, phase_blocks
 
 
 FLYWHEEL_CALIBRATION = True  # calibrate the motor torque and the current's lag on the flywheel's balance
@@ -139,7 +139,7 @@ class RunBalance:
         self.direction = float(np.sign(self.phi2 - self.phi_n))
         # Smoothed angles for the work increments, smoothed phase by phase: a window across the
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
-        self.phi_s, self.psi_s = _smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec))
+        self.phi_s, self.psi_s = smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec))
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         if work == "reaction" and FLYWHEEL_CALIBRATION:
@@ -147,8 +147,8 @@ class RunBalance:
             start = max(self.k3 - _n_samples(dt_median, 1.0), hold.start if hold is not None else self.k3) + 1
             # The fit stays inside the reverse stroke with its lag grid (the record may end there).
             end = rev.stop - 1 - _n_samples(dt_median, MAX_LAG_S) - 2
-            calib = _flywheel_calibration(t, phi + psi, self.psi_s, self.i, start, end, self.J_f, self.k_t,
-                                          self.f_visc, self.f_coul)
+            calib = flywheel_calibration(t, phi + psi, self.psi_s, self.i, start, end, self.J_f, self.k_t,
+                                         self.f_visc, self.f_coul)
             if calib is not None:
                 self.torque_scale, self.current_lag = calib
         self.work_cum = self._cumulative_work()
@@ -163,13 +163,13 @@ class RunBalance:
             sat = current_at_limit(rec["i_cmd"], rig.current_limit)
         self.saturated = sat
         self._sat_count: np.ndarray | None = None  # cumulative count of saturated samples (built once)
-        w2 = (_power_series(_power_series_derivative(self._fit_before), 0.0) if self._fit_before is not None
+        w2 = (power_series(power_series_derivative(self._fit_before), 0.0) if self._fit_before is not None
               else self._rest_rate(self.k2, free.start))
         w3 = w2 if hold is None else self._rest_rate(self.k3, hold.start)
         self.rest_w2, self.rest_w3 = float(w2), float(w3)  # hull rates at t2 and t3, rad/s
         self.rest_rates_sq = float(w2**2 + w3**2)
         self.hull_rest = 0.5 * 2.0 * self.J_h * self.rest_rates_sq  # refined by use_total_inertia
-        self.quantum = _quantum(phi, rig.phi_counts)
+        self.quantum = encoder_step(phi, rig.phi_counts)
 
     def use_total_inertia(self, J_total: float) -> None:
         """Refine with a first estimate of ``J_hull + lambda66`` (kg m^2): the hull's energy at
@@ -178,9 +178,9 @@ class RunBalance:
         self.hull_rest = 0.5 * J_total * self.rest_rates_sq
         if self.asymmetry_correction:
             rates = SharedSavgol(self.phi)  # the free stroke's rate filter: both fits see the same windows
-            self.law = _forward_damping_law(self.rec, self.free, self.k2, J_total, self.c, self.phi_n, rates)
-            self.dW_of = (_DissipationMismatch(self.t, self.phi, self.free, self.k2, self.k3, self.rev, self.law,
-                                               self.direction, rates) if self.law else None)
+            self.law = forward_damping_law(self.rec, self.free, self.k2, J_total, self.c, self.phi_n, rates)
+            self.dW_of = (DissipationMismatch(self.t, self.phi, self.free, self.k2, self.k3, self.rev, self.law,
+                                              self.direction, rates) if self.law else None)
 
     # --- per boundary angle ----------------------------------------------------------
     def terms(self, phi1: float) -> tuple[BalanceTerms, dict] | str:
@@ -439,11 +439,11 @@ class RunBalance:
         if not self.known.phi_counts:  # an encoder without stated counts: take the readings
             return float(phi[k2]), float(phi[k3])
         q = 2.0 * np.pi / self.known.phi_counts
-        fit_before = _crossings_fit(self.t, phi, k2, -REST_FIT_S, q)
-        fit_after = _crossings_fit(self.t, phi, k3, REST_FIT_S, q)
+        fit_before = crossings_fit(self.t, phi, k2, -REST_FIT_S, q)
+        fit_after = crossings_fit(self.t, phi, k3, REST_FIT_S, q)
         self._fit_before = fit_before
-        before = _power_series(fit_before, 0.0) if fit_before is not None else None
-        after = _power_series(fit_after, 0.0) if fit_after is not None else None
+        before = power_series(fit_before, 0.0) if fit_before is not None else None
+        after = power_series(fit_after, 0.0) if fit_after is not None else None
         r2 = before if before is not None else float(phi[k2])
         r3 = after if after is not None else float(phi[k3])
         held = hold is not None and abs(phi[k3] - phi[k2]) <= 1.5 * q
@@ -464,7 +464,7 @@ class RunBalance:
         end = int(np.searchsorted(t, t[k3] + REST_FIT_S, side="right"))
         tau = t[k3:end] - t[k3]
         blend = np.clip(2.0 - 2.0 * tau / REST_FIT_S, 0.0, 1.0)
-        curve = _power_series(fit, tau) - _power_series(fit, 0.0) + rest
+        curve = power_series(fit, tau) - power_series(fit, 0.0) + rest
         self.phi_s[k3:end] = blend * curve + (1.0 - blend) * self.phi_s[k3:end]
 
     def _rest_rate(self, k: int, start: int, window_s: float = 0.05, angle: np.ndarray | None = None) -> float:
@@ -496,15 +496,15 @@ class RunBalance:
         if self.work == "current":
             steps = self.k_t * i_mid * dpsi
         else:
-            u_offset = _voltage_offset(t[self.free], self.psi[self.free], self.rec["u"][self.free])
-            steps = _electric_work_steps(t, self.rec["u"] - u_offset, i, self.R, self.L)
+            u_offset = voltage_offset(t[self.free], self.psi[self.free], self.rec["u"][self.free])
+            steps = electric_work_steps(t, self.rec["u"] - u_offset, i, self.R, self.L)
         return np.concatenate([[0.0], np.cumsum(steps)])
 
     def interval_current(self, i: np.ndarray) -> np.ndarray:
         """Mean current over each sample interval (A) from a current series on the record's grid.
 
         When the flywheel's balance measured the current channel's lag (see
-        :func:`_flywheel_calibration`), the series is shifted by it and the trapezoid is the
+        :func:`flywheel_calibration`), the series is shifted by it and the trapezoid is the
         rule (the lag also takes up how the DAQ sampled the current); otherwise the record's
         ``current_sampling`` and ``L`` decide (:func:`interval_mean_current`).
         """

@@ -19,8 +19,8 @@ MAX_LAG_S = 0.012  # s, the longest current-channel lag the flywheel calibration
 LAG_PRECISION = 0.02  # the current lag must be fitted to this fraction of a sample period to be used
 
 
-def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: float, f_visc: float,
-                          f_coul: float) -> tuple[float, float] | None:
+def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: float, f_visc: float,
+                         f_coul: float) -> tuple[float, float] | None:
     """Torque per logged ampere relative to ``k_t`` (scale) and the current channel's lag (s),
     from the flywheel's own balance ``J_f theta'' = s k_t i(t - lag) - M_f`` (physics.md s8).
 

@@ -18,8 +18,8 @@ from .fit_kernels import lstsq as rounded_lstsq
 DAMPING_FIT_WINDOW_S = 0.1  # s, Savitzky-Golay window of the rates and accelerations of the damping fit
 
 
-def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c: float,
-                         phi_n: float, rates: SharedSavgol | None = None) -> dict | None:
+def forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c: float,
+                        phi_n: float, rates: SharedSavgol | None = None) -> dict | None:
     """Damping torque magnitude ``D(w) = d1 |w| + d2 w^2`` (N m) seen on the forward stroke.
 
     From ``J phi'' + c (phi - phi_n) = -D(w) sign(w)`` with the total inertia ``J_total``
@@ -58,7 +58,7 @@ def _forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c
     return {"J": J_total, "d1": max(d1, 0.0), "d2": d2}
 
 
-class _DissipationMismatch:
+class DissipationMismatch:
     """``dW(phi1) = W_reverse - W_forward`` between ``phi1`` and the stop, from the two strokes'
     speed profiles over angle and the forward stroke's damping law; returns (dW, sigma) in J.
     ``rates``: the rate filter of ``phi`` shared with the damping law (:class:`~.common.SharedSavgol`)."""

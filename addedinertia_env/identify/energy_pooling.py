@@ -32,15 +32,19 @@ def hann_weights(fractions: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 
 @dataclass
-class _RunEstimate:
+class RunEstimate:
+    """One run's lambda66 and its 1-sigma (kg m^2) with the boundary-angle intervals behind them."""
+
     value: float
     sigma: float
     intervals: list[Interval]
     counts: tuple[int, int] | None = None  # (usable, all) angles when ``intervals`` is not kept
 
 
-def _run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool,
-                  interval_details: bool = True) -> _RunEstimate:
+def run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool,
+                 interval_details: bool = True) -> RunEstimate:
+    """One record's estimate (:class:`RunEstimate`): the first pass, then every boundary angle's
+    interval combined (or, with ``interval_details=False``, the same numbers from the angles' columns)."""
     balance, phi1_list, weights, first = prepared_balance(rec, work, fractions, asymmetry_correction,
                                                           first_value_only=True)
     if not np.isfinite(first.value):
@@ -78,7 +82,7 @@ def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_F
     if first_value_only and weights is not None:  # the Hann-weighted value alone (what the second pass needs)
         value = balance.weighted_value(np.asarray(phi1_list, dtype=float), weights)
         if np.isfinite(value):
-            first = _RunEstimate(value, float("nan"), [])
+            first = RunEstimate(value, float("nan"), [])
     if first is None:
         first = _combine(balance, balance.intervals(np.asarray(phi1_list, dtype=float)), weights)
     if np.isfinite(first.value):
@@ -104,11 +108,11 @@ def _dense_fractions_of_floats(lo: float, hi: float, n: int) -> tuple[np.ndarray
     return f, weights
 
 
-def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> _RunEstimate:
+def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> RunEstimate:
     """One run's estimate from its boundary angles: Hann-weighted (dense) or inverse-variance pooled."""
     ok = [k for k, iv in enumerate(intervals) if not iv.rejected]
     if not ok:
-        return _RunEstimate(float("nan"), float("inf"), intervals)
+        return RunEstimate(float("nan"), float("inf"), intervals)
     lam = np.array([intervals[k].lambda66 for k in ok])
     if weights is None:  # separate angles, pooled by inverse variance (Birge-widened)
         s_ind = np.array([intervals[k].sigma_independent for k in ok])
@@ -116,10 +120,10 @@ def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> _RunE
         s_common = float(np.median([intervals[k].sigma_common for k in ok]))
         for iv in intervals:
             iv.weight = 0.0 if iv.rejected else 1.0
-        return _RunEstimate(value, float(np.hypot((value - lo) / 1.96, s_common)), intervals)
+        return RunEstimate(value, float(np.hypot((value - lo) / 1.96, s_common)), intervals)
     g = np.array([weights[k] for k in ok])
     if g.sum() <= 0:
-        return _RunEstimate(float("nan"), float("inf"), intervals)
+        return RunEstimate(float("nan"), float("inf"), intervals)
     g = g / g.sum()
     for iv in intervals:
         iv.weight = 0.0
@@ -134,27 +138,27 @@ def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> _RunE
     for iv in used:  # the kernels are bulky; keep the JSON small
         iv.terms.pop("rate_kernel_f", None)
         iv.terms.pop("rate_kernel_r", None)
-    return _RunEstimate(value, sigma, intervals)
+    return RunEstimate(value, sigma, intervals)
 
 
-def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) -> _RunEstimate:
+def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) -> RunEstimate:
     """:func:`_combine`'s Hann-weighted estimate from :meth:`RunBalance.interval_columns` (the same
     numbers, no :class:`Interval` records; nan when no angle is usable)."""
     good = cols["good"]
     if not len(good):
-        return _RunEstimate(float("nan"), float("inf"), [], (0, len(cols["phi1"])))
+        return RunEstimate(float("nan"), float("inf"), [], (0, len(cols["phi1"])))
     rows = np.nonzero(~cols["rejected"])[0]
     ok = good[rows].tolist()
     counts = (len(ok), len(cols["phi1"]))
     if not ok:
-        return _RunEstimate(float("nan"), float("inf"), [], counts)
+        return RunEstimate(float("nan"), float("inf"), [], counts)
     if isinstance(weights, np.ndarray) and weights.dtype == np.float64 and weights.ndim == 1:
         g = weights[good[rows]]  # the same numbers as np.array([weights[k] for k in ok])
     else:
         g = np.array([weights[k] for k in ok])
     total = g.sum()
     if total <= 0:
-        return _RunEstimate(float("nan"), float("inf"), [], counts)
+        return RunEstimate(float("nan"), float("inf"), [], counts)
     g = g / total
     lam = np.asarray(cols["lam"], dtype=float)[rows]
     lam_list = lam.tolist()  # the Python floats the Interval records hold
@@ -167,7 +171,7 @@ def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) 
     value, sigma = _dense_estimate(balance, g, lam, cols["phi1"][good[rows]].tolist(), lam_list,
                                    pick("w1f"), pick("w1r"), pick("s_current"), pick("s_common"),
                                    pick("s_independent"), None, None, (cols["windows"], fits))
-    return _RunEstimate(value, sigma, [], counts)
+    return RunEstimate(value, sigma, [], counts)
 
 
 def _dense_estimate(balance: "RunBalance", g: np.ndarray, lam: np.ndarray, phi1: list, lam_list: list,

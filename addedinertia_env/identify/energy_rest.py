@@ -16,7 +16,7 @@ from .fit_kernels import lstsq as rounded_lstsq
 REST_FIT_S = 0.08  # s, span of encoder steps before t2 and after t3 that give the rest angles
 
 
-def _power_series(coef: np.ndarray, x):
+def power_series(coef: np.ndarray, x):
     """``sum(coef[j] x**j)`` at ``x`` (float or array) by Horner's rule, as ``np.polynomial.Polynomial(coef)(x)``
     computes it (``coef[-1] + x * 0``, then ``coef[j] + y * x``), the same numbers."""
     y = coef[-1] + x * 0
@@ -25,14 +25,14 @@ def _power_series(coef: np.ndarray, x):
     return y
 
 
-def _power_series_derivative(coef: np.ndarray) -> np.ndarray:
+def power_series_derivative(coef: np.ndarray) -> np.ndarray:
     """Coefficients of the derivative of the power series ``coef`` (``Polynomial(coef).deriv().coef``)."""
     if len(coef) < 2:
         return coef[:1] * 0
     return np.array([j * coef[j] for j in range(1, len(coef))])
 
 
-def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float):
+def crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float):
     """The angle (rad) as a function of time from sample ``k`` (s) (power-series coefficients), fitted to the instants where a quantised reading steps, within
     ``span_s`` seconds before (negative) or after (positive) it: a quadratic in time through
     (step instant, midpoint of the two readings), without a linear term after ``k`` (the hull
@@ -58,7 +58,7 @@ def _crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: flo
     return np.array([coef[0], 0.0, coef[1]])
 
 
-def _quantum(angle: np.ndarray, counts: int) -> float:
+def encoder_step(angle: np.ndarray, counts: int) -> float:
     """Encoder step, rad: from the counts per turn, or the smallest step seen when not given."""
     if counts:
         return 2.0 * np.pi / float(counts)

@@ -48,7 +48,7 @@ def interval_mean_current(t: np.ndarray, i: np.ndarray, R: float, L: float,
     return relaxed_interval_means(t, i, decay, tau)
 
 
-def _smooth_by_phase(rec: RunRecord, *angles: np.ndarray, cuts: np.ndarray | None = None) -> list[np.ndarray]:
+def smooth_by_phase(rec: RunRecord, *angles: np.ndarray, cuts: np.ndarray | None = None) -> list[np.ndarray]:
     """Encoder angles smoothed within each contiguous block of one phase and brake state.
 
     The work sum ``sum(torque_k * dphi_k)`` is biased where the torque reacts to the same
@@ -87,7 +87,7 @@ def phase_blocks(rec: RunRecord) -> np.ndarray:
     return np.concatenate([[0], inner, [n]]).astype(np.int64)
 
 
-def _voltage_offset(t: np.ndarray, psi: np.ndarray, u: np.ndarray) -> float:
+def voltage_offset(t: np.ndarray, psi: np.ndarray, u: np.ndarray) -> float:
     """Intercept of the terminal voltage against the flywheel rate on an open-circuit stroke, V."""
     omega = np.gradient(smooth_angle(t, psi), t)
     X = np.column_stack([np.ones_like(omega), omega])
@@ -95,7 +95,7 @@ def _voltage_offset(t: np.ndarray, psi: np.ndarray, u: np.ndarray) -> float:
     return float(coef[0])
 
 
-def _electric_work_steps(t: np.ndarray, u: np.ndarray, i: np.ndarray, R: float, L: float) -> np.ndarray:
+def electric_work_steps(t: np.ndarray, u: np.ndarray, i: np.ndarray, R: float, L: float) -> np.ndarray:
     """Electric energy minus ohmic loss and the change of magnetic energy per sample, J (the patent's form).
 
     A drive holds its terminal voltage over each sample, so the current inside a sample is
