@@ -52,7 +52,7 @@ class Sampling:
                 "rate_in_spec_range": self.in_spec_range}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PhaseBlocks:
     """The record's contiguous blocks of one ``phase`` label (as logged; :func:`~addedinertia_env.record.motion_phase`
     says how the brake changes them): the first sample and the label of each, and the first block of each label."""
