@@ -89,7 +89,7 @@ class RecordViews:
 
     * :attr:`known`: the ``rig`` block as a :class:`~addedinertia_env.rig.known.KnownRig`;
     * :attr:`phase_blocks`: the contiguous blocks of one phase (:class:`PhaseBlocks`);
-    * :attr:`sampling`: how the record was sampled (:class:`~addedinertia_env.record.Sampling`: rate,
+    * :attr:`sampling`: how the record was sampled (:class:`Sampling`: rate,
       jitter, dropped samples, gaps);
     * :attr:`limits`: the plausibility check's limits (:class:`~addedinertia_env.plausibility.Limits`);
       the first use runs the check, which raises :class:`RecordError` for a record its own rig could
