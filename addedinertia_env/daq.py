@@ -92,9 +92,10 @@ def apply_quirks(record: RunRecord, quirks: Quirks, rng: np.random.Generator) ->
     """A copy of ``record`` as a DAQ with ``quirks`` would have logged it."""
     s = {k: np.asarray(v).copy() for k, v in record.samples.items()}
     meta = copy.deepcopy(record.meta)
-    rig = meta["rig"]
-    rate = float(rig["sample_rate"])
-    counts = rig.get("encoder_counts") or {}
+    rig = meta["rig"]  # the copy's block, rewritten below as the DAQ would have stated it
+    known = record.known
+    rate = known.sample_rate
+    counts = {"phi": known.phi_counts, "psi": known.psi_counts}  # 0: not quantised
     if quirks.braked_tail > 0:
         _brake_tail(s, quirks.braked_tail, counts)
     if quirks.release_moving:

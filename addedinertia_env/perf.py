@@ -176,9 +176,19 @@ def _time_shares(shares: list[dict[str, float]]) -> str:
 
 
 def render_markdown(result: dict[str, Any], command: str, figure: str | None) -> str:
-    """docs/PERFORMANCE.md from a :func:`run_perf` result."""
+    """docs/PERFORMANCE.md from a :func:`run_perf` result: the machine and what a step is, the headline
+    figures, how time grows with n (``figure``: the plot's path, or None), the whole task when it was
+    measured, and what the batched rig is."""
+    lines = _intro(result, command) + _headline(result) + _sweep(result, figure)
+    if result.get("vector_task"):
+        lines += _whole_task(result)
+    return "\n".join(lines + _BATCHED_RIG)
+
+
+def _intro(result: dict[str, Any], command: str) -> list[str]:
+    """The page's title, the command and date, the machine and what one step is."""
     m = result["machine"]
-    lines = [
+    return [
         "# Performance of the simulation",
         "",
         f"Measured by `{command}` on {result['date']}. Every number below comes from that one run;",
@@ -197,6 +207,12 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
         "step; `BatchedRig.physics_step` on n environments is n steps. Drive in current mode",
         "(a different current per environment), hull free, default rig, float64 unless stated.",
         "",
+    ]
+
+
+def _headline(result: dict[str, Any]) -> list[str]:
+    """The headline table: the single and batched rigs, memory, and the whole task when measured."""
+    lines = [
         "## Headline",
         "",
         "| quantity | value |",
@@ -232,7 +248,12 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
             f"{result['vector_env_samples_per_s_identification_off']:,.0f} samples/s; "
             f"{result['vector_env_samples_per_cpu_s_identification_off']:,.0f} per CPU-s |",
         ]
-    lines += [
+    return lines
+
+
+def _sweep(result: dict[str, Any], figure: str | None) -> list[str]:
+    """How the time per step grows with the number of environments (table, comment, ``figure``)."""
+    lines = [
         "",
         "The single-environment figure is the better of two measurements, before and after the",
         f"sweep ({result['single_env']['before_sweep']['steps_per_s']:,.0f} and "
@@ -256,105 +277,128 @@ def render_markdown(result: dict[str, Any], command: str, figure: str | None) ->
     ]
     if figure:
         lines += [f"![time per step against n]({figure})", ""]
-    vec = result.get("vector_task")
-    if vec:
-        rows = vec["rows"]
-        lines += ["## The whole task: single env, `gym.make_vec` and the batched vector env", "",
-                  "`AddedInertia/ReverseStroke-v0` with `action_repeat` = "
-                  f"{vec['action_repeat']} (the agent at 100 Hz on the 1 kHz rig), actions from a",
-                  "fixed random policy (uniform in [-0.3, 0.3]), domain randomisation on. A *sample* is one",
-                  "rig sample of one environment under the agent's command; settle, free strokes, resets and",
-                  "the end-of-episode identification (energy method, the accuracy reward) are in the time but",
-                  "not counted as samples. Single env and `make_vec` sync are timed from `reset`; the batched",
-                  "env after its first reset and a warm-up (the first episodes all start together), so",
-                  "the window holds autoresets and identifications at their steady rate.", "",
-                  "| engine | n envs | samples/s (wall) | agent steps/s (wall) | samples per CPU-s | episodes ended | wall s | CPU s |",
-                  "|---|---:|---:|---:|---:|---:|---:|---:|"]
-        for row in rows:
-            lines.append(f"| {row['kind']} | {row['n_envs']} | {row['samples_per_s']:,.0f} | "
-                         f"{row['agent_steps_per_s']:,.0f} | {row['samples_per_cpu_s']:,.0f} | {row['episodes_ended']} | "
-                         f"{row['wall_s']:.1f} | {row['cpu_s']:.1f} |")
-        head, b, e = rows[2], rows[-2], rows[-1]  # headline, one process, one process without identification
-        per_episode = b["samples"] / max(b["episodes_ended"], 1)
-        ident_ms = (b["cpu_s"] / b["samples"] - e["cpu_s"] / e["samples"]) * per_episode * 1e3
-        lines += ["", "Per CPU-second (`time.process_time`, summed over the worker processes) the figures do not depend",
-                  "on what else the machine runs; the wall figures do (load average above).", "",
-                  f"The end-of-episode identification (the energy method on each finished record, for the accuracy",
-                  f"reward and the episode's score, plus the episode's record and metrics) costs about {ident_ms:,.1f} CPU-ms",
-                  "per episode here (the difference of the two one-process rows, per episode); with it off",
-                  f"(`score_episodes=False`, accuracy weight 0) the rest of the task runs at {e['samples_per_cpu_s']:,.0f}",
-                  f"samples per CPU-second. An episode has about {per_episode:,.0f} controlled samples."]
-        lines += ["", f"Batched / `make_vec` sync = **{result['vector_ratio_to_sync']:,.0f} x** wall "
-                  f"({result['vector_ratio_to_sync_per_cpu_s']:,.0f} x per CPU-second; same run). The headline row's",
-                  f"first reset ({head['n_envs']} free strokes at once) took {head['reset_s']:.1f} s; its timed window used "
-                  f"{head['cpu_s']:.1f} CPU-s in {head['wall_s']:.1f} s of wall time; {head['episodes_per_s']:.0f} episodes "
-                  "ended per second."]
-        if head.get("time_shares"):
-            lines += ["", "Where the headline row's wall time went, per process (" + _time_shares(head["time_shares"])
-                      + "; `StepClock` in `vector/shards.py`). *wait* is a process blocked until another answers: "
-                      "the step waits for the slower shard; *spares* and *fits* are the spare episodes' starts and "
-                      "stroke fits, done while a process would otherwise wait."]
-        if head.get("repeat_samples_per_s") and len(head["repeat_samples_per_s"]) > 1:
-            lines += [f"The headline row is the median of {len(head['repeat_samples_per_s'])} runs, each from a fresh "
-                      "env: " + ", ".join(f"{v:,.0f}" for v in head["repeat_samples_per_s"])
-                      + " samples/s (the run-to-run spread on this machine)."]
-        median = head.get("median_abs_rel_error")
-        if isinstance(median, float) and np.isfinite(median):
-            lines += [f"Median |rel_error| under the random policy: {100 * median:.2f} %."]
-        speed_met = result["vector_env_samples_per_s"] >= 1e6
-        ratio_met = result["vector_ratio_to_sync"] >= 100
-        lines += ["", "**Against the targets** (whole task with identification, n = 1024, same run): 1 M samples/s "
-                  f"**{'met' if speed_met else 'not met'}** ({result['vector_env_samples_per_s']:,.0f} samples/s wall); "
-                  f"100 x `make_vec` sync **{'met' if ratio_met else 'not met'}** "
-                  f"({result['vector_ratio_to_sync']:,.0f} x; the sync figure itself moves by about 10 % between runs on "
-                  f"this machine). In {head.get('workers', 1)} process(es) the wall figure is at most "
-                  f"{head.get('workers', 1)} x the per-CPU-second one ({head['samples_per_cpu_s']:,.0f}); here the processes "
-                  f"kept {head['cpu_s'] / head['wall_s']:.1f} cores busy: every step waits for the slower shard. The shards "
-                  "share the identification of the episodes that ended in a step (records move to the shard with less "
-                  "to do), but a record is identified in one piece, so in a step where an odd number of episodes "
-                  "ended (" + (f"{100 * head['odd_end_steps_frac']:.0f} % of the timed steps" if "odd_end_steps_frac" in head
-                               else "about half the steps") + ") one process waits for the other's last record; the "
-                  "shards' sampling halves also differ from step to step (the records of the ended episodes; the "
-                  "spare starts and the stroke fits at the free strokes' stops run while a process waits, as far as "
-                  "it waits), "
-                  "and other jobs on the machine take turns (load average above). "
-                  + (f"Per sample the {head.get('workers', 1)} processes used "
-                     f"{abs(100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1)):.0f} % "
-                     f"{'more' if b['samples_per_cpu_s'] > head['samples_per_cpu_s'] else 'less'} CPU than one: each "
-                     "shard pays the fixed cost of the Python and array calls of every rig sample, whatever its number "
-                     "of slots, and the parent process, which steps shard 0 itself (2.5 % fewer environments than "
-                     "the others), also relays the other shards' actions, results and moved records. "
-                     if head.get("workers", 1) > 1 else "")
-                  + "Per episode "
-                  f"the identification ({ident_ms:,.1f} CPU-ms) costs "
-                  f"{'more' if ident_ms > per_episode / e['samples_per_cpu_s'] * 1e3 else 'less'} than stepping its "
-                  f"{per_episode:,.0f} samples ({per_episode / e['samples_per_cpu_s'] * 1e3:,.1f} CPU-ms): per sample, "
-                  f"{1e6 / e['samples_per_cpu_s']:.2f} CPU-us of stepping (settle, free strokes, resets included) and "
-                  f"{ident_ms * 1e3 / per_episode:.2f} CPU-us of end-of-episode work; 1 M samples/s on "
-                  f"{head.get('workers', 1)} cores needs at most {head.get('workers', 1):g} CPU-us per sample all in with "
-                  f"every core busy all the time, {head['cpu_s'] / head['wall_s']:.1f} CPU-us at the "
-                  f"{head['cpu_s'] / head['wall_s']:.1f} cores kept busy here, against "
-                  f"{1e6 / head['samples_per_cpu_s']:.2f} CPU-us measured in the headline row.", "",
-                  "`gym.make_vec(\"AddedInertia/ReverseStroke-v0\", num_envs=N)` gives the batched env (its",
-                  "`vector_entry_point`; `workers=W` runs it in W processes: shard 0 in the calling one, the others in",
-                  "workers); `vectorization_mode=\"sync\"` gives N single",
-                  "envs.", "",
-                  "**GPU / torch backend**: none. No GPU machine was available to this work, and a torch backend that",
-                  "was never run on a GPU would be an untested claim, so there is none; the batched env is numpy and",
-                  "numba-compiled loops on the CPU.", ""]
-    lines += [
-        "## What the batched rig is",
-        "",
-        "`addedinertia_env/rig/batched.py`: the same forces (`rig/forces.py`) and motor update",
-        "(`rig/motor.py`) as the MuJoCo rig, integrated by the same RK4 scheme with the spring",
-        "and the mass matrix inside the stages. With the extra torques held over a physics step",
-        "that step is linear in the state, so it is applied as one matrix per kind of step,",
-        "found by running the plain step (`reference_substep`) on unit vectors. Tests",
-        "(`tests/test_batched.py`) hold it to the MuJoCo rig: state trajectories agree within",
-        "1e-9 rad (float64) for passive, current-mode and voltage-mode inputs with every hidden",
-        "effect on, and within 1e-4 rad in float32. A brake set while the hull moves at rate w0",
-        "differs by up to w0 x physics_dt in phi (MuJoCo's brake is a stiff spring-damper",
-        "constraint; the batched brake holds exactly).",
-        "",
-    ]
-    return "\n".join(lines)
+    return lines
+
+
+def _whole_task(result: dict[str, Any]) -> list[str]:
+    """The whole task: single env, ``gym.make_vec`` sync and the batched vector env, the identification's
+    cost, where the time went and the figures against the targets."""
+    vec = result["vector_task"]
+    rows = vec["rows"]
+    lines = ["## The whole task: single env, `gym.make_vec` and the batched vector env", "",
+             "`AddedInertia/ReverseStroke-v0` with `action_repeat` = "
+             f"{vec['action_repeat']} (the agent at 100 Hz on the 1 kHz rig), actions from a",
+             "fixed random policy (uniform in [-0.3, 0.3]), domain randomisation on. A *sample* is one",
+             "rig sample of one environment under the agent's command; settle, free strokes, resets and",
+             "the end-of-episode identification (energy method, the accuracy reward) are in the time but",
+             "not counted as samples. Single env and `make_vec` sync are timed from `reset`; the batched",
+             "env after its first reset and a warm-up (the first episodes all start together), so",
+             "the window holds autoresets and identifications at their steady rate.", "",
+             "| engine | n envs | samples/s (wall) | agent steps/s (wall) | samples per CPU-s | episodes ended | wall s | CPU s |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for row in rows:
+        lines.append(f"| {row['kind']} | {row['n_envs']} | {row['samples_per_s']:,.0f} | "
+                     f"{row['agent_steps_per_s']:,.0f} | {row['samples_per_cpu_s']:,.0f} | {row['episodes_ended']} | "
+                     f"{row['wall_s']:.1f} | {row['cpu_s']:.1f} |")
+    head, b, e = rows[2], rows[-2], rows[-1]  # headline, one process, one process without identification
+    per_episode = b["samples"] / max(b["episodes_ended"], 1)
+    ident_ms = (b["cpu_s"] / b["samples"] - e["cpu_s"] / e["samples"]) * per_episode * 1e3
+    lines += _identification_cost(b, e, per_episode, ident_ms)
+    lines += _run_notes(result, head)
+    return lines + _against_the_targets(result, head, b, e, per_episode, ident_ms)
+
+
+def _identification_cost(b: dict[str, Any], e: dict[str, Any], per_episode: float, ident_ms: float) -> list[str]:
+    """What the end-of-episode identification costs: the one-process rows with it (``b``) and without (``e``)."""
+    return ["", "Per CPU-second (`time.process_time`, summed over the worker processes) the figures do not depend",
+            "on what else the machine runs; the wall figures do (load average above).", "",
+            f"The end-of-episode identification (the energy method on each finished record, for the accuracy",
+            f"reward and the episode's score, plus the episode's record and metrics) costs about {ident_ms:,.1f} CPU-ms",
+            "per episode here (the difference of the two one-process rows, per episode); with it off",
+            f"(`score_episodes=False`, accuracy weight 0) the rest of the task runs at {e['samples_per_cpu_s']:,.0f}",
+            f"samples per CPU-second. An episode has about {per_episode:,.0f} controlled samples."]
+
+
+def _run_notes(result: dict[str, Any], head: dict[str, Any]) -> list[str]:
+    """The headline row (``head``): the ratio to ``make_vec`` sync, where its time went, its repeats, the error."""
+    lines = ["", f"Batched / `make_vec` sync = **{result['vector_ratio_to_sync']:,.0f} x** wall "
+             f"({result['vector_ratio_to_sync_per_cpu_s']:,.0f} x per CPU-second; same run). The headline row's",
+             f"first reset ({head['n_envs']} free strokes at once) took {head['reset_s']:.1f} s; its timed window used "
+             f"{head['cpu_s']:.1f} CPU-s in {head['wall_s']:.1f} s of wall time; {head['episodes_per_s']:.0f} episodes "
+             "ended per second."]
+    if head.get("time_shares"):
+        lines += ["", "Where the headline row's wall time went, per process (" + _time_shares(head["time_shares"])
+                  + "; `StepClock` in `vector/shards.py`). *wait* is a process blocked until another answers: "
+                  "the step waits for the slower shard; *spares* and *fits* are the spare episodes' starts and "
+                  "stroke fits, done while a process would otherwise wait."]
+    if head.get("repeat_samples_per_s") and len(head["repeat_samples_per_s"]) > 1:
+        lines += [f"The headline row is the median of {len(head['repeat_samples_per_s'])} runs, each from a fresh "
+                  "env: " + ", ".join(f"{v:,.0f}" for v in head["repeat_samples_per_s"])
+                  + " samples/s (the run-to-run spread on this machine)."]
+    median = head.get("median_abs_rel_error")
+    if isinstance(median, float) and np.isfinite(median):
+        lines += [f"Median |rel_error| under the random policy: {100 * median:.2f} %."]
+    return lines
+
+
+def _against_the_targets(result: dict[str, Any], head: dict[str, Any], b: dict[str, Any], e: dict[str, Any],
+                         per_episode: float, ident_ms: float) -> list[str]:
+    """The whole task against its targets (1 M samples/s, 100 x ``make_vec`` sync), and why the processes wait."""
+    speed_met = result["vector_env_samples_per_s"] >= 1e6
+    ratio_met = result["vector_ratio_to_sync"] >= 100
+    return ["", "**Against the targets** (whole task with identification, n = 1024, same run): 1 M samples/s "
+            f"**{'met' if speed_met else 'not met'}** ({result['vector_env_samples_per_s']:,.0f} samples/s wall); "
+            f"100 x `make_vec` sync **{'met' if ratio_met else 'not met'}** "
+            f"({result['vector_ratio_to_sync']:,.0f} x; the sync figure itself moves by about 10 % between runs on "
+            f"this machine). In {head.get('workers', 1)} process(es) the wall figure is at most "
+            f"{head.get('workers', 1)} x the per-CPU-second one ({head['samples_per_cpu_s']:,.0f}); here the processes "
+            f"kept {head['cpu_s'] / head['wall_s']:.1f} cores busy: every step waits for the slower shard. The shards "
+            "share the identification of the episodes that ended in a step (records move to the shard with less "
+            "to do), but a record is identified in one piece, so in a step where an odd number of episodes "
+            "ended (" + (f"{100 * head['odd_end_steps_frac']:.0f} % of the timed steps" if "odd_end_steps_frac" in head
+                         else "about half the steps") + ") one process waits for the other's last record; the "
+            "shards' sampling halves also differ from step to step (the records of the ended episodes; the "
+            "spare starts and the stroke fits at the free strokes' stops run while a process waits, as far as "
+            "it waits), "
+            "and other jobs on the machine take turns (load average above). "
+            + (f"Per sample the {head.get('workers', 1)} processes used "
+               f"{abs(100 * (b['samples_per_cpu_s'] / head['samples_per_cpu_s'] - 1)):.0f} % "
+               f"{'more' if b['samples_per_cpu_s'] > head['samples_per_cpu_s'] else 'less'} CPU than one: each "
+               "shard pays the fixed cost of the Python and array calls of every rig sample, whatever its number "
+               "of slots, and the parent process, which steps shard 0 itself (2.5 % fewer environments than "
+               "the others), also relays the other shards' actions, results and moved records. "
+               if head.get("workers", 1) > 1 else "")
+            + "Per episode "
+            f"the identification ({ident_ms:,.1f} CPU-ms) costs "
+            f"{'more' if ident_ms > per_episode / e['samples_per_cpu_s'] * 1e3 else 'less'} than stepping its "
+            f"{per_episode:,.0f} samples ({per_episode / e['samples_per_cpu_s'] * 1e3:,.1f} CPU-ms): per sample, "
+            f"{1e6 / e['samples_per_cpu_s']:.2f} CPU-us of stepping (settle, free strokes, resets included) and "
+            f"{ident_ms * 1e3 / per_episode:.2f} CPU-us of end-of-episode work; 1 M samples/s on "
+            f"{head.get('workers', 1)} cores needs at most {head.get('workers', 1):g} CPU-us per sample all in with "
+            f"every core busy all the time, {head['cpu_s'] / head['wall_s']:.1f} CPU-us at the "
+            f"{head['cpu_s'] / head['wall_s']:.1f} cores kept busy here, against "
+            f"{1e6 / head['samples_per_cpu_s']:.2f} CPU-us measured in the headline row.", "",
+            "`gym.make_vec(\"AddedInertia/ReverseStroke-v0\", num_envs=N)` gives the batched env (its",
+            "`vector_entry_point`; `workers=W` runs it in W processes: shard 0 in the calling one, the others in",
+            "workers); `vectorization_mode=\"sync\"` gives N single",
+            "envs.", "",
+            "**GPU / torch backend**: none. No GPU machine was available to this work, and a torch backend that",
+            "was never run on a GPU would be an untested claim, so there is none; the batched env is numpy and",
+            "numba-compiled loops on the CPU.", ""]
+
+
+_BATCHED_RIG = [  # the page's last section: what the batched rig is and how it is tested
+    "## What the batched rig is",
+    "",
+    "`addedinertia_env/rig/batched.py`: the same forces (`rig/forces.py`) and motor update",
+    "(`rig/motor.py`) as the MuJoCo rig, integrated by the same RK4 scheme with the spring",
+    "and the mass matrix inside the stages. With the extra torques held over a physics step",
+    "that step is linear in the state, so it is applied as one matrix per kind of step,",
+    "found by running the plain step (`reference_substep`) on unit vectors. Tests",
+    "(`tests/test_batched.py`) hold it to the MuJoCo rig: state trajectories agree within",
+    "1e-9 rad (float64) for passive, current-mode and voltage-mode inputs with every hidden",
+    "effect on, and within 1e-4 rad in float32. A brake set while the hull moves at rate w0",
+    "differs by up to w0 x physics_dt in phi (MuJoCo's brake is a stiff spring-damper",
+    "constraint; the batched brake holds exactly).",
+    "",
+]

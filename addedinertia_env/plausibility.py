@@ -38,13 +38,13 @@ CRLF, non-uniform ``t``, gaps) are not refused here for that form.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 
-from .rig.known import KnownRig
-from .run_record import RecordError, RunRecord
-from .scan_kernels import (abs_max, abs_rates, block_starts, first_beyond, first_step_beyond,
+from .record_error import RecordError
+from .scan_kernels import (abs_max, abs_rates, first_beyond, first_step_beyond,
                            median_abs_deviation_sorted, second_differences)
 from .series_stats import median, quantile, sorted_median
 
@@ -61,12 +61,23 @@ PHASE_ORDER = {
 }
 
 
+class _Record(Protocol):
+    """What the check reads of a :class:`~addedinertia_env.run_record.RunRecord` (which imports this
+    module: its views run the check)."""
+
+    name: str
+    phase: np.ndarray
+    experiment: dict[str, Any]
+    views: Any  # RecordViews: the typed rig block and the phase blocks
+
+    def __getitem__(self, column: str) -> np.ndarray: ...
+
+
 @dataclass(frozen=True)
 class Limits:
-    """Limits of one record, SI units; ``why_*`` say how each was derived (for messages). ``known``
-    and ``phase_blocks`` are what the check read from the record: its typed ``rig`` block and the
-    first sample and label of each contiguous block of one phase (an estimator run right after the
-    check may take them instead of deriving them again)."""
+    """Limits of one record, SI units; ``why_*`` say how each was derived (for messages). A record
+    keeps them in its views (``record.views.limits``), beside the typed ``rig`` block and the phase
+    blocks the check read from there."""
 
     i_max: float
     why_i: str
@@ -75,18 +86,18 @@ class Limits:
     hull_rate: float
     flywheel_rate: float
     psi_abs: float
-    known: KnownRig | None = field(default=None, compare=False, repr=False)
-    phase_blocks: tuple[tuple[int, ...], tuple[str, ...]] | None = field(default=None, compare=False, repr=False)
 
 
-def check_plausible(rec: RunRecord) -> Limits:
-    """Refuse a record its own rig could not have produced (:class:`RecordError`); returns the limits used."""
+def check_plausible(rec: _Record) -> Limits:
+    """Refuse a record its own rig could not have produced (:class:`RecordError`); returns the limits used.
+    ``record.views.limits`` runs it once per record and keeps the result."""
     name = rec.name
     try:
-        known = rec.known
+        known = rec.views.known
     except ValueError as e:  # KnownRigError: the rig block itself is unusable
         raise RecordError(f"{name}: rig block: {e}") from None
-    starts, labels = _phase_blocks(rec.phase)
+    blocks = rec.views.phase_blocks
+    starts, labels = blocks.starts.tolist(), list(blocks.labels)
     _check_phase_order(rec, starts, labels)
     t, phi, psi, u, i = (np.asarray(rec[c], dtype=float) for c in ("t", "phi", "psi", "u", "i"))
     k_t, R, c, J_h, phi_n = known.k_t, known.R, known.c_torsion, known.J_hull, known.phi_neutral
@@ -137,7 +148,7 @@ def check_plausible(rec: RunRecord) -> Limits:
                       f"rad/s with A = {hull_amp:.3g} rad (spring energy + motor work)")
     _refuse_steps(name, "psi", psi, dt, MARGIN * fly_rate, q_psi, mask=None,
                   why=f"flywheel rate {MARGIN:g} x ((u_max + R i_max) / k_t + hull rate) = {MARGIN * fly_rate:.3g} rad/s")
-    return Limits(i_lim, why_i, u_lim, why_u, hull_rate, fly_rate, psi_abs, known, (tuple(starts), tuple(labels)))
+    return Limits(i_lim, why_i, u_lim, why_u, hull_rate, fly_rate, psi_abs)
 
 
 # --- helpers ---------------------------------------------------------------------------
@@ -233,13 +244,6 @@ def _refuse_steps(name: str, column: str, x, dt, rate: float, q: float, mask, wh
                           f"from the {why} plus encoder quantisation and noise")
 
 
-def _phase_blocks(phase: np.ndarray) -> tuple[list[int], list[str]]:
-    """First sample and label of each contiguous block of one phase."""
-    phase = np.asarray(phase)
-    starts = block_starts(phase)
-    return starts.tolist(), [str(label) for label in phase[starts].tolist()]
-
-
 def _not_idle_steps(n: int, starts: list[int], labels: list[str]) -> np.ndarray:
     """Per step ``k`` (samples ``k``, ``k + 1``; ``n`` samples): sample ``k + 1`` is not ``idle``
     (``phase[1:] != 'idle'``), from the phase blocks."""
@@ -250,7 +254,7 @@ def _not_idle_steps(n: int, starts: list[int], labels: list[str]) -> np.ndarray:
     return moving
 
 
-def _check_phase_order(rec: RunRecord, starts: list[int], labels: list[str]) -> None:
+def _check_phase_order(rec: _Record, starts: list[int], labels: list[str]) -> None:
     kind = rec.experiment.get("kind")
     order = PHASE_ORDER.get(kind)
     if order is None:

@@ -16,52 +16,34 @@ import io
 import json
 import math
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .atomic import atomic_write_texts
-from .plausibility import check_plausible
-from .rig.known import KnownRig
-from .run_record import RecordError, RunRecord  # re-exported: most callers import them from here
+from .rig.known import (CURRENT_SAMPLING, DEFAULT_CURRENT_SAMPLING, RIG_BLOCK, KnownRig,  # noqa: F401
+                        block_problems)
+from .run_record import (SAMPLE_RATE_RANGE, RecordError, RunRecord,  # noqa: F401 - re-exported: most
+                         Sampling, measure_sampling)  # callers import them from here
 
 FORMAT = "addedinertia-run/1"
 PHASES = ("free", "hold", "reverse", "idle")
 REQUIRED_COLUMNS = ("t", "phase", "phi", "psi", "u", "i")
 OPTIONAL_NUMERIC_COLUMNS = ("u_cmd", "i_cmd", "brake")
-REQUIRED_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "phi_neutral", "k_t", "R", "sample_rate")
-POSITIVE_RIG_KEYS = ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "sample_rate")
-# Optional rig keys: ``L`` (H) may be 0 (neglected) or absent (unknown), run-record.md;
-# ``current_sampling`` says how the DAQ logged the current (see CURRENT_SAMPLING).
-NONNEGATIVE_OPTIONAL_RIG_KEYS = ("L",)
-# How a logged current sample relates to the true current (``rig.current_sampling``):
-#   "instant"       - the value at the sample instant (a sampled analogue channel): the
-#                     current between samples is interpolated linearly;
-#   "held-previous" - the value held over the interval before the sample (an averaging
-#                     or integrating converter, or a controller logging what it applied);
-#   "held-next"     - the value held from the sample to the next (a controller logging the
-#                     command it is about to apply, with no inductance to smooth it).
-# Absent: "instant" (the documented default); discovery also estimates it from the
-# flywheel channel and reports what it used.
-CURRENT_SAMPLING = ("instant", "held-previous", "held-next")
-DEFAULT_CURRENT_SAMPLING = "instant"
-# Spec range of DAQ sample rates (Hz); outside it a record is still read, with a note.
-SAMPLE_RATE_RANGE = (250.0, 10_000.0)
+# The ``rig`` block's keys are declared once, in :data:`~addedinertia_env.rig.known.RIG_BLOCK`
+# (shared with KnownRig and the bench's lab file); these names are views of that table.
+REQUIRED_RIG_KEYS = tuple(key.name for key in RIG_BLOCK if key.required)
+POSITIVE_RIG_KEYS = tuple(key.name for key in RIG_BLOCK if key.required and key.bound == "positive")
+# What each required ``rig`` key holds, for error messages.
+RIG_KEY_MEANING = {key.name: key.meaning for key in RIG_BLOCK if key.required}
+# ``rig.current_sampling``: how a logged current sample relates to the true current
+# (CURRENT_SAMPLING, documented at RIG_BLOCK); absent: DEFAULT_CURRENT_SAMPLING. Discovery
+# also estimates it from the flywheel channel and reports what it used.
+
 EXPERIMENT_KINDS = ("reverse-symmetric", "free-decay", "forced-oscillation")
 SOURCES = ("sim", "emulator", "bench")
 MAX_GAP_PERIODS = 5.0
-# What each required ``rig`` key holds, for error messages.
-RIG_KEY_MEANING = {
-    "J_hull": "hull + rod + frame + stator yaw inertia, kg m^2",
-    "J_flywheel": "flywheel + rotor inertia, kg m^2",
-    "c_torsion": "torsion rod stiffness, N m/rad",
-    "phi_neutral": "calibrated neutral angle, rad",
-    "k_t": "motor torque constant, N m/A",
-    "R": "winding resistance, ohm",
-    "sample_rate": "sampling rate, Hz",
-}
 
 
 # --- writing -----------------------------------------------------------------------
@@ -133,7 +115,9 @@ def read_record(path: str | os.PathLike) -> RunRecord:
     samples = _read_samples(csv_path)
     gaps = _check_samples(csv_path, samples, meta)
     record = RunRecord(samples=samples, meta=meta, path=csv_path, gaps=gaps)
-    check_plausible(record)  # physically possible for its own rig block (docs/RELIABILITY.md)
+    # Physically possible for its own rig block (docs/RELIABILITY.md): the plausibility check, whose
+    # limits stay in the record's views beside its typed rig and phase blocks.
+    record.views.limits  # noqa: B018
     return record
 
 
@@ -161,34 +145,10 @@ def _read_meta(json_path: Path) -> dict[str, Any]:
     rig = meta["rig"]
     if not isinstance(rig, dict):
         raise RecordError(f"{json_path}: key 'rig' must be an object, got {rig!r}; expected an object of rig constants")
-    for key in REQUIRED_RIG_KEYS:
-        if key not in rig:
-            raise RecordError(f"{json_path}: missing key 'rig.{key}'; expected a number ({RIG_KEY_MEANING[key]})")
-        value = rig[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise RecordError(f"{json_path}: key 'rig.{key}' is {value!r}; expected a finite number")
-    for key in POSITIVE_RIG_KEYS:
-        if rig[key] <= 0:
-            raise RecordError(f"{json_path}: key 'rig.{key}' is {rig[key]!r}; expected a number > 0 (SI units)")
-    for key in NONNEGATIVE_OPTIONAL_RIG_KEYS:
-        if key in rig and rig[key] is not None:
-            value = rig[key]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise RecordError(f"{json_path}: key 'rig.{key}' is {value!r}; expected a finite number >= 0 "
-                                  "(0 or absent: neglected or unknown)")
-    mode = rig.get("current_sampling")
-    if mode is not None and mode not in CURRENT_SAMPLING:
-        raise RecordError(f"{json_path}: key 'rig.current_sampling' is {mode!r}; expected one of {CURRENT_SAMPLING}")
-    if abs(rig["phi_neutral"]) > 2 * math.pi:
-        raise RecordError(f"{json_path}: key 'rig.phi_neutral' is {rig['phi_neutral']!r} rad; expected |value| <= 2 pi")
-    friction = rig.get("motor_friction", {})
-    if not isinstance(friction, dict):
-        raise RecordError(f"{json_path}: key 'rig.motor_friction' is {friction!r}; "
-                          "expected an object with 'viscous' and 'coulomb'")
-    for key, value in friction.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise RecordError(f"{json_path}: key 'rig.motor_friction.{key}' is {value!r}; "
-                              "expected a finite number >= 0")
+    for where, shown, expected in block_problems(rig):  # the first, as the schema orders them
+        if expected == "missing":
+            raise RecordError(f"{json_path}: missing key 'rig.{where}'; expected a number ({RIG_KEY_MEANING[where]})")
+        raise RecordError(f"{json_path}: key 'rig.{where}' is {shown}; expected {expected}")
     exp = meta["experiment"]
     if not isinstance(exp, dict):
         raise RecordError(f"{json_path}: key 'experiment' must be an object, got {exp!r}; "
@@ -290,45 +250,10 @@ def _check_samples(csv_path: Path, s: dict[str, np.ndarray], meta: dict) -> list
 
 # --- sampling and segmentation (what every method reads instead of assuming) ----------
 
-@dataclass(frozen=True)
-class Sampling:
-    """How a record was sampled, measured from its ``t`` column (s, Hz).
-
-    ``uniform``: every interval within 1 % of the nominal period ``1 / rig.sample_rate``;
-    methods that need a uniform grid must check it (or resample and say so).
-    """
-
-    nominal_rate: float  # Hz, rig.sample_rate
-    median_interval: float  # s
-    jitter_rms: float  # s, RMS of (interval - its nearest whole number of periods)
-    dropped: int  # samples missing, estimated as sum(round(interval / period) - 1)
-    gaps: tuple[tuple[float, float], ...]  # (t before, length s) of intervals over five periods
-    uniform: bool
-    in_spec_range: bool  # nominal rate within 250 Hz .. 10 kHz (run-record.md)
-
-    def to_json(self) -> dict[str, Any]:
-        """The sampling summary as a JSON-ready dict."""
-        return {"nominal_rate_hz": self.nominal_rate, "median_interval_s": self.median_interval,
-                "jitter_rms_s": self.jitter_rms, "dropped_samples": self.dropped,
-                "gaps": [{"after_t": a, "length_s": g} for a, g in self.gaps], "uniform": self.uniform,
-                "rate_in_spec_range": self.in_spec_range}
-
-
 def sampling(record: RunRecord) -> Sampling:
-    """Measure how ``record`` was sampled: jitter, dropped samples, gaps (never assumed uniform)."""
-    t = np.asarray(record.t, dtype=float)
-    rate = float(record.rig["sample_rate"])
-    period = 1.0 / rate
-    dt = np.diff(t)
-    if dt.size == 0:
-        return Sampling(rate, period, 0.0, 0, tuple(record.gaps), True,
-                        SAMPLE_RATE_RANGE[0] <= rate <= SAMPLE_RATE_RANGE[1])
-    whole = np.maximum(np.round(dt / period), 1.0)
-    jitter = dt - whole * period
-    return Sampling(nominal_rate=rate, median_interval=float(np.median(dt)),
-                    jitter_rms=float(np.sqrt(np.mean(jitter**2))), dropped=int(np.sum(whole - 1.0)),
-                    gaps=tuple(record.gaps), uniform=bool(np.all(np.abs(dt - period) <= 0.01 * period)),
-                    in_spec_range=SAMPLE_RATE_RANGE[0] <= rate <= SAMPLE_RATE_RANGE[1])
+    """How ``record`` was sampled: jitter, dropped samples, gaps (never assumed uniform); the record's
+    ``views.sampling``, measured once."""
+    return record.views.sampling
 
 
 def braked(record: RunRecord) -> np.ndarray:
@@ -364,13 +289,16 @@ def motion_phase(record: RunRecord) -> np.ndarray:
     return phase.astype(str)
 
 
-def rig_inductance(rig: dict[str, Any]) -> float | None:
+def rig_inductance(rig: dict[str, Any] | KnownRig) -> float | None:
     """Winding inductance ``L`` (H) from a rig block: 0.0 when neglected, None when unknown (absent)."""
-    value = rig.get("L")
-    return None if value is None else float(value)
+    return _typed(rig).L
 
 
-def current_sampling(rig: dict[str, Any]) -> tuple[str, bool]:
+def current_sampling(rig: dict[str, Any] | KnownRig) -> tuple[str, bool]:
     """How the current was logged (one of :data:`CURRENT_SAMPLING`) and whether the rig block said so."""
-    mode = rig.get("current_sampling")
-    return (str(mode), True) if mode is not None else (DEFAULT_CURRENT_SAMPLING, False)
+    known = _typed(rig)
+    return known.current_sampling_used, known.current_sampling is not None
+
+
+def _typed(rig: dict[str, Any] | KnownRig) -> KnownRig:
+    return rig if isinstance(rig, KnownRig) else KnownRig.from_block(rig)

@@ -238,7 +238,7 @@ def negative_step_ratios(t, tau):
 
 @njit(cache=True, error_model="numpy")
 def relaxed_interval_means(t, i, decay, tau):
-    """Mean of an exponentially relaxing current over each sample interval (``energy.interval_mean_current``,
+    """Mean of an exponentially relaxing current over each sample interval (``energy_work.interval_mean_current``,
     ``instant`` sampling): with ``h = t[k+1] - t[k]``, ``a = decay[k]`` (``exp(-h / tau)``),
     ``i_ss = (i[k+1] - a i[k]) / (1 - a)``, the mean ``i_ss + (i[k] - i[k+1]) tau / h``."""
     out = np.empty(max(len(t) - 1, 0))

@@ -38,7 +38,7 @@ def twice_integrated(x, half_dt):
 
 @njit(cache=True, error_model="numpy")
 def lag_ranking(by, gram, k, frac, yy):
-    """The flywheel calibration's ranking of its lags (``energy._lag_rss``): for lag ``j``, the
+    """The flywheel calibration's ranking of its lags (``energy_calibration._lag_rss``): for lag ``j``, the
     blended column ``z = (1 - f) B[k] + f B[k + 1]`` (``f = frac[j]``, ``k = k[j]``) leaves
     ``yy - (z.y)^2 / z.z`` (``z.y``, ``z.z`` from ``by = B y`` and ``gram = B B^T``; ``yy`` when
     ``z.z <= 0``). Returns ``(rss, rows)``: that bound raised by ``2 tol`` plus its spread
@@ -196,7 +196,7 @@ def count_crossings(t, phi, a, b, k, q):
     per count crossed, its instant relative to ``t[k]`` (s) and the angle midway between the two
     readings (rad); a step of several counts in one sample spreads them over it (count ``m`` of ``n``
     at ``(m + 0.5) / n``). Returns ``(tau, levels)``, empty when fewer than four counts. Element by
-    element the numpy expressions of ``energy._crossings_fit`` (``n = max(1, round(|d| / q))``,
+    element the numpy expressions of ``energy_rest.crossings_fit`` (``n = max(1, round(|d| / q))``,
     ``t0 + (m + 0.5) / n (t1 - t0)``, ``phi0 + sign(d) (m + 0.5) q``), bit for bit."""
     total = 0
     for s in range(a, b):
@@ -308,7 +308,7 @@ def place_rows(out, offsets, rows):
 
 @njit(cache=True, error_model="numpy")
 def calibration_target(tt, th, psi, f_visc, f_coul, J_f):
-    """The angle the flywheel calibration (``energy._flywheel_calibration``) explains, and the half sample
+    """The angle the flywheel calibration (``energy_calibration.flywheel_calibration``) explains, and the half sample
     intervals: with ``om = gradient(psi, tt)`` and the friction ``f_visc om + f_coul sign(om)``, ``th +
     twice_integrated(friction) / J_f``, and ``0.5 * np.diff(tt)``: the numpy expressions element by element."""
     m = len(tt)

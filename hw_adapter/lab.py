@@ -4,7 +4,9 @@ safety limits and the experiment plan for this bench.
 
 The board's half (encoder counts, sample rate, current and voltage limits) comes from
 its CAPS message at connection time; :func:`known_rig` joins the two into the typed
-:class:`~addedinertia_env.rig.known.KnownRig` (the run record's ``rig`` block).
+:class:`~addedinertia_env.rig.known.KnownRig` (the run record's ``rig`` block). Which keys are
+the lab's, which are required and what each must be come from the block's one schema,
+:data:`~addedinertia_env.rig.known.RIG_BLOCK` (the keys whose source is ``lab``).
 
 A lab file is YAML (example: ``hw_adapter/labs/example.yaml``)::
 
@@ -15,8 +17,8 @@ A lab file is YAML (example: ``hw_adapter/labs/example.yaml``)::
     phi_neutral: 0.0       # rad, encoder frame
     k_t: 0.25              # N m/A
     R: 0.5                 # ohm
-    L: 0.0005              # H
-    motor_friction: {viscous: 0.0001, coulomb: 0.002}
+    L: 0.0005              # H; optional (0: neglected, absent: unknown)
+    motor_friction: {viscous: 0.0001, coulomb: 0.002}   # optional (absent: 0)
     limits: {phi_max: 0.35, rate_max: 1.0}     # optional, SafetyLimits fields
     experiment: {alpha: 0.1, hold_s: 2.0}      # optional, ExperimentPlan fields
 
@@ -27,23 +29,22 @@ experimenter-known constants (``RigParams.known()``, a ``KnownRig``; never the t
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from addedinertia_env.config_io import check_keys, read_yaml
 
-from addedinertia_env.rig.known import KnownRig
+from addedinertia_env.rig.known import FRICTION_KEYS, RIG_BLOCK, KnownRig, block_problems
 from addedinertia_env.rig.presets import ConfigError, load_preset, rig_from_mapping
 from addedinertia_env.experiment.protocol import plan_from_preset
 
 from .messages import CAP_EMULATOR, Caps
 from .safety import SafetyLimits
 
-MECHANICAL_KEYS = ("J_hull", "J_flywheel", "c_torsion", "phi_neutral", "k_t", "R", "L")
-POSITIVE_KEYS = ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L")
-LAB_KEYS = {"name", *MECHANICAL_KEYS, "motor_friction", "limits", "experiment"}
+# The rig block's keys a lab states (calibration, data sheet); the board states the others.
+LAB_RIG_KEYS = tuple(key.name for key in RIG_BLOCK if key.source == "lab")
+LAB_KEYS = {"name", *LAB_RIG_KEYS, "limits", "experiment"}
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ class LabConfig:
     """A lab file, checked: the bench's constants, safety limits and experiment plan."""
 
     name: str
-    constants: dict[str, Any]  # MECHANICAL_KEYS + motor_friction, SI
+    constants: dict[str, Any]  # the stated LAB_RIG_KEYS (rig-block names, SI units)
     limits: dict[str, float] = field(default_factory=dict)  # SafetyLimits overrides
     experiment: dict[str, Any] = field(default_factory=dict)  # ExperimentPlan overrides
     source: str = ""
@@ -79,9 +80,8 @@ def load_lab(name_or_path: str) -> LabConfig:
         data = read_yaml(path, "lab")
         return lab_from_mapping(data, str(path))
     preset = load_preset(name_or_path)  # raises ConfigError naming the known presets
-    known = rig_from_mapping(preset).known()
-    constants: dict[str, Any] = {k: getattr(known, k) for k in MECHANICAL_KEYS}
-    constants["motor_friction"] = {"viscous": known.friction_viscous, "coulomb": known.friction_coulomb}
+    block = rig_from_mapping(preset).known().to_block()
+    constants = {k: block[k] for k in LAB_RIG_KEYS if k in block}
     return LabConfig(name=str(preset.get("name", name_or_path)), constants=constants,
                      experiment=dict(preset.get("experiment") or {}), source=preset["_path"])
 
@@ -89,22 +89,15 @@ def load_lab(name_or_path: str) -> LabConfig:
 def lab_from_mapping(data: Any, where: str) -> LabConfig:
     """Check a lab file's mapping (``where`` names it in errors); raises ``ConfigError``."""
     check_keys(data, LAB_KEYS, where)
-    constants: dict[str, Any] = {}
-    for key in MECHANICAL_KEYS:
-        if key not in data:
+    for key, shown, expected in block_problems(data, LAB_RIG_KEYS):  # the first, as the schema orders them
+        if expected == "missing":
             raise ConfigError(f"{where}: missing key {key!r} (SI units; see hw_adapter/labs/example.yaml)")
-        v = data[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ConfigError(f"{where}: {key} = {v!r}: expected a finite number (SI units)")
-        if key in POSITIVE_KEYS and v <= 0:
-            raise ConfigError(f"{where}: {key} = {v!r}: expected a number > 0 (SI units)")
-        constants[key] = float(v)
-    friction = data.get("motor_friction", {"viscous": 0.0, "coulomb": 0.0})
-    if not isinstance(friction, dict) or set(friction) - {"viscous", "coulomb"}:
+        raise ConfigError(f"{where}: {key} = {shown}: expected {expected}")
+    friction = data.get("motor_friction") or {}
+    if set(friction) - set(FRICTION_KEYS):
         raise ConfigError(f"{where}: motor_friction = {friction!r}: expected a mapping with 'viscous' and 'coulomb'")
-    for k, v in friction.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise ConfigError(f"{where}: motor_friction.{k} = {v!r}: expected a finite number >= 0")
+    constants: dict[str, Any] = {k: float(data[k]) for k in LAB_RIG_KEYS
+                                 if data.get(k) is not None and k != "motor_friction"}
     constants["motor_friction"] = {k: float(v) for k, v in friction.items()}
     limits = data.get("limits") or {}
     allowed = {f.name for f in dataclasses.fields(SafetyLimits)}
@@ -123,14 +116,9 @@ def lab_from_mapping(data: Any, where: str) -> LabConfig:
 def known_rig(lab: LabConfig, caps: Caps) -> KnownRig:
     """What the experimenter knows of this bench: the lab's constants joined with the board's
     CAPS (limits, encoder counts, sample rate); the board and lab names ride along in ``extra``."""
-    c, fric = lab.constants, lab.constants["motor_friction"]
-    return KnownRig(J_hull=c["J_hull"], J_flywheel=c["J_flywheel"], c_torsion=c["c_torsion"],
-                    phi_neutral=c["phi_neutral"], k_t=c["k_t"], R=c["R"], L=c["L"], i_max=caps.i_max,
-                    u_max=caps.u_max, friction_viscous=fric.get("viscous", 0.0),
-                    friction_coulomb=fric.get("coulomb", 0.0), phi_counts=caps.phi_counts,
-                    psi_counts=caps.psi_counts, sample_rate=caps.sample_rate,
-                    extra={"board": {"id": caps.board_id, "firmware": caps.firmware_version,
-                                     "emulator": bool(caps.flags & CAP_EMULATOR), "watchdog_ms": caps.watchdog_ms,
-                                     "brake_response_ms": caps.brake_response_ms},
-                           "lab": lab.name})
+    block = {**lab.constants, "i_max": caps.i_max, "u_max": caps.u_max,
+             "encoder_counts": {"phi": caps.phi_counts, "psi": caps.psi_counts}, "sample_rate": caps.sample_rate}
+    board = {"id": caps.board_id, "firmware": caps.firmware_version, "emulator": bool(caps.flags & CAP_EMULATOR),
+             "watchdog_ms": caps.watchdog_ms, "brake_response_ms": caps.brake_response_ms}
+    return dataclasses.replace(KnownRig.from_block(block), extra={"board": board, "lab": lab.name})
 

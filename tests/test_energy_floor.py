@@ -58,7 +58,7 @@ def test_a_current_gain_error_is_calibrated_on_the_flywheel_or_attributed_by_the
     ampere: the estimator finds the scale 1/1.01 and the estimate does not move. With that calibration
     off, the estimate moves by gain x (A_r - A_f) / kinetic term, and the budget puts that change, and
     nothing else, on the current-calibration line."""
-    from addedinertia_env.identify import energy
+    from addedinertia_env.identify import energy, energy_balance
 
     rig = preset_rig("wigley-2m", "calibrated")
     plan = seeded_plan("wigley-2m", 2)
@@ -69,7 +69,7 @@ def test_a_current_gain_error_is_calibrated_on_the_flywheel_or_attributed_by_the
     moved = 100 * (identify([biased.record], "energy").lambda66 - identify([clean.record], "energy").lambda66) / biased.truth
     assert abs(moved) < 0.02
 
-    monkeypatch.setattr(energy, "FLYWHEEL_CALIBRATION", False)
+    monkeypatch.setattr(energy_balance, "FLYWHEEL_CALIBRATION", False)
     base, b = budget(clean), budget(biased)
     res = identify([biased.record], "energy")
     ivs = [iv for iv in res.details["intervals"] if iv["weight"] > 0]

@@ -2,7 +2,7 @@
 
 The energy method evaluates its balance at dozens of boundary angles at once
 (:func:`~addedinertia_env.identify.crossings.crossing_fits`, ``RunBalance.intervals``),
-fits the current's lag for every lag at once (``_flywheel_calibration``) and smooths with
+fits the current's lag for every lag at once (``flywheel_calibration``) and smooths with
 cached Savitzky-Golay maps (:func:`~addedinertia_env.identify.common.savgol`). Each is held
 here to the straightforward one-at-a-time computation (written out in this file, as the
 method was before it was vectorised) on batched-env episodes, clean and through DAQ
@@ -18,7 +18,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 
 from addedinertia_env.daq import Quirks, apply_quirks
 from addedinertia_env.identify import identify
-from addedinertia_env.identify import energy
+from addedinertia_env.identify import energy, energy_balance, energy_calibration, energy_pooling
 from addedinertia_env.identify.common import _valid_convolution, savgol
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv
@@ -176,13 +176,13 @@ def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul):
 
 def test_flywheel_calibration_equals_a_fit_per_lag(records, monkeypatch):
     seen = []
-    original = energy._flywheel_calibration
+    original = energy_balance.flywheel_calibration
 
     def spy(*args):
         seen.append(args)
         return original(*args)
 
-    monkeypatch.setattr(energy, "_flywheel_calibration", spy)
+    monkeypatch.setattr(energy_balance, "flywheel_calibration", spy)
     calibrated = 0
     for name, rec in records.items():
         seen.clear()
@@ -204,21 +204,21 @@ def test_lag_search_ranks_like_every_residual_formed(records, monkeypatch):
     """The lag search forms the residuals of the best lag and its neighbours only (the others
     ranked through the unprojected shifts' products): same best lag and the same three sums of
     squares (to 1e-12) as forming every lag's projected residuals."""
-    original = energy._lag_rss
+    original = energy_calibration._lag_rss
     checked = []
 
     def spy(t, i, a, b, lags, twice, projected, Q, y):
         rss = original(t, i, a, b, lags, twice, projected, Q, y)
-        full = energy._explicit_rss(energy._lagged_twice(t, i, a, b, lags, lambda x: projected(twice(x))), y)
+        full = energy_calibration._explicit_rss(energy_calibration._lagged_twice(t, i, a, b, lags, lambda x: projected(twice(x))), y)
         j = int(np.argmin(full))
         assert int(np.argmin(rss)) == j
         near = slice(max(j - 1, 0), j + 2)
         np.testing.assert_allclose(rss[near], full[near], rtol=1e-12, atol=0)
         assert np.all(rss >= full[j] * (1 - 1e-12))  # the others are never taken for the best
-        checked.append(energy._lagged_twice(t, i, a, b, lags, twice, blend=False) is not None)
+        checked.append(energy_calibration._lagged_twice(t, i, a, b, lags, twice, blend=False) is not None)
         return rss
 
-    monkeypatch.setattr(energy, "_lag_rss", spy)
+    monkeypatch.setattr(energy_calibration, "_lag_rss", spy)
     for rec in records.values():
         energy.RunBalance(rec.without_truth())
     assert any(checked), "some records should be evenly sampled (the ranked path)"
@@ -383,11 +383,11 @@ def test_shared_savgol_equals_savgol():
 
 def test_dense_fractions_are_those_computed_afresh():
     for lo, hi in [(0.25, 0.75), (0.1, 0.9), (0.25, 0.75)]:
-        f, w = energy._dense_fractions(lo, hi, energy.DENSE_ANGLES)
+        f, w = energy_pooling._dense_fractions(lo, hi, energy.DENSE_ANGLES)
         np.testing.assert_array_equal(f, np.linspace(lo, hi, energy.DENSE_ANGLES))
         np.testing.assert_array_equal(w, energy.hann_weights(np.linspace(lo, hi, energy.DENSE_ANGLES), lo, hi))
         assert not f.flags.writeable and not w.flags.writeable
-    f, w = energy._dense_fractions(np.float32(0.25), 1, 5)  # other kinds of numbers: computed as before
+    f, w = energy_pooling._dense_fractions(np.float32(0.25), 1, 5)  # other kinds of numbers: computed as before
     np.testing.assert_array_equal(w, energy.hann_weights(np.linspace(np.float32(0.25), 1, 5), np.float32(0.25), 1))
 
 
@@ -407,26 +407,3 @@ def test_terms_of_the_second_pass_are_those_computed_afresh(records):
         for field in energy.BalanceTerms.__dataclass_fields__:
             np.testing.assert_array_equal(getattr(got["terms"], field), getattr(expected["terms"], field),
                                           err_msg=f"{name} {field}")
-
-
-def test_the_checks_rig_and_phase_blocks_give_what_the_record_gives(records):
-    """identify() hands the energy method the typed rig and phase blocks its plausibility check read."""
-    from addedinertia_env.plausibility import check_plausible  # noqa: PLC0415
-
-    for name, rec in records.items():
-        limits = check_plausible(rec)
-        assert limits.known == rec.known, name
-        starts = np.concatenate([[0], np.nonzero(rec.phase[1:] != rec.phase[:-1])[0] + 1])
-        assert limits.phase_blocks == (tuple(starts.tolist()), tuple(str(p) for p in rec.phase[starts])), name
-        bare = rec.without_truth()
-        plain = energy.identify_energy([bare], interval_details=False)
-        given = energy.identify_energy([bare], interval_details=False, checked=[limits])
-        assert (given.lambda66, given.ci95, given.n_intervals, given.details) == \
-               (plain.lambda66, plain.ci95, plain.n_intervals, plain.details), name
-    with pytest.raises(ValueError, match="one per record"):
-        energy.identify_energy([bare], checked=[limits, limits])
-    from addedinertia_env.identify import identify  # noqa: PLC0415
-
-    with pytest.raises(ValueError, match="passed by identify"):  # only identify() itself gives it
-        identify([rec], "energy", checked=[limits])
-

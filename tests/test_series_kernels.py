@@ -161,7 +161,7 @@ def test_order_check_equals_numpys():
 
 
 def _crossings_by_numpy(t, phi, a, b, k, q):
-    """The rest-angle fit's crossing instants and levels as energy._crossings_fit computed them with numpy."""
+    """The rest-angle fit's crossing instants and levels as energy_rest.crossings_fit computed them with numpy."""
     d = np.diff(phi[a:b + 1])
     steps = np.nonzero(d != 0)[0]
     n = np.maximum(1, np.round(np.abs(d[steps]) / q)).astype(np.int64)

@@ -320,7 +320,7 @@ def prepare(records: list[RunRecord], current_mode: str | None = None) -> Prepar
     data = Prepared(runs=runs, rig=rig0, J_hull=rig0.J_hull, J_flywheel=J_f, c=rig0.c_torsion,
                     phi_neutral=rig0.phi_neutral, k_t=k_t, dt=dt, phi_noise=q_phi / math.sqrt(12),
                     theta_noise=theta_noise, step_samples=n, skipped=skipped)
-    stated, said = current_sampling(records[0].rig)
+    stated, said = current_sampling(records[0].known)
     if current_mode is not None:
         if current_mode not in CURRENT_SAMPLING:
             raise ValueError(f"current_mode {current_mode!r}; expected one of {CURRENT_SAMPLING}")

@@ -23,21 +23,17 @@ METHODS = {
 
 def identify(records: list[RunRecord], method: str = "energy", **options) -> Result:
     """lambda66 by ``method`` from ``records``: each record is first checked against its own rig
-    (:mod:`addedinertia_env.plausibility`), and a physically impossible result is refused
+    (:mod:`addedinertia_env.plausibility`, once per record: ``record.views.limits``; the methods read
+    the same views), and a physically impossible result is refused
     (:func:`~addedinertia_env.identify.common.check_physical`); both raise with the file names."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
-    from ..plausibility import check_plausible  # noqa: PLC0415
-
-    # also records made in memory (benchmark episodes), not only those read from files
-    checked = [check_plausible(rec) for rec in records]
+    # The plausibility check, once per record: the reader ran it, or it runs here for a record made
+    # in memory (a benchmark episode); a refusal raises RecordError.
+    for rec in records:
+        rec.views.limits  # noqa: B018
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
-    if "checked" in options:
-        raise ValueError("identify(): option 'checked' is the plausibility check's own result, passed by "
-                         "identify() itself; call the method's function directly to give it")
-    if method == "energy":  # it reuses the check's typed rig and phase blocks
-        options = {**options, "checked": checked}
     try:
         result = estimator([r.without_truth() for r in records], **options)
     except IdentificationError as e:  # every refusal names the records it is about

@@ -1,7 +1,7 @@
 """Compiled per-angle columns of the energy balance (numba): lambda66, the rejection tests and the
 uncertainty parts of every boundary angle in one pass each.
 
-They are :meth:`~addedinertia_env.identify.energy.RunBalance.interval_columns`' numpy expressions
+They are :meth:`~addedinertia_env.identify.energy_balance.RunBalance.interval_columns`' numpy expressions
 element by element, the same IEEE operations in the same order (``x**2`` of an array is ``x * x``;
 ``hypot`` and ``sqrt`` are the C library's, as numpy's), so every number is bit for bit numpy's
 (``tests/test_energy_vectorised.py`` holds them to it). Compiled as the other kernels: ``cache=True``,
@@ -23,7 +23,7 @@ def _at_least(x, floor):
 @njit(cache=True, error_model="numpy")
 def angle_values(spring, A_f, A_r, B_f, B_r, K1, K2, K3, K4, hull_rest, dW, w1f, w1r, J_h,
                  sat_count, n_saturated, k3, k4s):
-    """Per angle: ``lambda66`` (``energy.inertia_from_terms``), the fraction of samples ``k3..k4`` with the
+    """Per angle: ``lambda66`` (``energy_balance.inertia_from_terms``), the fraction of samples ``k3..k4`` with the
     current at its limit (from the cumulative count ``sat_count`` of ``n_saturated`` samples; zeros when
     ``sat_count`` is empty) and the reverse-forward speed mismatch ``||w1r| - |w1f|| / max(|w1f|, 1e-12)``.
     Returns ``(lam, sat, mismatch)``."""

@@ -41,13 +41,8 @@ class Result:
 
 
 def segment(rec: RunRecord, phase: str) -> slice | None:
-    """The first contiguous block of samples in ``phase``, or None."""
-    idx = np.nonzero(rec.phase == phase)[0]
-    if not len(idx):
-        return None
-    breaks = np.nonzero(np.diff(idx) > 1)[0]
-    end = idx[breaks[0]] + 1 if len(breaks) else idx[-1] + 1
-    return slice(int(idx[0]), int(end))
+    """The first contiguous block of samples in ``phase``, or None (``rec.views.phase_blocks``)."""
+    return rec.views.phase_blocks.first(phase)
 
 
 def largest_gap(rec: RunRecord, a: int, b: int) -> tuple[float, float] | None:
@@ -55,7 +50,7 @@ def largest_gap(rec: RunRecord, a: int, b: int) -> tuple[float, float] | None:
     spec's reporting threshold (five nominal periods), as ``(t_before, gap_s)``, or None."""
     from ..record import MAX_GAP_PERIODS  # noqa: PLC0415
 
-    period = 1.0 / float(rec.rig["sample_rate"])
+    period = rec.known.dt
     dt = np.diff(rec.t[a:b + 1])
     if not dt.size:
         return None
@@ -79,7 +74,7 @@ def check_physical(result: "Result", records: list[RunRecord]) -> "Result":
     if not all(np.isfinite([lam, lo, hi])):
         raise IdentificationError(f"{result.method} method on {names}: lambda66 = {lam!r} with interval "
                                   f"[{lo!r}, {hi!r}]; expected finite numbers (the records do not determine it)")
-    j_hull = min(float(rec.rig["J_hull"]) for rec in records) if records else 0.0
+    j_hull = min(rec.known.J_hull for rec in records) if records else 0.0
     if j_hull + lam <= 0 or hi < 0:
         raise IdentificationError(
             f"{result.method} method on {names}: lambda66 = {lam:.6g} kg m^2 (95 % interval {lo:.6g} .. {hi:.6g}) "

@@ -93,7 +93,8 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
     sigma_sandwich = math.sqrt(max(fit.sandwich_covariance(groups)[0, 0], 0.0)) if G >= 2 else math.inf
     t_quantile = float(stats.t.ppf(0.975, G - 1)) if G >= 2 else math.inf
     half_noise = max(1.96 * sigma_fisher, t_quantile * sigma_sandwich if G >= 2 else 0.0)
-    gain_u = float(records[0].rig.get("current_gain_uncertainty", DEFAULT_CURRENT_GAIN_UNCERTAINTY))
+    stated = records[0].known.current_gain_uncertainty
+    gain_u = DEFAULT_CURRENT_GAIN_UNCERTAINTY if stated is None else stated
     sigma_gain = 0.0
     if "torque_constant" not in effects and gain_u > 0:
         sigma_gain = abs(_gain_sensitivity(model, fit)) * gain_u

@@ -70,7 +70,6 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
     """Train per ``cfg``; returns the training card (also written to ``out/training_card.json``)."""
     import torch  # noqa: PLC0415
     from stable_baselines3.common.utils import set_random_seed  # noqa: PLC0415
-    from stable_baselines3.common.vec_env import VecNormalize  # noqa: PLC0415
 
     torch.set_num_threads(1)  # small networks: threads cost more than they give on shared cores
     out = Path(out)
@@ -81,6 +80,34 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
         cfg.residual["base_params"] = pinned_base_params(cfg.residual["base"])  # one base for the whole run
     venv = make_vec(cfg.env_id, cfg.env_kwargs, cfg.residual, cfg.n_envs, seed, cfg.vec_env)
     clock.watch(venv)
+    venv, model = _model(cfg, venv, seed, out, resume, verbose, device, clock)
+    done_before = int(model.num_timesteps)
+    remaining = cfg.n_timesteps - done_before
+    if remaining <= 0:
+        raise ConfigError(f"resume {resume}: the checkpoint already has {done_before} steps >= "
+                          f"n_timesteps {cfg.n_timesteps}; pass a larger --timesteps")
+    eval_env, evaluator, checkpoints = _callbacks(cfg, out, clock, verbose)
+    model.learn(total_timesteps=remaining, callback=[evaluator, checkpoints, EpisodeMetricsCallback()], reset_num_timesteps=not resume,
+                tb_log_name=cfg.algo, progress_bar=False)
+    model.save(str(out / "model.zip"))
+    venv.save(str(out / "vecnormalize.pkl"))
+    venv.close()  # joins subprocess workers, so their CPU time lands in RUSAGE_CHILDREN
+    cost = clock.snapshot(model.num_timesteps)
+
+    eval_env.obs_rms = venv.obs_rms
+    final = evaluate(model, eval_env, cfg.eval["seed"], cfg.eval["n_episodes"])
+    eval_env.close()
+    card = _training_card(cfg, seed, resume, command, model, cost, done_before, final, evaluator)
+    write_json_atomic(out / "training_card.json", card)
+    return card
+
+
+def _model(cfg: TrainConfig, venv, seed: int, out: Path, resume: str | Path | None, verbose: int, device: str,
+           clock: TrainingClock):
+    """The normalised training env and the model: new, or loaded from the checkpoint ``resume`` with its
+    VecNormalize statistics, replay buffer (off-policy) and the cost so far (into ``clock``)."""
+    from stable_baselines3.common.vec_env import VecNormalize  # noqa: PLC0415
+
     algo_cls = cfg.algo_class
     tb = str(out / "tb")
     if resume:
@@ -98,13 +125,12 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
         venv = _normalizer(venv, cfg, training=True)
         model = algo_cls(cfg.policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, device=device,
                          **cfg.model_kwargs())
-    done_before = int(model.num_timesteps)
-    remaining = cfg.n_timesteps - done_before
-    if remaining <= 0:
-        raise ConfigError(f"resume {resume}: the checkpoint already has {done_before} steps >= "
-                          f"n_timesteps {cfg.n_timesteps}; pass a larger --timesteps")
+    return venv, model
 
-    # Evaluation: the batched env when training uses it (one seeded episode per environment), else one env.
+
+def _callbacks(cfg: TrainConfig, out: Path, clock: TrainingClock, verbose: int):
+    """The evaluation env and the periodic evaluation and checkpoint callbacks: evaluation on the batched env
+    when training uses it (one seeded episode per environment), else on one env."""
     batched = uses_batched(cfg.env_id, cfg.residual, cfg.vec_env, cfg.env_kwargs)
     n_eval_envs = cfg.eval["n_episodes"] if batched else 1
     eval_env = _normalizer(make_vec(cfg.env_id, cfg.env_kwargs, cfg.residual, n_eval_envs, cfg.eval["seed"],
@@ -116,17 +142,14 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
     checkpoints = CostCheckpointCallback(clock, save_freq=max(cfg.checkpoint_freq // cfg.n_envs, 1),
                                          save_path=str(out / "checkpoints"), name_prefix="model",
                                          save_vecnormalize=True, save_replay_buffer=cfg.algo in OFF_POLICY)
-    model.learn(total_timesteps=remaining, callback=[evaluator, checkpoints, EpisodeMetricsCallback()], reset_num_timesteps=not resume,
-                tb_log_name=cfg.algo, progress_bar=False)
-    model.save(str(out / "model.zip"))
-    venv.save(str(out / "vecnormalize.pkl"))
-    venv.close()  # joins subprocess workers, so their CPU time lands in RUSAGE_CHILDREN
-    cost = clock.snapshot(model.num_timesteps)
+    return eval_env, evaluator, checkpoints
 
-    eval_env.obs_rms = venv.obs_rms
-    final = evaluate(model, eval_env, cfg.eval["seed"], cfg.eval["n_episodes"])
-    eval_env.close()
-    card = {
+
+def _training_card(cfg: TrainConfig, seed: int, resume: str | Path | None, command: str, model, cost: dict[str, Any],
+                   done_before: int, final: dict[str, Any], evaluator) -> dict[str, Any]:
+    """The training card: what was trained and how (config, seeds, board mode, observation), its cost and
+    machine, and the final and best evaluations."""
+    return {
         "kind": "addedinertia training card",
         "algo": cfg.algo,
         "env_id": cfg.env_id,
@@ -146,8 +169,6 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
         "best_eval_mean_reward": (float(evaluator.best_mean_reward) if np.isfinite(evaluator.best_mean_reward)
                                   else None),  # None: no periodic evaluation ran
     }
-    write_json_atomic(out / "training_card.json", card)
-    return card
 
 
 def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]:

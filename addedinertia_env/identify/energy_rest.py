@@ -1,0 +1,67 @@
+"""The energy method's rest angles: the hull's angle at the end of the free stroke (t2) and at the brake's
+release (t3), fitted to the instants where the quantised encoder reading steps, and the encoder's step.
+
+Part of the energy method (:mod:`addedinertia_env.identify.energy`); :class:`~.energy_balance.RunBalance`
+takes its spring term's rests from these fits.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..series_kernels import count_crossings
+from .fit_kernels import lstsq as rounded_lstsq
+
+
+REST_FIT_S = 0.08  # s, span of encoder steps before t2 and after t3 that give the rest angles
+
+
+def power_series(coef: np.ndarray, x):
+    """``sum(coef[j] x**j)`` at ``x`` (float or array) by Horner's rule, as ``np.polynomial.Polynomial(coef)(x)``
+    computes it (``coef[-1] + x * 0``, then ``coef[j] + y * x``), the same numbers."""
+    y = coef[-1] + x * 0
+    for c in coef[-2::-1]:
+        y = c + y * x
+    return y
+
+
+def power_series_derivative(coef: np.ndarray) -> np.ndarray:
+    """Coefficients of the derivative of the power series ``coef`` (``Polynomial(coef).deriv().coef``)."""
+    if len(coef) < 2:
+        return coef[:1] * 0
+    return np.array([j * coef[j] for j in range(1, len(coef))])
+
+
+def crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float):
+    """The angle (rad) as a function of time from sample ``k`` (s) (power-series coefficients), fitted to the instants where a quantised reading steps, within
+    ``span_s`` seconds before (negative) or after (positive) it: a quadratic in time through
+    (step instant, midpoint of the two readings), without a linear term after ``k`` (the hull
+    starts from rest there). None when fewer than four steps."""
+    if span_s < 0:
+        a, b = int(np.searchsorted(t, t[k] + span_s)), k
+    else:
+        a, b = k, int(np.searchsorted(t, t[k] + span_s, side="right")) - 1
+    tau, levels = count_crossings(t, phi, a, b, k, q)
+    if not len(tau):
+        return None
+    # Before t2 the hull may pass its stop and come back a little: a free quadratic. After t3
+    # it starts from rest at the brake's release: no linear term (a free one, extrapolated
+    # back over the first count's dwell, is off by a count or more).
+    X = np.empty((len(tau), 3 if span_s < 0 else 2))  # the columns 1, (tau,) tau^2
+    X[:, 0] = 1.0
+    X[:, -1] = tau**2
+    if span_s < 0:
+        X[:, 1] = tau
+    coef, *_ = rounded_lstsq(X, levels, rcond=None)
+    if span_s < 0:
+        return coef
+    return np.array([coef[0], 0.0, coef[1]])
+
+
+def encoder_step(angle: np.ndarray, counts: int) -> float:
+    """Encoder step, rad: from the counts per turn, or the smallest step seen when not given."""
+    if counts:
+        return 2.0 * np.pi / float(counts)
+    steps = np.abs(np.diff(angle))
+    steps = steps[steps > 0]
+    return float(np.min(steps)) if len(steps) else 0.0
