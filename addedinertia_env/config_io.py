@@ -12,6 +12,13 @@ from typing import Any, Iterable
 
 import yaml
 
+import addedinertia_env as _package
+
+# The repository's configs/ folder: presets (rigs/), suites, ranges, algorithms, tuned gains.
+# Found from the package's root so that it holds wherever this module sits in the package.
+CONFIG_DIR = Path(_package.__file__).resolve().parents[1] / "configs"
+RIG_DIR = CONFIG_DIR / "rigs"  # the rig presets, each with its BEM cache PRESET.bem.json
+
 
 class ConfigError(ValueError):
     """A configuration file or override that cannot be used; the message says how to fix it."""

@@ -38,9 +38,8 @@ import numpy as np
 
 from .geometry import QuarterMesh
 from .mesh_checks import check_mesh
+from .water import GRAVITY, RHO_WATER
 
-GRAVITY = 9.81  # m/s^2
-RHO_WATER = 1000.0  # kg/m^3
 INSTALL_HINT = "pip install 'addedinertia[hull]'  (or: pip install capytaine==3.0.0)"
 
 

@@ -25,8 +25,7 @@ import numpy as np
 from scipy import integrate
 
 from .geometry import HullShape
-
-RHO_WATER = 1000.0
+from .water import RHO_WATER
 
 
 def ellipsoid_coefficients(a: float, b: float, c: float) -> tuple[float, float]:

@@ -36,8 +36,7 @@ from typing import Any
 
 import numpy as np
 
-RHO_WATER = 1000.0
-GRAVITY = 9.81
+from .water import GRAVITY, RHO_WATER
 
 
 @dataclasses.dataclass(frozen=True)

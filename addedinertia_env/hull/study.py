@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..atomic import atomic_write_text
-from ..rig.presets import RIG_DIR, ConfigError
+from ..config_io import RIG_DIR, ConfigError
 from . import estimates
 from .geometry import HullShape, quarter_mesh
 from .retardation import kernel_summary

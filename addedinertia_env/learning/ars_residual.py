@@ -168,7 +168,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
             if kind == "policy":
                 theta_rows[which == g] = th
                 use_policy[which == g] = True
-        result = _run_candidates(suite, batch_seeds, make_base, oracle_mask, policy, theta_rows, use_policy,
+        result = run_candidates(suite, batch_seeds, make_base, oracle_mask, policy, theta_rows, use_policy,
                                  scale, action_repeat)
         env_steps += result.agent_steps
         episodes += len(batch_seeds)
@@ -207,10 +207,12 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
     return write_card()
 
 
-def _run_candidates(suite, seeds, make_base, oracle_mask, policy: LinearPolicy, theta_rows, use_policy, scale,
-                    action_repeat):
-    """One batch where slot ``j`` runs the oracle, the bare base (correction 0), or the base plus
-    the policy with parameters ``theta_rows[j]``."""
+def run_candidates(suite, seeds, make_base, oracle_mask, policy: LinearPolicy, theta_rows, use_policy, scale,
+                   action_repeat):
+    """One batch of episodes (``seeds`` of ``suite``) where slot ``j`` runs the oracle (``oracle_mask[j]``),
+    the bare base (correction 0) or the base plus the policy with parameters ``theta_rows[j]``
+    (``use_policy[j]``); the correction is clipped to [-1, 1], scaled by ``scale`` (normalised action units),
+    added to the base's action and held ``action_repeat`` samples. Returns :func:`.paired_batch.run_batch`'s BatchResult."""
 
     def corrections(obs: np.ndarray, slots: np.ndarray) -> np.ndarray:
         x = policy.features(obs)

@@ -29,9 +29,12 @@ import time
 from agents.registry import DEFAULT_CONTROLLER
 
 from ..atomic import atomic_write_text
-from ..cli.common import BAD_INPUT
+from ..config_io import ConfigError
+from ..experiment.protocol import ExperimentError
 from ..identify import identify
+from ..identify.common import IdentificationError
 from ..machine import machine_line
+from ..record import RecordError
 from ..scenarios import make_scenario
 from ..simulate import effects_from_name, simulate_run
 from dataclasses import dataclass, field
@@ -45,6 +48,8 @@ KIND = {"energy": "reverse-symmetric", "free-decay": "free-decay", "forced": "fo
 LAMBDA_RATIO_RANGE = (0.5, 2.5)
 DEFAULT_SEED = 20240
 COMMAND = "python -m addedinertia_env.reports.accuracy_table"
+# What a hull's run may be refused with: the refusals the CLI turns into exit status 2 (less its own BadInput).
+REFUSALS = (RecordError, ConfigError, IdentificationError, ExperimentError, OSError)
 
 
 @dataclass
@@ -112,7 +117,7 @@ def run_hull(index: int, ratio: float, seed: int, controller: str = DEFAULT_CONT
                                   run_id=f"hull-{index:02d}-{method}")
             result = identify([record], method)
             row.scores[method] = score(result.lambda66, result.ci95, record.truth_lambda66())
-        except BAD_INPUT as e:
+        except REFUSALS as e:
             row.scores[method] = Score(failure=f"{type(e).__name__}: {e}")
     return row
 

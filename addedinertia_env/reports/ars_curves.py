@@ -37,7 +37,7 @@ def load_curve(run: Path) -> list[dict[str, Any]]:
 def validate(runs: list[Path], n: int, cap: float = 0.005) -> dict[str, Any]:
     """Each run's final policy, the base and the oracle on ``n`` validation scenarios of the training split."""
     from ..bench.suites import load_suite  # noqa: PLC0415
-    from ..learning.ars_residual import LinearPolicy, base_factory, _run_candidates, capped_cost  # noqa: PLC0415
+    from ..learning.ars_residual import LinearPolicy, base_factory, capped_cost, run_candidates  # noqa: PLC0415
 
     cards = [json.loads((r / "training_card.json").read_text()) for r in runs]
     suite = load_suite(cards[0]["suite"])
@@ -49,12 +49,12 @@ def validate(runs: list[Path], n: int, cap: float = 0.005) -> dict[str, Any]:
     seeds = list(range(VALIDATION_FIRST, VALIDATION_FIRST + n))
     # Oracle and base in one batch, then each run's policy (its own normalisation) on the same seeds.
     rel = {}
-    first = _run_candidates(suite, seeds * 2, base_factory(base, params), [True] * n + [False] * n,
+    first = run_candidates(suite, seeds * 2, base_factory(base, params), [True] * n + [False] * n,
                             policies[0], np.zeros((2 * n, len(policies[0].theta))), np.zeros(2 * n, dtype=bool),
                             scale, cards[0]["action_repeat"])
     rel["oracle"], rel["base"] = first.rel_error[:n], first.rel_error[n:]
     for r, p in zip(runs, policies):
-        out = _run_candidates(suite, seeds, base_factory(base, params), [False] * n, p,
+        out = run_candidates(suite, seeds, base_factory(base, params), [False] * n, p,
                               np.tile(p.theta, (n, 1)), np.ones(n, dtype=bool), scale, cards[0]["action_repeat"])
         rel[r.name] = out.rel_error
     result: dict[str, Any] = {"scenarios": n, "first_seed": VALIDATION_FIRST, "cap": cap, "entries": {}}

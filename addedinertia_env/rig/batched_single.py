@@ -14,10 +14,10 @@ import numpy as np
 
 from . import forces
 from .batched import BatchedRig
-from .interface import SimulatedRigBase
 from .motor import MODES, MotorCommand
 from .params import RigParams
 from .sensors import Reading
+from .simulated import SimulatedRigBase
 
 
 class BatchedSingleRig(SimulatedRigBase):

@@ -63,8 +63,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from .motor import MotorCommand
-from .sensors import Reading
+from .signals import MotorCommand, Reading
 
 BOARD_MODES = ("zoh", "pd")  # what the board does between the host's actions
 MAX_KNOTS = 8  # knots per segment (the wire format's limit)

@@ -34,8 +34,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .motor import MotorCommand
-from .sensors import Reading
+from .signals import MotorCommand, Reading
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-RHO_WATER = 1000.0  # kg/m^3, fresh water near 20 C
+from ..hull.water import RHO_WATER
 
 
 def lamb_coefficients(e: float) -> tuple[float, float]:

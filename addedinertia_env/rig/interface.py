@@ -7,14 +7,10 @@ this interface knows which one it drives.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 from .known import KnownRig
-from .motor import MotorCommand
-from .sensors import Reading
-
-if TYPE_CHECKING:
-    from .params import RigParams
+from .signals import MotorCommand, Reading
 
 
 @runtime_checkable
@@ -23,7 +19,7 @@ class Rig(Protocol):
 
     ``dt`` is the sample (control) period in s, ``known`` the experimenter's constants; the
     methods move the hull, set the brake and the motor command, and step one period,
-    returning each time a :class:`~addedinertia_env.rig.sensors.Reading` (SI units).
+    returning each time a :class:`~addedinertia_env.rig.signals.Reading` (SI units).
     """
 
     source: str  # "sim", "emulator" or "bench": the run record's ``source``
@@ -47,19 +43,3 @@ class Rig(Protocol):
 
     def truth(self) -> dict[str, Any] | None:
         """The run record's ``truth`` block for a simulated rig; ``None`` on a real bench."""
-
-
-class SimulatedRigBase:
-    """``dt`` and ``known`` of a simulated rig, read from its :class:`RigParams` ``self.params``."""
-
-    params: RigParams
-
-    @property
-    def dt(self) -> float:
-        """Sample (and control) period, s."""
-        return self.params.sensors.dt
-
-    @property
-    def known(self) -> KnownRig:
-        """What the experimenter knows (the run record's ``rig`` block, typed)."""
-        return self.params.known()

@@ -18,30 +18,9 @@ Modes (what the drive does with the controller's command):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-MODES = ("passive", "current", "voltage")
-
-
-@dataclass(frozen=True)
-class MotorCommand:
-    """What the motor driver is asked to do: ``mode`` in :data:`MODES` and its ``value``.
-
-    ``value`` is a current in A (``current`` mode) or a voltage in V (``voltage`` mode);
-    ``passive`` leaves the winding open. Raises ValueError for an unknown mode or a value
-    that is not finite.
-    """
-
-    mode: str = "passive"  # one of MODES
-    value: float = 0.0  # A in current mode, V in voltage mode
-
-    def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise ValueError(f"motor mode {self.mode!r}: expected one of {MODES}")
-        if not np.isfinite(self.value):
-            raise ValueError(f"motor command {self.value!r}: expected a finite number")
+from .signals import MODES, MotorCommand
 
 
 def terminal_voltage(cmd: MotorCommand, i0, omega, *, R, L, k_e, u_max, i_max, sample_dt, decay=None):

@@ -22,10 +22,10 @@ import mujoco
 import numpy as np
 
 from . import forces
-from .interface import SimulatedRigBase
 from .motor import MotorCommand, current_step, terminal_voltage
 from .params import RigParams
 from .sensors import Reading, Sensors
+from .simulated import SimulatedRigBase
 
 HULL_JOINT = "hull_yaw"
 FLYWHEEL_JOINT = "flywheel_spin"

@@ -14,15 +14,12 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..config_io import ConfigError, check_keys, read_yaml
+from ..config_io import CONFIG_DIR, RIG_DIR, ConfigError, check_keys, read_yaml
 
 from ..hull.geometry import shape_from_mapping
 from . import hydro, radiation
 from .effects import Effects
 from .params import HullParams, MotorParams, RigParams, SensorParams, SpringParams
-
-CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
-RIG_DIR = CONFIG_DIR / "rigs"
 
 
 def available_rigs() -> list[str]:

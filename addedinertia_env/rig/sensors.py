@@ -23,18 +23,7 @@ import numpy as np
 from . import forces
 from .kernels import encoder_readings, noise_uniforms, sensor_readings
 from .noise import batch_keys, box_muller
-
-
-@dataclass(frozen=True)
-class Reading:
-    """One sample as the data acquisition sees it (SI units)."""
-
-    t: float
-    phi: float  # rad, hull encoder
-    psi: float  # rad, motor encoder (flywheel relative to hull), unwrapped
-    u: float  # V, terminal voltage
-    i: float  # A, motor current
-    brake: bool
+from .signals import Reading
 
 
 @dataclass

@@ -53,7 +53,7 @@ from ..experiment.sample_log import make_record
 from ..rig import forces
 from ..rig.batched import CURRENT, VOLTAGE, BatchedRig
 from ..rig.control_loop import LoopState
-from ..rig.interface import SimulatedRigBase
+from ..rig.simulated import SimulatedRigBase
 from ..rig.sensors import BatchedReading
 from ..scenarios import Scenario
 from .pool_kernels import (BROKEN, ENDED_NOW, EVENTS, OVER, RELEASE, STOP, TO_REVERSE, flush_staged,
