@@ -137,7 +137,9 @@ tune-hard: $(STAMP)
 	done
 
 # The other lab's development set (docs/DISCOVERY.md, issue 11): discover, whole-record and
-# energy on each case, scored against its answers.json.
-FOREIGN_LAB ?= ../shared/data/foreign-lab.tar.xz
+# energy on each case, scored against its answers.json. The archive is the developers'
+# development set, not part of the project: give its path, make foreign-lab-table FOREIGN_LAB=PATH.
+FOREIGN_LAB ?=
 foreign-lab-table: $(STAMP)
+	@test -n "$(FOREIGN_LAB)" || { echo "make foreign-lab-table: give the archive: FOREIGN_LAB=PATH/foreign-lab.tar.xz" >&2; exit 2; }
 	$(BIN)/python -m addedinertia_env.reports.foreign_lab --data $(FOREIGN_LAB) --out docs/DISCOVERY.md
