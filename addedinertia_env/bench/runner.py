@@ -1,7 +1,8 @@
 """Run benchmark episodes: ``EpisodeTask -> row`` (one JSON line), locally in processes.
 
 A row holds at least: controller, suite, scenario, seed, lambda66_true, lambda66_est,
-rel_error, energy_J, tracking_rms_rad, saturated_frac, wall_s, version (and commit).
+rel_error (estimate / truth - 1, a fraction: 0.01 is 1 %), energy_J, tracking_rms_rad, saturated_frac, wall_s,
+version (and commit).
 ``lambda66_est`` comes from ``identify([record], "energy")``; ``lambda66_true`` from the
 scenario's own parameters (scoring only). A run or identification that fails gives a
 row with ``rel_error: null`` and the reason in ``failure``.

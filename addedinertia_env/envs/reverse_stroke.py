@@ -121,7 +121,8 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         Truncation only by the registered step limit (20,000 agent steps), which a
         valid configuration never reaches. The last ``info`` carries ``lambda66_est``,
         ``lambda66_true`` (the simulator's own parameter; nan on a bench),
-        ``rel_error``, ``ci95``, ``failed`` (the estimate could not be formed),
+        ``rel_error`` (``lambda66_est / lambda66_true - 1``, a fraction: 0.01 is 1 %; nan when
+        the estimate failed), ``ci95``, ``failed`` (the estimate could not be formed),
         ``energy_J``, ``tracking_rms_rad``, ``saturated_frac``.
 
     Arguments
