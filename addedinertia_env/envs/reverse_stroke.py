@@ -21,7 +21,7 @@ from ..rig.mujoco_rig import MujocoRig
 from ..scenarios import Scenario, build_rig, load_ranges
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
 from .config import EnvConfig
-from .render import RigRenderer, plot_frame
+from .render import PlotRenderer, RigRenderer
 
 RENDER_MODES = ("rgb_array", "plot")
 NOMINAL_SAMPLE_RATE = 1000.0  # Hz, for render_fps only (the presets' sample rate)
@@ -193,6 +193,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         self.experiment: Experiment | None = None
         self.task: ReverseStrokeTask | None = None
         self._renderer: RigRenderer | None = None
+        self._plotter: PlotRenderer | None = None
         self.episode_config = self.config  # the config with this episode's reset options
 
     # --- the policy's rate (a property of the task) ----------------------------------
@@ -276,7 +277,9 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.experiment is None:
             raise gym.error.ResetNeeded("call reset() before render()")
         if self.render_mode == "plot":
-            return plot_frame(self.experiment.record(), title=self._title())
+            if self._plotter is None:
+                self._plotter = PlotRenderer()
+            return self._plotter.render(self.experiment.record(), title=self._title())
         if self._renderer is None:
             if not hasattr(self.rig, "model"):
                 raise RuntimeError(f"render_mode='rgb_array' draws a MuJoCo rig; {type(self.rig).__name__} has no model")
@@ -286,10 +289,13 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._renderer.render(self.rig.data, reference_angle=reference)
 
     def close(self):
-        """Release the renderer."""
+        """Release the renderers."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+        if self._plotter is not None:
+            self._plotter.close()
+            self._plotter = None
 
     # --- for controllers, runners and scoring -----------------------------------------
     def controller_context(self):
