@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "addedinertia_env" / "data").glob("*/README.md"))]
 USER_FACING = [*DOCS, ROOT / "Makefile", *sorted((ROOT / "configs").rglob("*.yaml"))]
 # Outside the repository: the developers' shared folder, home and work folders of a machine.
-OUTSIDE = re.compile(r"\.\./shared|(?<![\w.])/(?:work|home|Users|root|mnt|scratch)/|[A-Za-z]:\\\\")
+OUTSIDE = re.compile(r"\.\./shared|(?<![\w.])/(?:work|home|Users|root|mnt|scratch|tmp|var|opt)/|[A-Za-z]:\\\\")
 # The repository's own top-level folders and files: a path that starts with one must exist.
 TOP = ("addedinertia_env/", "agents/", "configs/", "docs/", "hw_adapter/", "tests/", "firmware/")
 # Not checked: what commands write (out/, runs), placeholders, globs and templates.
