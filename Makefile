@@ -159,7 +159,7 @@ docs-quick: docs-environment
 
 # docs/ENVIRONMENT.md: the reference returns (zero, random, feedforward-pd; env seeds 0-4).
 docs-environment: $(STAMP)
-	$(BIN)/python -m addedinertia_env.envs.baselines --episodes 5 --doc docs/ENVIRONMENT.md
+	$(BIN)/python -m addedinertia_env.reports.environment_returns --episodes 5 --out docs/ENVIRONMENT.md
 
 docs-reports: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.energy_budget --seeds 4 $(if $(FOREIGN_LAB),--data $(FOREIGN_LAB))

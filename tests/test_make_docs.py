@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from addedinertia_env.envs.baselines import BEGIN, END, main as baselines_main
+from addedinertia_env.envs.baselines import BEGIN, END
+from addedinertia_env.reports.environment_returns import main as returns_main
 
 ROOT = Path(__file__).resolve().parents[1]
 # Commands in the docs that regenerate one of their tables or figures.
@@ -65,7 +66,7 @@ def test_make_docs_runs_every_generator_the_docs_name():
 
 def test_the_dry_run_lists_the_whole_chain():
     planned = _dry_run()
-    for needle in ("envs.baselines --episodes 5 --doc docs/ENVIRONMENT.md", "reports.foreign_lab --data "
+    for needle in ("reports.environment_returns --episodes 5 --out docs/ENVIRONMENT.md", "reports.foreign_lab --data "
                    "PATH/foreign-lab.tar.xz", "--out docs/LEADERBOARD_hard.md", "reports.learning_curves --algo ppo",
                    "decay --textbook --plot docs/figures/textbook_decay.png"):
         assert needle in planned, needle
@@ -85,11 +86,11 @@ def test_environment_reference_returns_match_a_fresh_run(capsys, tmp_path):
     tolerance ENVIRONMENT.md states: return 0.05, |rel_error| 0.005 percentage points."""
     shown = _doc_row("zero")
     doc = tmp_path / "ENV.md"
-    assert baselines_main(["--episodes", "5", "--policies", "zero", "--doc", str(doc)]) == 0
+    assert returns_main(["--episodes", "5", "--policies", "zero", "--out", str(doc)]) == 0
     fresh = json.loads(capsys.readouterr().out)["zero"]
     assert abs(fresh["mean_return"] - shown["mean_return"]) <= 0.05, (fresh, shown)
     assert abs(fresh["mean_abs_rel_error"] - shown["mean_abs_rel_error"]) <= 5e-5, (fresh, shown)
     assert abs(fresh["max_abs_rel_error"] - shown["max_abs_rel_error"]) <= 5e-5, (fresh, shown)
     assert fresh["failed"] == shown["failed"]
     written = doc.read_text()  # the generator writes the block it is checked against
-    assert written.startswith(BEGIN) and "| zero | 10 |" in written and "--doc" in written
+    assert written.startswith(BEGIN) and "| zero | 10 |" in written and "environment_returns" in written

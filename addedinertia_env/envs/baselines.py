@@ -7,8 +7,8 @@ randomised episodes (env seeds ``seed .. seed + episodes - 1``, default options)
 ``dt`` set to 10 ms through ``controller_context``), and prints one JSON object with,
 per policy, the mean return, the mean of each reward term, the mean and the largest
 ``abs(rel_error)`` (a fraction, 0.01 = 1 %), the failed estimates and the mean energy.
-With ``--doc docs/ENVIRONMENT.md`` it also writes the reference-returns table (errors in
-percent) between the doc's ``baselines`` markers (``make docs`` does).
+:func:`table_block` is the reference-returns table of docs/ENVIRONMENT.md (errors in
+percent), written there by ``python -m addedinertia_env.reports.environment_returns``.
 """
 
 from __future__ import annotations
@@ -119,30 +119,25 @@ def table_block(out: dict[str, Any], command: str, machine: str) -> str:
     return "\n".join(lines + [END]) + "\n"
 
 
+def run(episodes: int, seed: int = 0, policies: list[str] | None = None) -> dict[str, Any]:
+    """The reference returns of ``policies`` (default: all of :data:`POLICIES`) on env seeds
+    ``seed .. seed + episodes - 1``, as the JSON object :func:`main` prints."""
+    seeds = list(range(seed, seed + episodes))
+    out: dict[str, Any] = {"episodes": episodes, "seeds": seeds}
+    for name in policies or list(POLICIES):
+        make, repeat = POLICIES[name]
+        out[name] = evaluate(make(), repeat, seeds)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Print the reference returns of :data:`POLICIES` as JSON (and with ``--doc`` write their table into
-    the doc); ``argv`` as on the command line; returns 0."""
+    """Print the reference returns of :data:`POLICIES` as JSON; ``argv`` as on the command line; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--policies", nargs="+", default=list(POLICIES), choices=list(POLICIES))
-    ap.add_argument("--doc", default=None, metavar="PATH",
-                    help="write the table between the baselines markers of this doc (docs/ENVIRONMENT.md)")
     args = ap.parse_args(argv)
-    seeds = list(range(args.seed, args.seed + args.episodes))
-    out = {"episodes": args.episodes, "seeds": seeds}
-    for name in args.policies:
-        make, repeat = POLICIES[name]
-        out[name] = evaluate(make(), repeat, seeds)
-    print(json.dumps(out, indent=1))
-    if args.doc:
-        from ..machine import machine_line  # noqa: PLC0415
-        from ..reports.sections import replace_section  # noqa: PLC0415
-
-        command = f"python -m addedinertia_env.envs.baselines --episodes {args.episodes} --doc {args.doc}"
-        if args.seed:
-            command += f" --seed {args.seed}"
-        replace_section(args.doc, table_block(out, command, machine_line()), BEGIN, END)
+    print(json.dumps(run(args.episodes, args.seed, args.policies), indent=1))
     return 0
 
 
