@@ -43,7 +43,9 @@ def register(sub) -> None:
     r.add_argument("--force", action="store_true",
                    help="start --out over even if it holds rows (by default a run resumes the rows of the same "
                         "controller, suite and split, and refuses a file holding others)")
-    r.add_argument("--json", action="store_true", help="print a one-object summary on stdout")
+    r.add_argument("--json", action="store_true",
+                   help="print a one-object summary on stdout (median_abs_error: median |estimate / truth - 1|, "
+                        "a fraction, 0.01 = 1 %%; failed episodes count as infinite)")
     r.set_defaults(func=run_bench)
 
     lb = bsub.add_parser("leaderboard", help="rank controllers from bench rows")
