@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
+.PHONY: docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -47,11 +47,11 @@ bench: $(STAMP)
 
 leaderboard: $(STAMP)
 	for c in $(BENCH_CONTROLLERS); do \
-	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller $$c --jobs $(BENCH_JOBS) \
+	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller $$c --jobs $(BENCH_JOBS) --allow-failures \
 	    $(if $(BENCH_SEEDS),--seeds $(BENCH_SEEDS)) --out out/bench/$(BENCH_SUITE)-$$c.jsonl || exit 1; \
 	done
 	for p in $(LEARNED_POLICIES); do \
-	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller onnx:$$p --jobs $(BENCH_JOBS) \
+	  $(BIN)/addedinertia bench run --suite $(BENCH_SUITE) --split test --controller onnx:$$p --jobs $(BENCH_JOBS) --allow-failures \
 	    $(if $(BENCH_SEEDS),--seeds $(BENCH_SEEDS)) --out out/bench/$(BENCH_SUITE)-onnx-$$(basename $$p .onnx).jsonl || exit 1; \
 	done
 	$(BIN)/addedinertia bench leaderboard $(BENCH_ROWS) --format md --out $(LEADERBOARD_DOC) \
@@ -137,7 +137,42 @@ tune-hard: $(STAMP)
 	done
 
 # The other lab's development set (docs/DISCOVERY.md, issue 11): discover, whole-record and
-# energy on each case, scored against its answers.json.
-FOREIGN_LAB ?= ../shared/data/foreign-lab.tar.xz
+# energy on each case, scored against its answers.json. The archive is the developers'
+# development set, not part of the project: give its path, make foreign-lab-table FOREIGN_LAB=PATH.
+FOREIGN_LAB ?=
 foreign-lab-table: $(STAMP)
+	@test -n "$(FOREIGN_LAB)" || { echo "make foreign-lab-table: give the archive: FOREIGN_LAB=PATH/foreign-lab.tar.xz" >&2; exit 2; }
 	$(BIN)/python -m addedinertia_env.reports.foreign_lab --data $(FOREIGN_LAB) --out docs/DISCOVERY.md
+
+# Every generated reference table and figure in docs/ from one command: `make docs` (hours on
+# 2 cores: the leaderboards, the accuracy and detection tables, the learning curves). The
+# shipped policies are not retrained (make policy, policy-100hz, hard-policy, hard-policy-dagger
+# do that, and rewrite agents/policies/). `make docs-quick` regenerates the tables that take
+# minutes. With FOREIGN_LAB=PATH the tables made from the developers' foreign-lab set are
+# regenerated too (docs/DISCOVERY.md's, docs/ENERGY_METHOD.md's section).
+docs: docs-quick docs-reports docs-accuracy detection-table perf leaderboard leaderboard-realistic leaderboard-hard docs-learning
+	$(if $(FOREIGN_LAB),$(MAKE) foreign-lab-table FOREIGN_LAB=$(FOREIGN_LAB))
+
+docs-quick: docs-environment
+	$(BIN)/python -m addedinertia_env.reports.hydrodynamics
+	mkdir -p out && $(BIN)/addedinertia decay --textbook --plot docs/figures/textbook_decay.png --json > out/textbook_decay.json
+
+# docs/ENVIRONMENT.md: the reference returns (zero, random, feedforward-pd; env seeds 0-4).
+docs-environment: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.environment_returns --episodes 5 --out docs/ENVIRONMENT.md
+
+docs-reports: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.energy_budget --seeds 4 $(if $(FOREIGN_LAB),--data $(FOREIGN_LAB))
+	$(BIN)/python -m addedinertia_env.reports.bem_prior --seeds 4
+	$(BIN)/python -m addedinertia_env.reports.radiation_memory --seeds 3 --out docs/RADIATION_MEMORY.md
+	$(BIN)/python -m addedinertia_env.reports.oracle_ablation --scenarios 48 --out docs/figures/oracle_ablation_hard.json
+
+docs-accuracy: accuracy-table
+	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 8 --out docs/ACCURACY_bearing_coulomb.md --effect bearing_coulomb
+	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 8 --out docs/ACCURACY_fluid_memory.md --effect fluid_memory
+
+# docs/LEARNING.md's curve sections (one per algorithm; finished runs in out/curves are reused).
+docs-learning: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.learning_curves --algo ppo --seeds 0 1 2 --timesteps 60000 --eval-every 10000 --eval-episodes 8 --runs out/curves
+	$(BIN)/python -m addedinertia_env.reports.learning_curves --algo sac --seeds 0 1 2 --timesteps 20000 --eval-every 4000 --eval-episodes 8 --runs out/curves
+	$(BIN)/python -m addedinertia_env.reports.learning_curves --algo recurrent-ppo --seeds 0 1 2 --timesteps 40000 --eval-every 8000 --eval-episodes 8 --runs out/curves

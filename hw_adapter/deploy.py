@@ -268,6 +268,10 @@ def deploy(opts: DeployOptions, controller: Controller) -> tuple[dict[str, Any],
         try:
             result = identify([read_record(summary["record"])], "energy")
             summary.update(lambda66=result.lambda66, ci95=list(result.ci95), n_intervals=result.n_intervals)
+            if result.lambda66 is None or not np.isfinite(result.lambda66):
+                summary["lambda66"] = None
+                summary["identify_error"] = f"the energy method gave no finite lambda66 ({result.lambda66!r})"
+                exit_status = EXIT_IDENTIFY_FAILED
         except (IdentificationError, ValueError) as e:  # a record the estimator cannot use: not a crash
             summary["identify_error"] = f"{type(e).__name__}: {e}" if not isinstance(e, IdentificationError) else str(e)
             exit_status = EXIT_IDENTIFY_FAILED

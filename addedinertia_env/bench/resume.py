@@ -3,7 +3,9 @@
 ``addedinertia bench run`` writes each episode's row the moment it lands (one JSON line,
 flushed and synced), so a killed run loses at most the episodes still running. Run the
 same command again and it resumes: the rows already in the file for this controller,
-suite and split are kept, their scenarios are skipped, and the rest are appended. A last
+suite and split are kept, their scenarios are skipped, and the rest are appended. Rows of
+episodes that failed (``rel_error: null``, the reason in ``failure``) are not kept: they are
+removed from the file and their episodes run again (:func:`drop_failed`). A last
 line cut short by the kill is removed first (and said so). A file holding rows of
 another controller, suite or split is never mixed with or overwritten unless ``force``
 (then the file starts over). See docs/RELIABILITY.md.
@@ -87,6 +89,30 @@ def prepare_output(path: str | Path, key: dict[str, Any], force: bool = False) -
         atomic_write_text(path, "".join(json.dumps(r, allow_nan=False) + "\n" for r in rows))
         notes.append(f"{path}: removed an unfinished last line ({len(torn)} characters) left by an interrupted run")
     return rows, notes
+
+
+def is_failed(row: dict[str, Any]) -> bool:
+    """Whether a benchmark row is a failed episode (no error measured; the reason is in ``failure``)."""
+    return row.get("rel_error") is None
+
+
+def drop_failed(path: str | Path, rows: list[dict[str, Any]]) -> tuple[list[dict], list[dict]]:
+    """Remove the failed episodes' rows from ``path`` (atomically) so that a resumed run retries them.
+
+    ``rows`` are the rows of this run already in ``path`` (:func:`prepare_output`); returns
+    (the rows kept, the rows removed). The file is left untouched when none failed.
+    """
+    kept = [r for r in rows if not is_failed(r)]
+    failed = [r for r in rows if is_failed(r)]
+    if failed:
+        atomic_write_text(Path(path), "".join(json.dumps(plain(r), allow_nan=False) + "\n" for r in kept))
+    return kept, failed
+
+
+def failure_reason(row: dict[str, Any]) -> str:
+    """One line saying why a failed row failed: its scenario and its ``failure`` text."""
+    reason = row.get("failure") or "no estimate (no failure text in the row)"
+    return f"{row.get('scenario')}: {reason}"
 
 
 class RowAppender:

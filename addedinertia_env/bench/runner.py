@@ -1,7 +1,8 @@
 """Run benchmark episodes: ``EpisodeTask -> row`` (one JSON line), locally in processes.
 
 A row holds at least: controller, suite, scenario, seed, lambda66_true, lambda66_est,
-rel_error, energy_J, tracking_rms_rad, saturated_frac, wall_s, version (and commit).
+rel_error ((estimate - truth) / truth, a fraction: 0.01 is 1 %), energy_J, tracking_rms_rad,
+saturated_frac, wall_s, version (and commit).
 Every number of the episode comes from the one scoring, :func:`addedinertia_env.scoring.score_episode`
 (``lambda66_true``: the records' truth block, scoring only). A run or identification that
 fails gives a row with ``rel_error: null`` and the reason in ``failure``.

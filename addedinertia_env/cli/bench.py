@@ -37,10 +37,15 @@ def register(sub) -> None:
     r.add_argument("--out", default=None, help="JSON-lines file (default: out/bench/SUITE-CONTROLLER.jsonl)")
     r.add_argument("--jobs", type=positive_int, default=min(2, os.cpu_count() or 1), help="worker processes")
     r.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    r.add_argument("--allow-failures", action="store_true",
+                   help="exit 0 when some (not all) episodes failed: a leaderboard counts them as infinite errors "
+                        "(by default any failed episode gives exit status 1)")
     r.add_argument("--force", action="store_true",
                    help="start --out over even if it holds rows (by default a run resumes the rows of the same "
                         "controller, suite and split, and refuses a file holding others)")
-    r.add_argument("--json", action="store_true", help="print a one-object summary on stdout")
+    r.add_argument("--json", action="store_true",
+                   help="print a one-object summary on stdout (median_abs_error: median |estimate / truth - 1|, "
+                        "a fraction, 0.01 = 1 %%; failed episodes count as infinite)")
     r.set_defaults(func=run_bench)
 
     lb = bsub.add_parser("leaderboard", help="rank controllers from bench rows")
@@ -86,8 +91,8 @@ def _check_controller(name: str) -> None:
 
 
 def run_bench(args) -> int:
-    """Run ``addedinertia bench run`` with the parsed ``args``; one JSON line per episode is appended to ``--out`` (a run resumes the rows already there); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..bench.resume import RowAppender, prepare_output  # noqa: PLC0415
+    """Run ``addedinertia bench run`` with the parsed ``args``; one JSON line per episode is appended to ``--out`` (a run resumes the rows already there and retries the failed ones); returns 0, or 1 when episodes failed (how many and the first reason on stderr; with ``--allow-failures`` only when all failed); bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
+    from ..bench.resume import RowAppender, drop_failed, failure_reason, is_failed, prepare_output  # noqa: PLC0415
     from ..bench.runner import run_tasks  # noqa: PLC0415
     from ..bench.suites import load_suite  # noqa: PLC0415
 
@@ -113,6 +118,10 @@ def run_bench(args) -> int:
     kept, notes = prepare_output(out, key, force=args.force)
     for note in notes:
         info(f"bench: {note}")
+    kept, retry = drop_failed(out, kept)
+    if retry:
+        info(f"bench: {len(retry)} episode(s) of {out} failed in an earlier run; running them again "
+             f"(first: {failure_reason(retry[0])})")
     done = {r["scenario"]: r for r in kept}
     todo = [t for t in tasks if t.scenario.name not in done]
     if done:
@@ -134,7 +143,8 @@ def run_bench(args) -> int:
         raise
     by_name = {**done, **{r["scenario"]: r for r in new}}
     rows = [by_name[t.scenario.name] for t in tasks if t.scenario.name in by_name]
-    failures = sum(r["rel_error"] is None for r in rows)
+    failed = [r for r in rows if is_failed(r)]
+    failures = len(failed)
     info(f"wrote {len(new)} row(s) to {out}; {len(rows)} of this run's {len(tasks)} there ({failures} failure(s))")
     if args.json:
         import numpy as np  # noqa: PLC0415
@@ -142,6 +152,13 @@ def run_bench(args) -> int:
         errs = [abs(r["rel_error"]) if r["rel_error"] is not None else float("inf") for r in rows]
         emit_json({"suite": suite.name, "split": args.split, "controller": args.controller, "rows": len(rows),
                    "out": str(out), "failures": failures, "median_abs_error": float(np.median(errs))})
+    if failed:
+        info(f"bench: {failures} of {len(rows)} episode(s) failed; first: {failure_reason(failed[0])}")
+        if not (args.allow_failures and failures < len(rows)):
+            info("bench: exit status 1 (a failed episode counts as an infinite error on the leaderboard; "
+                 "fix the cause and run the same command again: the failed episodes are retried"
+                 + ("" if args.allow_failures else "; --allow-failures accepts some failed episodes") + ")")
+            return 1
     return 0
 
 

@@ -1,8 +1,18 @@
-"""``addedinertia decay AMPLITUDES.csv [--processing FILE] [--plot PNG] [--json]``: damping law of a free decay."""
+"""``addedinertia decay AMPLITUDES.csv|--textbook [--processing FILE] [--plot PNG] [--json]``: damping law of a free decay."""
 
 from __future__ import annotations
 
 from .common import BadInput, emit_json, info
+
+# The textbook's measured decay, shipped as package data (its README cites the source).
+TEXTBOOK_IN_REPO = "addedinertia_env/data/textbook/textbook_roll_decay.csv"
+
+
+def textbook_path() -> str:
+    """Path of the shipped textbook amplitude file (its processing table lies beside it)."""
+    from importlib.resources import files  # noqa: PLC0415
+
+    return str(files("addedinertia_env") / "data" / "textbook" / "textbook_roll_decay.csv")
 
 
 def register(sub) -> None:
@@ -10,7 +20,10 @@ def register(sub) -> None:
     p = sub.add_parser("decay", help="damping laws from successive free-decay amplitudes (docs/TEXTBOOK_DECAY.md)",
                        description="Fit candidate damping laws to a series of successive half-swing amplitudes "
                                    "(columns 'swing', 'theta_deg') and reproduce the textbook's nu (6.17, 6.18).")
-    p.add_argument("amplitudes", metavar="AMPLITUDES.csv")
+    p.add_argument("amplitudes", metavar="AMPLITUDES.csv", nargs="?", default=None,
+                   help="successive amplitudes (columns 'swing', 'theta_deg'); or --textbook")
+    p.add_argument("--textbook", action="store_true",
+                   help="the measured record shipped with the project (" + TEXTBOOK_IN_REPO + ")")
     p.add_argument("--processing", metavar="FILE", default=None,
                    help="the textbook's processing table (default: STEM_processing.csv beside the input, if any)")
     p.add_argument("--plot", metavar="PNG", default=None, help="write a figure of the fits")
@@ -22,8 +35,12 @@ def run(args) -> int:
     """Run ``addedinertia decay`` with the parsed ``args``; prints the damping laws ranked by BIC (with ``--json``, one object on stdout); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
     from ..decay import DecayInputError, analyse, plot  # noqa: PLC0415
 
+    if args.textbook == (args.amplitudes is not None):
+        raise BadInput("decay: give either an AMPLITUDES.csv file or --textbook (the shipped measured record), "
+                       "not both and not neither")
+    amplitudes = textbook_path() if args.textbook else args.amplitudes
     try:
-        result = analyse(args.amplitudes, args.processing)
+        result = analyse(amplitudes, args.processing)
     except DecayInputError as e:
         raise BadInput(str(e)) from None
     if args.plot:

@@ -94,7 +94,7 @@ def run(args) -> int:
     if args.json:
         emit_json(summary)
     else:
-        print(f"status {summary['status']} (exit {status}); safe stop {'confirmed' if summary['safe_stop'] else 'NOT confirmed'}")
+        print(f"status {deploy_outcome(summary, status)} (exit {status}); safe stop {'confirmed' if summary['safe_stop'] else 'NOT confirmed'}")
         if summary.get("lambda66") is not None:
             lo, hi = summary["ci95"]
             print(f"lambda66 {summary['lambda66']:.4f} kg m^2 (95 % interval {lo:.4f} .. {hi:.4f})")
@@ -107,5 +107,14 @@ def run(args) -> int:
         info(f"addedinertia deploy: refused before arming: {summary['refused']}")
         return status
     if status != 0:
-        info(f"addedinertia deploy: {summary['status']}")
+        info(f"addedinertia deploy: {deploy_outcome(summary, status)}")
     return status
+
+
+def deploy_outcome(summary: dict, status: int) -> str:
+    """One line saying how a deploy ended: ``complete, not identified: REASON`` when the
+    experiment ran to its end but gave no lambda66 (exit status 1), else the run's status."""
+    if status == 1 and summary.get("status") == "complete":
+        reason = summary.get("identify_error") or "no lambda66 in the result"
+        return f"complete, not identified: {reason}"
+    return str(summary.get("status"))

@@ -53,7 +53,24 @@ def run(args) -> int:
                  verbose=1 if args.verbose else 0, device=args.device)
     cost = card["cost"]
     info(f"done: {cost['env_steps']} env steps, {cost['wall_s']:.0f} s wall, {cost['cpu_minutes']:.1f} CPU min; "
-         f"final eval mean reward {card['final_eval']['mean_reward']:.2f}; wrote {args.out}/model.zip")
+         f"wrote {args.out}/model.zip")
+    info(final_eval_line(card["final_eval"], card["eval_seed"]))
+    info(f"curve: {card['final_eval']['curve']} (one line per evaluation); "
+         f"TensorBoard: tensorboard --logdir {args.out}/tb")
     if args.json:
         emit_json(card)
     return 0
+
+
+def final_eval_line(final: dict, eval_seed: int) -> str:
+    """The final evaluation in one line: median |lambda66 error| in percent, the failure rate, the reward."""
+    n = final["n_episodes"]
+    failed = final.get("failed_estimates")
+    if "median_abs_rel_error" in final:
+        err = (f"median |lambda66 error| {100 * final['median_abs_rel_error']:.3f} % "
+               f"(mean {100 * final['mean_abs_rel_error']:.3f} %) over the episodes with an estimate")
+    else:
+        err = "no lambda66 estimate in any episode"
+    fails = f"{failed} of {n} failed" if failed is not None else "no failure count (the env gives no rel_error)"
+    return (f"final evaluation, {n} deterministic episode(s) on eval seed {eval_seed}: {err}; {fails}; "
+            f"mean reward {final['mean_reward']:.2f}")

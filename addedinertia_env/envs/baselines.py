@@ -6,7 +6,9 @@ randomised episodes (env seeds ``seed .. seed + episodes - 1``, default options)
 (``action_repeat`` 1) and at 100 Hz (``action_repeat`` 10, the controller's own
 ``dt`` set to 10 ms through ``controller_context``), and prints one JSON object with,
 per policy, the mean return, the mean of each reward term, the mean and the largest
-``abs(rel_error)``, the failed estimates and the mean energy.
+``abs(rel_error)`` (a fraction, 0.01 = 1 %), the failed estimates and the mean energy.
+:func:`table_block` is the reference-returns table of docs/ENVIRONMENT.md (errors in
+percent), written there by ``python -m addedinertia_env.reports.environment_returns``.
 """
 
 from __future__ import annotations
@@ -86,6 +88,48 @@ def evaluate(policy: Policy, action_repeat: int, seeds: list[int]) -> dict[str, 
             "failed": failed, "mean_energy_J": float(np.mean(energy))}
 
 
+BEGIN, END = "<!-- baselines:begin -->", "<!-- baselines:end -->"
+TERMS = ("tracking", "energy", "limits", "accuracy")
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.3f} %" if math.isfinite(x) else "-"
+
+
+def table_block(out: dict[str, Any], command: str, machine: str) -> str:
+    """The doc's reference-returns block (between :data:`BEGIN` and :data:`END`) for ``out``."""
+    seeds = out["seeds"]
+    lines = [BEGIN,
+             f"Measured with `{command}` (randomised scenarios, env seeds {seeds[0]}-{seeds[-1]}, default options and "
+             f"weights) on {machine}. `|rel_error|` = |lambda66 estimate / truth - 1| in percent, over the "
+             "episodes with an estimate; `failed`: episodes without one.",
+             "",
+             "| policy | action_repeat | mean return | " + " | ".join(TERMS)
+             + " | mean \\|rel_error\\| | max \\|rel_error\\| | failed | mean energy |",
+             "|---|---|---|" + "---|" * len(TERMS) + "---|---|---|---|"]
+    for name in POLICIES:
+        if name not in out:
+            continue
+        r = out[name]
+        terms = " | ".join(f"{r['mean_terms'].get(k, 0.0):.3f}" if k == "limits" else f"{r['mean_terms'].get(k, 0.0):.2f}"
+                           for k in TERMS)
+        lines.append(f"| {name} | {r['action_repeat']} | {r['mean_return']:.2f} | {terms} | "
+                     f"{_pct(r['mean_abs_rel_error'])} | {_pct(r['max_abs_rel_error'])} | "
+                     f"{r['failed']}/{out['episodes']} | {r['mean_energy_J']:.1f} J |")
+    return "\n".join(lines + [END]) + "\n"
+
+
+def run(episodes: int, seed: int = 0, policies: list[str] | None = None) -> dict[str, Any]:
+    """The reference returns of ``policies`` (default: all of :data:`POLICIES`) on env seeds
+    ``seed .. seed + episodes - 1``, as the JSON object :func:`main` prints."""
+    seeds = list(range(seed, seed + episodes))
+    out: dict[str, Any] = {"episodes": episodes, "seeds": seeds}
+    for name in policies or list(POLICIES):
+        make, repeat = POLICIES[name]
+        out[name] = evaluate(make(), repeat, seeds)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the reference returns of :data:`POLICIES` as JSON; ``argv`` as on the command line; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -93,12 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--policies", nargs="+", default=list(POLICIES), choices=list(POLICIES))
     args = ap.parse_args(argv)
-    seeds = list(range(args.seed, args.seed + args.episodes))
-    out = {"episodes": args.episodes, "seeds": seeds}
-    for name in args.policies:
-        make, repeat = POLICIES[name]
-        out[name] = evaluate(make(), repeat, seeds)
-    print(json.dumps(out, indent=1))
+    print(json.dumps(run(args.episodes, args.seed, args.policies), indent=1))
     return 0
 
 

@@ -20,7 +20,7 @@ from ..scenarios import Scenario, build_rig, load_ranges
 from ..scoring import REWARD, score_episode, truth_lambda66
 from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
 from .config import EnvConfig
-from .render import RigRenderer, plot_frame
+from .render import PlotRenderer, RigRenderer
 
 RENDER_MODES = ("rgb_array", "plot")
 NOMINAL_SAMPLE_RATE = 1000.0  # Hz, for render_fps only (the presets' sample rate)
@@ -119,9 +119,15 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         (about ``hold_s`` + half a period of samples: 2,000 to 8,000 at 1 kHz).
         Truncation only by the registered step limit (20,000 agent steps), which a
         valid configuration never reaches. The last ``info`` carries ``lambda66_est``,
+<<<<<<< HEAD
         ``lambda66_true`` (the record's truth block; nan on a bench), scored by
         :func:`addedinertia_env.scoring.score_episode` (the corrected score),
         ``rel_error``, ``ci95``, ``failed`` (the estimate could not be formed),
+=======
+        ``lambda66_true`` (the simulator's own parameter; nan on a bench),
+        ``rel_error`` (``lambda66_est / lambda66_true - 1``, a fraction: 0.01 is 1 %; nan when
+        the estimate failed), ``ci95``, ``failed`` (the estimate could not be formed),
+>>>>>>> firsthour
         ``energy_J``, ``tracking_rms_rad``, ``saturated_frac``.
 
     Arguments
@@ -192,6 +198,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         self.experiment: Experiment | None = None
         self.task: ReverseStrokeTask | None = None
         self._renderer: RigRenderer | None = None
+        self._plotter: PlotRenderer | None = None
         self.episode_config = self.config  # the config with this episode's reset options
 
     # --- the policy's rate (a property of the task) ----------------------------------
@@ -275,7 +282,9 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.experiment is None:
             raise gym.error.ResetNeeded("call reset() before render()")
         if self.render_mode == "plot":
-            return plot_frame(self.experiment.record(), title=self._title())
+            if self._plotter is None:
+                self._plotter = PlotRenderer()
+            return self._plotter.render(self.experiment.record(), title=self._title())
         if self._renderer is None:
             if not hasattr(self.rig, "model"):
                 raise RuntimeError(f"render_mode='rgb_array' draws a MuJoCo rig; {type(self.rig).__name__} has no model")
@@ -285,10 +294,13 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._renderer.render(self.rig.data, reference_angle=reference)
 
     def close(self):
-        """Release the renderer."""
+        """Release the renderers."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+        if self._plotter is not None:
+            self._plotter.close()
+            self._plotter = None
 
     # --- for controllers, runners and scoring -----------------------------------------
     def controller_context(self):

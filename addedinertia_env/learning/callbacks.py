@@ -78,15 +78,39 @@ def episode_metrics(infos: list[dict[str, Any]], dones) -> list[dict[str, float]
     return out
 
 
+# What each TensorBoard scalar of the project covers; written once to TensorBoard's text tab
+# (``about/scalars``). |rel_error| is a fraction: 0.01 = 1 % of the true lambda66.
+SCALARS_NOTE = (
+    "episode/*: the TRAINING episodes that ended since the previous log line (one per rollout for PPO), "
+    "means over them. episode/failure_rate: the fraction of those episodes whose lambda66 estimate failed "
+    "(identification refused the record). episode/abs_rel_error and episode/rel_error: over the episodes "
+    "WITH an estimate only (failures excluded: read them with failure_rate); |lambda66 estimate / truth - 1|, "
+    "a fraction (0.01 = 1 %). episode/reward_<term>: every ended episode, failures included (a failure costs "
+    "the accuracy term's maximum). eval/*: the deterministic EVALUATION episodes (eval.n_episodes on the "
+    "fixed eval.seed) of each evaluation; eval/median_abs_rel_error over those with an estimate, "
+    "eval/failure_rate the fraction without one."
+)
+
+
+def is_failure(row: dict[str, float]) -> bool:
+    """Whether an ended episode's lambda66 estimate failed (no finite ``rel_error``)."""
+    return not np.isfinite(row.get("rel_error", np.nan))
+
+
 class EpisodeMetricsCallback(BaseCallback):
     """Training episodes' benchmark numbers to TensorBoard (``episode/abs_rel_error`` and
     ``episode/rel_error``, ``episode/energy_J``, ``episode/tracking_rms_rad``,
-    ``episode/saturated_frac``, ``episode/reward_<term>``: means over the episodes that
-    ended since the last log)."""
+    ``episode/saturated_frac``, ``episode/reward_<term>``, ``episode/failure_rate``: means
+    over the episodes that ended since the last log; :data:`SCALARS_NOTE` says which
+    episodes each covers, and goes to TensorBoard's text tab as ``about/scalars``)."""
+
+    def _on_training_start(self) -> None:
+        self.logger.record("about/scalars", SCALARS_NOTE, exclude=("stdout", "log", "json", "csv"))
 
     def _on_step(self) -> bool:
         for row in episode_metrics(self.locals.get("infos", []), self.locals.get("dones", [])):
-            if np.isfinite(row.get("rel_error", np.nan)):
+            self.logger.record_mean("episode/failure_rate", float(is_failure(row)))
+            if not is_failure(row):
                 self.logger.record_mean("episode/abs_rel_error", abs(row["rel_error"]))
             for key, value in row.items():
                 if np.isfinite(value):
@@ -101,8 +125,10 @@ class SeededEvalCallback(EvalCallback):
     Every evaluation then runs the same episodes (scenarios drawn from ``eval_seed``),
     so the curve compares policies, not scenario luck. Each evaluation appends one line
     to ``<log_path>/curve.jsonl``: agent steps, wall and CPU seconds so far (``clock``),
-    mean reward, and the median and mean ``|rel_error|`` (the benchmark metric), mean
-    energy and tracking RMS of its episodes; the same go to TensorBoard under ``eval/``.
+    mean reward, the median and mean ``|rel_error|`` (the benchmark metric, a fraction:
+    0.01 = 1 %) over the episodes with an estimate, the failed ones (``failed``,
+    ``failure_rate``), mean energy and tracking RMS of its episodes; the same go to
+    TensorBoard under ``eval/``.
     """
 
     def __init__(self, eval_env, eval_seed: int, clock: "TrainingClock | None" = None, **kwargs: Any):
@@ -133,6 +159,9 @@ class SeededEvalCallback(EvalCallback):
             row.update(wall_s=round(self.clock.wall_s, 2), cpu_s=round(self.clock.cpu_s, 2))
         finite = rel[np.isfinite(rel)]
         row["failed"] = int(len(rel) - len(finite))
+        row["failure_rate"] = row["failed"] / len(rel) if len(rel) else None
+        if len(rel):
+            self.logger.record("eval/failure_rate", row["failure_rate"])
         if len(finite):
             row["median_abs_rel_error"] = float(np.median(finite))
             row["mean_abs_rel_error"] = float(np.mean(finite))

@@ -7,6 +7,7 @@ Outputs in ``out``::
     training_card.json     algo, config, seeds, environment steps, wall and CPU time, final evaluation
     best/best_model.zip    best model of the periodic evaluations
     eval/evaluations.npz   periodic evaluation results (EvalCallback)
+    eval/curve.jsonl       one line per evaluation (periodic, and the final one: every run has one)
     checkpoints/           model_<N>_steps.zip + vecnormalize + cost JSON (+ replay buffer, off-policy)
     tb/                    TensorBoard logs (``tensorboard --logdir out/tb``)
 
@@ -144,12 +145,20 @@ def _callbacks(cfg: TrainConfig, out: Path, clock: TrainingClock, verbose: int):
                                          save_vecnormalize=True, save_replay_buffer=cfg.algo in OFF_POLICY)
     return eval_env, evaluator, checkpoints
 
+<<<<<<< HEAD
 
 def _training_card(cfg: TrainConfig, seed: int, resume: str | Path | None, command: str, model, cost: dict[str, Any],
                    done_before: int, final: dict[str, Any], evaluator) -> dict[str, Any]:
     """The training card: what was trained and how (config, seeds, board mode, observation), its cost and
     machine, and the final and best evaluations."""
     return {
+=======
+    eval_env.obs_rms = venv.obs_rms
+    final = evaluate(model, eval_env, cfg.eval["seed"], cfg.eval["n_episodes"])
+    eval_env.close()
+    final["curve"] = str(append_final_curve_row(out / "eval" / "curve.jsonl", final, model.num_timesteps, clock))
+    card = {
+>>>>>>> firsthour
         "kind": "addedinertia training card",
         "algo": cfg.algo,
         "env_id": cfg.env_id,
@@ -171,8 +180,29 @@ def _training_card(cfg: TrainConfig, seed: int, resume: str | Path | None, comma
     }
 
 
+def append_final_curve_row(path: Path, final: dict[str, Any], timesteps: int, clock) -> Path:
+    """Add the final evaluation to the curve ``path`` (``eval/curve.jsonl``) unless a periodic
+    evaluation already ran at ``timesteps``: a run shorter than ``eval.freq`` still has a curve."""
+    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
+    if rows and rows[-1].get("timesteps") == int(timesteps):
+        return path
+    row: dict[str, Any] = {"timesteps": int(timesteps), "mean_reward": final["mean_reward"],
+                           "n_episodes": final["n_episodes"], "wall_s": round(clock.wall_s, 2),
+                           "cpu_s": round(clock.cpu_s, 2), "failed": final.get("failed_estimates", 0),
+                           "failure_rate": final.get("failure_rate"), "final": True}
+    for key in ("median_abs_rel_error", "mean_abs_rel_error", "mean_energy_J"):
+        if key in final:
+            row[key] = final[key]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as fh:
+        fh.write(json.dumps(row, allow_nan=False) + "\n")
+    return path
+
+
 def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]:
-    """Deterministic episodes on the fixed evaluation seed: reward and, where given, lambda66 error."""
+    """Deterministic episodes on the fixed evaluation seed: reward and, where given, lambda66 error
+    (``median_abs_rel_error``, ``mean_abs_rel_error``: |estimate / truth - 1| over the episodes with an
+    estimate, a fraction, 0.01 = 1 %; ``failed_estimates`` and ``failure_rate``: those without one)."""
     from stable_baselines3.common.evaluation import evaluate_policy  # noqa: PLC0415
 
     finals: list[dict[str, Any]] = []
@@ -190,6 +220,7 @@ def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]
     rel = [r for r in rel_all if np.isfinite(r)]
     if rel_all:
         result["failed_estimates"] = len(rel_all) - len(rel)
+        result["failure_rate"] = result["failed_estimates"] / len(rel_all)
     if rel:
         result["mean_abs_rel_error"] = float(np.mean(rel))
         result["median_abs_rel_error"] = float(np.median(rel))

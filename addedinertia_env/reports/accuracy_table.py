@@ -151,7 +151,7 @@ def render(rows: list[HullRow], info: dict[str, Any]) -> str:
            f"- Hulls: {len(rows)}, lambda66 / J_hull evenly from {LAMBDA_RATIO_RANGE[0]} to {LAMBDA_RATIO_RANGE[1]}; "
            f"scenario seeds {info['seed']}..{info['seed'] + len(rows) - 1} (`addedinertia_env.scenarios.make_scenario`, "
            "preset `wigley-2m`, other quantities drawn from `configs/randomization.yaml`).",
-           "- Sensors: `realistic` (physics.md section 7: 17-bit hull and 14-bit motor encoders, current noise "
+           "- Sensors: `realistic` (PHYSICS.md section 7: 17-bit hull and 14-bit motor encoders, current noise "
            "10 mA rms, offset 3 mA, gain error 0.5 %, 1 kHz). "
            + (f"Hidden effect in every hull: `{info['effect']}` (size drawn per hull from "
               "its realistic range in `rig/effects/`)." if info.get("effect") else "No hidden effects."),
@@ -185,7 +185,7 @@ def render(rows: list[HullRow], info: dict[str, Any]) -> str:
 
 NOTES = """## How each method works here, and why its interval is what it is
 
-- **energy** (patent RU 2627023, physics.md section 4): `addedinertia_env/identify/energy.py`.
+- **energy** (patent RU 2627023, PHYSICS.md section 4): `addedinertia_env/identify/energy.py`.
   Work of the motor's reaction on the hull over the reverse stroke against the forward
   stroke's spring and kinetic energies, at 41 boundary angles between 25 % and 75 % of
   the stroke averaged with smooth (Hann) weights; the hydrodynamic dissipation cancels
@@ -241,7 +241,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("docs/ACCURACY.md"), help="Markdown file to write")
     ap.add_argument("--seed", type=int, default=DEFAULT_SEED, help="scenario seed of hull 0")
     ap.add_argument("--controller", default=DEFAULT_CONTROLLER, help="controller for the energy method's reverse stroke")
-    ap.add_argument("--effect", default=None, help="hide one effect of run-record.md in every hull (seeded size)")
+    ap.add_argument("--effect", default=None, help="hide one effect of the vocabulary (docs/RUN_RECORD.md) in every hull (seeded size)")
     args = ap.parse_args(argv)
     if args.hulls < 2:
         ap.error(f"--hulls {args.hulls}: expected at least 2")

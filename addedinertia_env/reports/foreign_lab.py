@@ -1,6 +1,6 @@
 """The other lab's development set in docs/DISCOVERY.md: cause, lambda66, interval, time, per case.
 
-    python -m addedinertia_env.reports.foreign_lab --data ../shared/data/foreign-lab.tar.xz --out docs/DISCOVERY.md
+    python -m addedinertia_env.reports.foreign_lab --data PATH/foreign-lab.tar.xz --out docs/DISCOVERY.md
 
 (``make foreign-lab-table``.) The archive is unpacked into a temporary folder; for every
 case (one hull: three free decays and three reverse-symmetric runs) it runs, blind:
@@ -32,7 +32,7 @@ from ..record import read_record
 from .sections import replace_section
 
 BEGIN, END = "<!-- foreign-lab-table:begin -->", "<!-- foreign-lab-table:end -->"
-COMMAND = "python -m addedinertia_env.reports.foreign_lab --data ../shared/data/foreign-lab.tar.xz --out docs/DISCOVERY.md"
+COMMAND = "python -m addedinertia_env.reports.foreign_lab --data PATH/foreign-lab.tar.xz --out docs/DISCOVERY.md"
 
 
 def evaluate_case(folder: Path) -> dict:
@@ -98,7 +98,8 @@ def table(rows: list[dict], answers: dict, wall_s: float) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Regenerate ``the foreign-lab table of docs/DISCOVERY.md`` (the command is in the module docstring; ``--data`` is the lab's archive); ``argv`` as on the command line; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default="../shared/data/foreign-lab.tar.xz", help="the lab's archive (.tar.xz)")
+    ap.add_argument("--data", required=True, metavar="PATH",
+                    help="the lab's archive (.tar.xz; the developers' foreign-lab.tar.xz development set)")
     ap.add_argument("--out", default="docs/DISCOVERY.md")
     ap.add_argument("--jsonl", default="out/foreign-lab.jsonl", help="one line per case")
     ap.add_argument("--cases", nargs="*", default=None, help="only these case folders")
