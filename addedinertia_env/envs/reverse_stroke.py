@@ -119,15 +119,10 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         (about ``hold_s`` + half a period of samples: 2,000 to 8,000 at 1 kHz).
         Truncation only by the registered step limit (20,000 agent steps), which a
         valid configuration never reaches. The last ``info`` carries ``lambda66_est``,
-<<<<<<< HEAD
-        ``lambda66_true`` (the record's truth block; nan on a bench), scored by
+        ``lambda66_true`` (the record's truth block, A66(0); nan on a bench), scored by
         :func:`addedinertia_env.scoring.score_episode` (the corrected score),
-        ``rel_error``, ``ci95``, ``failed`` (the estimate could not be formed),
-=======
-        ``lambda66_true`` (the simulator's own parameter; nan on a bench),
-        ``rel_error`` (``lambda66_est / lambda66_true - 1``, a fraction: 0.01 is 1 %; nan when
-        the estimate failed), ``ci95``, ``failed`` (the estimate could not be formed),
->>>>>>> firsthour
+        ``rel_error`` (``(lambda66_est - lambda66_true) / lambda66_true``, a fraction: 0.01 is 1 %;
+        nan when the estimate failed), ``ci95``, ``failed`` (the estimate could not be formed),
         ``energy_J``, ``tracking_rms_rad``, ``saturated_frac``.
 
     Arguments

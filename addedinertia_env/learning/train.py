@@ -98,6 +98,7 @@ def train(cfg: TrainConfig, seed: int, out: str | Path, resume: str | Path | Non
     eval_env.obs_rms = venv.obs_rms
     final = evaluate(model, eval_env, cfg.eval["seed"], cfg.eval["n_episodes"])
     eval_env.close()
+    final["curve"] = str(append_final_curve_row(out / "eval" / "curve.jsonl", final, model.num_timesteps, clock))
     card = _training_card(cfg, seed, resume, command, model, cost, done_before, final, evaluator)
     write_json_atomic(out / "training_card.json", card)
     return card
@@ -145,20 +146,12 @@ def _callbacks(cfg: TrainConfig, out: Path, clock: TrainingClock, verbose: int):
                                          save_vecnormalize=True, save_replay_buffer=cfg.algo in OFF_POLICY)
     return eval_env, evaluator, checkpoints
 
-<<<<<<< HEAD
 
 def _training_card(cfg: TrainConfig, seed: int, resume: str | Path | None, command: str, model, cost: dict[str, Any],
                    done_before: int, final: dict[str, Any], evaluator) -> dict[str, Any]:
     """The training card: what was trained and how (config, seeds, board mode, observation), its cost and
     machine, and the final and best evaluations."""
     return {
-=======
-    eval_env.obs_rms = venv.obs_rms
-    final = evaluate(model, eval_env, cfg.eval["seed"], cfg.eval["n_episodes"])
-    eval_env.close()
-    final["curve"] = str(append_final_curve_row(out / "eval" / "curve.jsonl", final, model.num_timesteps, clock))
-    card = {
->>>>>>> firsthour
         "kind": "addedinertia training card",
         "algo": cfg.algo,
         "env_id": cfg.env_id,
@@ -200,9 +193,7 @@ def append_final_curve_row(path: Path, final: dict[str, Any], timesteps: int, cl
 
 
 def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]:
-    """Deterministic episodes on the fixed evaluation seed: reward and, where given, lambda66 error
-    (``median_abs_rel_error``, ``mean_abs_rel_error``: |estimate / truth - 1| over the episodes with an
-    estimate, a fraction, 0.01 = 1 %; ``failed_estimates`` and ``failure_rate``: those without one)."""
+    """Deterministic episodes on the fixed evaluation seed: reward and, where given, lambda66 error."""
     from stable_baselines3.common.evaluation import evaluate_policy  # noqa: PLC0415
 
     finals: list[dict[str, Any]] = []
@@ -220,7 +211,6 @@ def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]
     rel = [r for r in rel_all if np.isfinite(r)]
     if rel_all:
         result["failed_estimates"] = len(rel_all) - len(rel)
-        result["failure_rate"] = result["failed_estimates"] / len(rel_all)
     if rel:
         result["mean_abs_rel_error"] = float(np.mean(rel))
         result["median_abs_rel_error"] = float(np.median(rel))
