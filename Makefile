@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q $(TORCH_PIN)
-	$(BIN)/pip install -q -e '.[test,ray,video]'
+	$(BIN)/pip install -q -e '.[test,ray,video,data,hull]'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -47,6 +47,10 @@ def register(sub) -> None:
     p.add_argument("--export-mesh", metavar="FILE.gdf", default=None,
                    help="only write a preset's generated quarter mesh (fine resolution, or --panels FINE) in WAMIT GDF "
                         "format, and stop (nothing is solved)")
+    p.add_argument("--netcdf", metavar="FILE.nc", default=None,
+                   help="only solve (a preset at its fine resolution, or --panels FINE; a mesh as given) and write "
+                        "Capytaine's own dataset as NetCDF, with the cached memory model as attributes, and stop "
+                        "(needs Capytaine; docs/DATASETS.md)")
     p.set_defaults(func=run)
 
 
@@ -126,6 +130,11 @@ def run(args) -> int:
         if args.json:
             emit_json(written)
         return 0
+    if args.netcdf:  # solve, write Capytaine's dataset and stop
+        written = _netcdf(args)
+        if args.json:
+            emit_json(written)
+        return 0
     if args.fit_memory:  # fit the memory model to the cached sweep and stop
         fitted = _fit_memory(args)
         if args.json:
@@ -181,6 +190,26 @@ def _fit_memory(args) -> dict:
          f"A66(inf)/A66(0) {block['a_inf_ratio']:.4f}, A66(swing)/A66(0) {block['a_swing_ratio']:.4f}) stored")
     return {"cache": str(path), **{k: block[k] for k in ("order", "fit_error", "a_inf_ratio", "a_swing_ratio",
                                                             "swing_omega", "poles", "min_B_on_grid")}}
+
+
+def _netcdf(args) -> dict:
+    from ..hull.bem import CapytaineMissing  # noqa: PLC0415
+    from ..hull.mesh_checks import MeshError  # noqa: PLC0415
+    from ..hull.netcdf import export  # noqa: PLC0415
+
+    if args.deep or args.solve or args.write_cache:
+        raise BadInput("--netcdf solves the floating hull and writes only the NetCDF file: drop --deep/--solve/--write-cache")
+    if Path(args.hull).suffix.lower() not in ("", ".yaml", ".yml") and not Path(args.hull).is_file():
+        raise BadInput(f"{args.hull}: no such mesh file; expected a rig preset name or a mesh file Capytaine reads")
+    try:
+        out = export(args.hull, args.netcdf, panels=args.panels[1] if args.panels else None)
+    except CapytaineMissing as e:
+        raise BadInput(f"{args.hull}: --netcdf: {e}") from None
+    except (MeshError, ValueError) as e:
+        raise BadInput(str(e)) from None
+    info(f"Capytaine dataset written to {out['netcdf']} ({out['panels']} panels, {out['omegas']} frequencies"
+         f"{', memory model as attributes' if out['memory_model'] else ''})")
+    return out
 
 
 def _export(args) -> dict:
