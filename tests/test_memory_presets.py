@@ -163,3 +163,27 @@ def test_the_bench_emulator_serves_a_memory_preset():
     finally:
         bench.close()
         server.stop()
+
+
+def test_hull_stability_from_a_memory_record_takes_identifys_a66_zero(tmp_path, capsys):
+    """`hull wigley-2m-memory --stability --from-record RUN.csv`: the memory preset's hull is its base's
+    (the same BEM cache), and the lambda66 it hands the ship is identify()'s, which is A66(0)."""
+    import json
+
+    from addedinertia_env.cli import main
+    from addedinertia_env.experiment.protocol import plan_from_preset
+    from addedinertia_env.identify import identify
+    from addedinertia_env.record import write_record
+    from addedinertia_env.simulate import simulate_run
+
+    rec = simulate_run(load_rig("wigley-2m-memory"), "lqr", plan_from_preset(load_preset("wigley-2m-memory")),
+                       seed=1, run_id="memory-hull")
+    path = write_record(rec, tmp_path / "run-0000.csv")
+    assert main(["hull", "wigley-2m-memory", "--stability", "--from-record", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["source"].endswith("wigley-2m.bem.json")
+    fr = out["stability"]["from_record"]
+    res = identify([rec], "energy")
+    assert fr["lambda66_used"] == pytest.approx(res.lambda66, rel=1e-12)
+    assert out["stability"]["lambda66_range"]["lambda66"] == pytest.approx(list(res.ci95), rel=1e-12)
+    assert rec.meta["truth"]["lambda66"] == load_rig("wigley-2m").hull.lambda66  # the truth it estimates: A66(0)
