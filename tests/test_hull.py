@@ -234,10 +234,13 @@ def test_hull_cli_stability_from_a_record(capsys, realistic_record_path):
     fr = st["from_record"]
     lo, hi = fr["ci95_measured"]
     assert lo <= fr["lambda66_measured"] <= hi
-    assert st["lambda66_range"]["lambda66"] == pytest.approx([lo * fr["zero_frequency_correction"],
-                                                              hi * fr["zero_frequency_correction"]])
-    # the correction to zero frequency is the BEM's A66(0)/A66(swing): below 1, by the free-surface effect
-    assert 0.95 < fr["zero_frequency_correction"] < 1.0
+    # identify()'s lambda66 is A66(0) by definition: taken as it is, no BEM ratio between record and ship
+    assert st["lambda66_range"]["lambda66"] == [lo, hi] and fr["lambda66_used"] == fr["lambda66_measured"]
+    assert fr["lambda66_is"].startswith("A66(0)")
+    # and it is the record's truth (A66(0)) to the method's accuracy, where the old swing-to-zero
+    # rescaling (BEM A66(0)/A66(swing) = 0.983) put it 1.7 % low
+    truth = json.loads(realistic_record_path.with_suffix(".json").read_text())["truth"]["lambda66"]
+    assert abs(fr["lambda66_used"] / truth - 1.0) < 5e-3
     code, out, err = run_cli(capsys, "hull", "wigley-2m", "--from-record", realistic_record_path, "--method", "magic")
     assert code == 2 and "--method" in err
 

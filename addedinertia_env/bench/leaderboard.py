@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from .runner import REQUIRED_FIELDS
+from .versions import ScoreVersionError, check_versions
 
 
 class RowsError(ValueError):
@@ -39,9 +40,11 @@ def load_rows(paths: list[str | Path]) -> list[dict[str, Any]]:
 
     Raises FileNotFoundError for a missing file and :class:`RowsError` naming file and line
     for a line that is not JSON or lacks a field of :data:`REQUIRED_FIELDS`, or when no
-    file holds a row.
+    file holds a row, and naming the files and their versions when the rows are of several
+    score versions (:func:`.versions.check_versions`).
     """
     rows = []
+    by_file: dict[str, list[dict[str, Any]]] = {}
     for path in paths:
         path = Path(path)
         if not path.exists():
@@ -57,8 +60,13 @@ def load_rows(paths: list[str | Path]) -> list[dict[str, Any]]:
             if missing:
                 raise RowsError(f"{path}:{n}: missing field(s) {missing}; a bench row needs {list(REQUIRED_FIELDS)}")
             rows.append(row)
+            by_file.setdefault(str(path), []).append(row)
     if not rows:
         raise RowsError(f"no rows in {[str(p) for p in paths]}")
+    try:  # one score version per board (bench/versions.py)
+        check_versions(by_file)
+    except ScoreVersionError as e:
+        raise RowsError(str(e)) from None
     return rows
 
 

@@ -24,11 +24,15 @@ def preamble(rows: list[dict], command: str) -> str:
     suites = sorted({f"{r['suite']}/{r.get('split', '?')}" for r in rows})
     run_commands = sorted({str(r["command"]) for r in rows if r.get("command")})
     commits = sorted({str(r.get("commit", "unknown")) for r in rows})
+    from .versions import check_versions  # noqa: PLC0415
+
+    version = check_versions({"rows": rows})
     paired = any(r["controller"] == "oracle" for r in rows)
     lines = [f"Produced {datetime.date.today().isoformat()} by `{command}`.",
              f"Rows from commit(s) {', '.join(commits)}, made by: "
              + ("; ".join(f"`{c}`" for c in run_commands) if run_commands else "(the rows do not record it)") + ".",
-             f"Suite/split: {', '.join(suites)} ({_suite_notes(rows)}). Machine: {machine_line()}.",
+             f"Suite/split: {', '.join(suites)} ({_suite_notes(rows)}). Machine: {machine_line()}. "
+             f"Score version: `{version}` (bench/versions.py).",
              "Error e = lambda66 estimate / truth - 1 of the patent's energy method as written "
              "(`identify(records, 'energy', asymmetry_correction=False)`); `corrected` = the default identification "
              "(dissipation mismatch corrected with a damping law fitted to the free stroke). A failed run or "

@@ -7,8 +7,8 @@ suite and split are kept, their scenarios are skipped, and the rest are appended
 episodes that failed (``rel_error: null``, the reason in ``failure``) are not kept: they are
 removed from the file and their episodes run again (:func:`drop_failed`). A last
 line cut short by the kill is removed first (and said so). A file holding rows of
-another controller, suite or split is never mixed with or overwritten unless ``force``
-(then the file starts over). See docs/RELIABILITY.md.
+another controller, suite or split, or of another score version (bench/versions.py), is
+never mixed with or overwritten unless ``force`` (then the file starts over). See docs/RELIABILITY.md.
 """
 
 from __future__ import annotations
@@ -85,6 +85,12 @@ def prepare_output(path: str | Path, key: dict[str, Any], force: bool = False) -
         desc = "; ".join(f"controller {c}, suite {s}, split {p}" for c, s, p in others[:3])
         raise RowsFileError(f"{path}: holds rows of another run ({desc}); refusing to mix or overwrite them. "
                             "Use another --out, or --force to replace the file")
+    from .versions import SCORE_VERSION, row_version  # noqa: PLC0415
+
+    older = sorted({row_version(r) for r in rows} - {SCORE_VERSION})
+    if older:  # a row of another score version is another truth or score: never resumed beside this run's
+        raise RowsFileError(f"{path}: holds rows of score version(s) {older}; this run writes {SCORE_VERSION!r}; "
+                            "refusing to mix them. Use another --out, or --force to replace the file")
     if torn is not None:
         atomic_write_text(path, "".join(json.dumps(r, allow_nan=False) + "\n" for r in rows))
         notes.append(f"{path}: removed an unfinished last line ({len(torn)} characters) left by an interrupted run")

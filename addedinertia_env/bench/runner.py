@@ -2,7 +2,8 @@
 
 A row holds at least: controller, suite, scenario, seed, lambda66_true, lambda66_est,
 rel_error ((estimate - truth) / truth, a fraction: 0.01 is 1 %), energy_J, tracking_rms_rad,
-saturated_frac, wall_s, version (and commit).
+saturated_frac, wall_s, version (and commit), and the score's version ``score_version``
+(:mod:`.versions`: truth lambda66 = A66(0)).
 Every number of the episode comes from the one scoring, :func:`addedinertia_env.scoring.score_episode`
 (``lambda66_true``: the records' truth block, scoring only). A run or identification that
 fails gives a row with ``rel_error: null`` and the reason in ``failure``.
@@ -40,6 +41,7 @@ from ..experiment.runner import run_experiment
 from ..scenarios import build_rig
 from ..scoring import AS_WRITTEN, CORRECTED, score_episode
 from .suites import EpisodeTask
+from .versions import row_fields as score_version_fields
 
 # The ranked score: the patent's energy method as written (no model-based correction of the
 # strokes' dissipation mismatch), so that what the controller fails to retrace shows. The
@@ -115,7 +117,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
         "learning_cycles": 0, "effects": sorted(sc.rig.effects.active),
         "control_loop": sc.loop.to_dict() if sc.loop is not None else None, "i_max": sc.rig.motor.i_max,
         "failure": None, "controller_kwargs": task.controller_kwargs, "version": __version__,
-        "commit": git_commit(), "entry_kind": None,
+        "commit": git_commit(), "entry_kind": None, **score_version_fields(),
     }
     try:
         rig = build_rig(sc, seed=cycle_seed(sc, 0))

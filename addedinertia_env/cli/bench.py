@@ -184,7 +184,10 @@ def run_leaderboard(args) -> int:
 
         entries = summarise(rows)
         disc = discrimination(entries)
+        from ..bench.versions import check_versions  # noqa: PLC0415
+
         obj = plain({"title": args.title, "entries": public(entries), "files": args.files,
+                              "score_version": check_versions({"rows": rows}),
                               "verdict": verdict(entries),
                               "discrimination": {k: v for k, v in disc.items()} if disc else None,
                               "command": invoked_command(args)})

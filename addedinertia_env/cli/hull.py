@@ -15,6 +15,7 @@ from pathlib import Path
 
 from .common import BadInput, emit_json, info, positive_int
 
+MEMORY_KEYS = ("memory", "A66_swing", "A66_swing_ci95", "A66_inf", "A66_inf_ci95")  # identify()'s, passed on
 SOLVE_HELP = "recompute with the BEM even when a cache exists (needs Capytaine: pip install 'addedinertia[hull]')"
 
 
@@ -39,7 +40,8 @@ def register(sub) -> None:
     p.add_argument("--lambda66-range", type=float, nargs=2, metavar=("LO", "HI"), default=None,
                    help="lambda66 interval (kg m^2) for --stability (default: BEM zero frequency +-5 %%)")
     p.add_argument("--from-record", metavar="RUN.csv", nargs="+", default=None,
-                   help="take lambda66 and its 95 %% interval from run record(s) (implies --stability; overrides --lambda66-range)")
+                   help="take lambda66 = A66(0) and its 95 %% interval from run record(s) as identify() gives them "
+                        "(implies --stability; overrides --lambda66-range)")
     p.add_argument("--method", default="energy", help="identification method for --from-record (default energy)")
     p.add_argument("--fit-memory", action="store_true",
                    help="only fit the simulator's radiation-memory model (passive state space, docs/RADIATION_MEMORY.md) "
@@ -264,14 +266,16 @@ def _stability(args, data: dict, out: dict) -> dict:
         if args.method not in METHODS:
             raise BadInput(f"--method {args.method!r}: expected one of {', '.join(METHODS)}")
         res = identify([read_record(p) for p in args.from_record], method=args.method)
-        # the rig measures at its swing frequency; manoeuvring needs zero frequency: scale by the BEM ratio
-        ratio = out["A66_zero"] / out["A66_swing"] if out.get("A66_swing") else 1.0
-        lo, hi = res.ci95
-        rng = (lo * ratio, hi * ratio)
-        added["lambda66"] = res.lambda66 * ratio
+        # identify()'s lambda66 is A66(0) by definition (spec/run-record.md), the zero-frequency value
+        # manoeuvring needs: used as it is, with its interval; no BEM ratio (the records alone decide)
+        rng = (float(res.ci95[0]), float(res.ci95[1]))
+        added["lambda66"] = float(res.lambda66)
         measured = {"records": args.from_record, "method": res.method, "lambda66_measured": res.lambda66,
-                    "ci95_measured": list(res.ci95), "zero_frequency_correction": ratio,
+                    "ci95_measured": list(res.ci95), "lambda66_is": "A66(0), identify()'s lambda66",
                     "lambda66_used": added["lambda66"], "ci95_used": list(rng)}
+        for key in MEMORY_KEYS:  # what the identification says of the water's memory, when it says it
+            if key in res.details:
+                measured[key] = res.details[key]
     if rng[0] <= 0 or rng[1] <= rng[0]:
         raise BadInput(f"--lambda66-range {rng[0]} {rng[1]}: expected 0 < LO < HI (kg m^2)")
     result = stability(ship, added, rng)

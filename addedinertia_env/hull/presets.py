@@ -26,7 +26,11 @@ def preset_hull(name: str) -> tuple[HullShape, dict[str, Any]]:
     shape = shape_from_mapping(block, where)
     rig = load_rig(name)
     ai = (data.get("hull") or {}).get("added_inertia") or {}
-    facts = {"preset": data.get("name", name), "path": data["_path"],
+    owner = data.get("name", name)
+    base = data.get("extends")
+    if base and load_preset(base).get("hull") == data.get("hull"):
+        owner = load_preset(base).get("name", base)  # a preset that extends another's hull shares its BEM cache
+    facts = {"preset": owner, "path": data["_path"],
              "swing_omega": 2.0 * 3.141592653589793 / rig.natural_period,
              "swing_period": rig.natural_period,
              "lambda66": rig.hull.lambda66, "J_hull": rig.hull.J_hull,

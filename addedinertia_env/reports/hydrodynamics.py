@@ -301,8 +301,8 @@ def _course_stability(s: dict, data: dict) -> list[str]:
          "`addedinertia hull wigley-2m --stability [--lambda66-range LO HI | --from-record RUN.csv] --json`. "
          "Linear sway-yaw model; added masses from the BEM at zero frequency, `Y_v, Y_r, N_v, N_r` from Clarke, "
          "Gedling & Hine (1983); Hurwitz on `A s^2 + B s + C`. `--from-record` takes lambda66 and its 95 % interval "
-         "from run records (the energy method by default) and scales them to zero frequency by the BEM's "
-         "A66(0)/A66(swing).", "",
+         "from run records (the energy method by default) as they are: identify()'s lambda66 is A66(0), the "
+         "zero-frequency value manoeuvring needs (`../shared/spec/run-record.md`).", "",
          "| added masses | lambda22 (kg) | lambda26 (kg m) | lambda66 (kg m^2) | C (Hurwitz) | stable | roots (1/s) | time constants (s) |",
          "|---|---|---|---|---|---|---|---|"]
     for label, r in (("BEM", n), ("Clarke (1983) regression", c), ("BEM, lambda66 -10 %", res["lambda66_range"]["at_ends"][0]),
@@ -313,8 +313,7 @@ def _course_stability(s: dict, data: dict) -> list[str]:
 
 
 def _from_a_record(ship, added: dict, s: dict, res: dict) -> list[str]:
-    """lambda66 and its interval from a simulated wigley-2m record (energy method), scaled to zero frequency,
-    and the course stability over that interval (``res``: the stability over +-10 %)."""
+    """lambda66 = A66(0) and its interval from a simulated wigley-2m record (energy method), and the course stability over that interval (``res``: the stability over +-10 %)."""
     from ..identify import identify  # noqa: PLC0415
     from ..rig.presets import load_preset, rig_from_mapping  # noqa: PLC0415
     from ..experiment.protocol import plan_from_preset
@@ -323,17 +322,16 @@ def _from_a_record(ship, added: dict, s: dict, res: dict) -> list[str]:
     pdata = load_preset("wigley-2m")
     rec = simulate_run(rig_from_mapping(pdata), "feedforward-pd", plan_from_preset(pdata), seed=0, run_id="hydro-doc")
     meas = identify([rec], "energy")
-    ratio = s["A66_zero"] / s["A66_swing"]
-    m_rng = (meas.ci95[0] * ratio, meas.ci95[1] * ratio)
-    m_res = stab.stability(ship, {**added, "lambda66": meas.lambda66 * ratio}, m_rng)
+    m_rng = (meas.ci95[0], meas.ci95[1])  # identify()'s lambda66 is A66(0): no rescaling to zero frequency
+    m_res = stab.stability(ship, {**added, "lambda66": meas.lambda66}, m_rng)
     mspan = m_res["lambda66_range"]["time_constants_span"]
     span = res["lambda66_range"]["time_constants_span"]
     return ["", f"The criterion `C = det N` holds no inertia, so lambda66 cannot make this hull course-unstable; "
             f"a +-10 % lambda66 moves the slow time constant over {span[0][0]:.3f} .. {span[0][1]:.3f} s and the fast one over "
             f"{span[1][0]:.3f} .. {span[1][1]:.3f} s.", "",
             f"From a record (simulated wigley-2m, realistic sensors, `feedforward-pd`, seed 0; energy method): lambda66 = "
-            f"{meas.lambda66:.3f} kg m^2, 95 % interval [{meas.ci95[0]:.3f}, {meas.ci95[1]:.3f}]; scaled to zero frequency "
-            f"by the BEM ratio {ratio:.4f}: [{m_rng[0]:.3f}, {m_rng[1]:.3f}]. Over that interval the ship stays "
+            f"{meas.lambda66:.3f} kg m^2 = A66(0) (truth {rec.meta['truth']['lambda66']:.3f}), 95 % interval "
+            f"[{meas.ci95[0]:.3f}, {meas.ci95[1]:.3f}], used as it is. Over that interval the ship stays "
             f"{'course-stable' if m_res['lambda66_range']['stable_throughout'] else 'NOT course-stable'} "
             f"(C = {m_res['nominal']['hurwitz']['C']:.1f}), the slow time constant spans {mspan[0][0]:.4f} .. "
             f"{mspan[0][1]:.4f} s and the fast one {mspan[1][0]:.4f} .. {mspan[1][1]:.4f} s "

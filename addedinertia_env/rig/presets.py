@@ -46,7 +46,7 @@ def rig_path(name: str) -> Path:
 
 REQUIRED_BLOCKS = ("hull", "spring", "motor")  # what a rig file must state; sensors and the rest have defaults
 TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps", "effects", "experiment",
-            "hydrodynamics")
+            "hydrodynamics", "extends")
 HYDRO_KEYS = ("model", "source", "cache")
 
 
@@ -60,7 +60,37 @@ def load_preset(name: str) -> dict[str, Any]:
     key = (str(path.resolve()), path.stat().st_mtime_ns)
     if key not in _PRESET_CACHE:
         _PRESET_CACHE[key] = _parse_preset(path)
-    return copy.deepcopy(_PRESET_CACHE[key])
+    data = copy.deepcopy(_PRESET_CACHE[key])
+    return _extend(data, path) if "extends" in data else data
+
+
+def _extend(data: dict[str, Any], path: Path) -> dict[str, Any]:
+    """A preset that ``extends: BASE`` (a preset name, or a .yaml path relative to its own file):
+    the base's mapping with this file's top-level blocks replacing the base's whole blocks
+    (e.g. ``wigley-2m-memory``: wigley-2m with ``hydrodynamics: {model: cummins}``). One level:
+    a base that extends another is refused. The base is read afresh (its own cache entry)."""
+    base_name = data["extends"]
+    if not isinstance(base_name, str) or not base_name:
+        raise ConfigError(f"{path}: extends = {base_name!r}: expected the name of a rig preset or a .yaml path")
+    if base_name.endswith((".yaml", ".yml")) and not Path(base_name).is_absolute():
+        base_name = str(path.parent / base_name)
+    try:
+        base = load_preset(base_name)
+    except ConfigError as e:
+        raise ConfigError(f"{path}: extends = {data['extends']!r}: {e}") from None
+    if "extends" in base:
+        raise ConfigError(f"{path}: extends = {data['extends']!r}, which itself extends {base['extends']!r}; "
+                          "expected a preset without 'extends' (one level)")
+    merged = {**base, **data}
+    _check_required(merged, path)
+    return merged
+
+
+def _check_required(data: dict[str, Any], path: Path) -> None:
+    missing = [key for key in REQUIRED_BLOCKS if not isinstance(data.get(key), dict)]
+    if missing:
+        raise ConfigError(f"{path}: missing block(s) {missing}; a rig file states its {', '.join(REQUIRED_BLOCKS)} "
+                          "(no silent defaults; see configs/rigs/wigley-2m.yaml)")
 
 
 def _parse_preset(path: Path) -> dict[str, Any]:
@@ -68,11 +98,9 @@ def _parse_preset(path: Path) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
     check_keys(data, set(TOP_KEYS), str(path))
-    missing = [key for key in REQUIRED_BLOCKS if not isinstance(data.get(key), dict)]
-    if missing:
-        raise ConfigError(f"{path}: missing block(s) {missing}; a rig file states its {', '.join(REQUIRED_BLOCKS)} "
-                          "(no silent defaults; see configs/rigs/wigley-2m.yaml)")
     data["_path"] = str(path)
+    if "extends" not in data:  # a preset that extends another gets the blocks it lacks from it (_extend)
+        _check_required(data, path)
     return data
 
 

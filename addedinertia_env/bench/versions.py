@@ -1,0 +1,65 @@
+"""What a benchmark row's numbers mean, as a version: every row carries ``score_version``,
+and rows of different versions are never ranked together.
+
+A score is the estimate (the energy method as written), the truth it is divided by, and the
+ranking built on them. When one of them changes, the version changes, so that a board
+never puts an old error beside a new one:
+
+* ``v0`` (rows without ``score_version``, written before 2026-11-27): with radiation memory
+  on, the truth was A66 at the natural swing frequency, 1.7-2.0 % above A66(0) on the
+  shipped hulls; in memory-free water it was the hull's lambda66.
+* :data:`SCORE_VERSION` ``paired-median-v1``: the truth is lambda66 = A66(0), the
+  zero-frequency added inertia, in every water (``../shared/spec/run-record.md``); the
+  ranked score is the median paired control error against the oracle (:mod:`.paired`).
+
+A suite whose truth changed takes a new name too (``memory-v1``: the memory presets, truth
+A66(0)); memory-free suites kept their names, their truth being the same number.
+
+:func:`check_versions` is what the leaderboard runs on the files it is given
+(:func:`.leaderboard.load_rows`): one version (rows without one count as ``v0``) is ranked;
+several, or a version this code does not write, are refused naming each file and its
+version(s) (exit status 2 from ``addedinertia bench leaderboard``). ``bench run`` never
+appends rows of this version to a file holding another (:func:`.resume.prepare_output`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+FIELD = "score_version"  # the rows' field
+SCORE_VERSION = "paired-median-v1"  # this code's score: truth lambda66 = A66(0), paired median vs the oracle
+LEGACY = "v0"  # rows without the field: written before the truth was A66(0) with memory on
+RANKABLE = (SCORE_VERSION, LEGACY)  # a board of either alone is ranked as it always was
+
+
+class ScoreVersionError(ValueError):
+    """Rows of several score versions, or of a version this code does not rank."""
+
+
+def row_version(row: Mapping[str, Any]) -> str:
+    """The row's ``score_version``; :data:`LEGACY` for a row written before rows carried one."""
+    value = row.get(FIELD)
+    return LEGACY if value is None else str(value)
+
+
+def row_fields() -> dict[str, str]:
+    """The version fields a new benchmark row carries (bench/runner.py)."""
+    return {FIELD: SCORE_VERSION}
+
+
+def check_versions(rows_by_file: Mapping[str, Sequence[Mapping[str, Any]]]) -> str:
+    """The one score version of the rows of every file in ``rows_by_file`` (file -> its rows);
+    :class:`ScoreVersionError` naming each file with its version(s) when they differ or when the
+    one version is not one this code ranks (:data:`RANKABLE`)."""
+    per_file = {str(f): sorted({row_version(r) for r in rows}) for f, rows in rows_by_file.items() if rows}
+    found = sorted({v for versions in per_file.values() for v in versions})
+    listing = "; ".join(f"{f}: {', '.join(v)}" for f, v in per_file.items())
+    if len(found) > 1:
+        raise ScoreVersionError(f"rows of different score versions cannot be ranked together ({listing}); "
+                                f"rerun the older rows with `addedinertia bench run --force` (this code writes "
+                                f"{SCORE_VERSION!r}; docs/SUBMITTING.md, 'Score versions')")
+    if found and found[0] not in RANKABLE:
+        raise ScoreVersionError(f"score version {found[0]!r} ({listing}) is not one this code ranks; expected "
+                                f"{' or '.join(repr(v) for v in RANKABLE)} (rows without '{FIELD}' are {LEGACY!r})")
+    return found[0] if found else SCORE_VERSION
