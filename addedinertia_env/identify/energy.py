@@ -60,6 +60,7 @@ import numpy as np
 
 from ..metrics import current_at_limit
 from ..record import MAX_GAP_PERIODS, RunRecord, current_sampling
+from ..rig.friction import ROTOR_FRICTION_RATE_SCALE
 from ..rig.known import KnownRigError
 from ..scan_kernels import (block_starts, gap_counts, negative_step_ratios, reaction_work, relaxed_interval_means,
                             squared_step_sums, true_counts, value_change_starts)
@@ -777,7 +778,7 @@ class RunBalance:
         t, i = self.t, self.i
         if self.work == "reaction":  # work of the motor's reaction on the hull: -(k_t i - M_f) dphi
             return reaction_work(t, self.interval_current(i), self.torque_scale, self.phi_s, self.psi_s, self.k_t,
-                                 self.f_visc, self.f_coul)
+                                 self.f_visc, self.f_coul, ROTOR_FRICTION_RATE_SCALE)
         i_mid = self.torque_scale * self.interval_current(i)
         dpsi = np.diff(self.psi_s)
         if self.work == "current":
@@ -809,7 +810,7 @@ class RunBalance:
     def _cumulative_bearing_work(self) -> np.ndarray:
         """Work of the rotor-bearing friction on the flywheel from the first sample, J."""
         omega = np.gradient(self.psi, self.t)
-        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.sign(omega[:-1])) * np.diff(self.psi)
+        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.tanh(omega[:-1] / ROTOR_FRICTION_RATE_SCALE)) * np.diff(self.psi)
         return np.concatenate([[0.0], np.cumsum(steps)])
 
 
@@ -927,7 +928,8 @@ def _flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: flo
     tt, th = t[a:b + 1], theta[a:b + 1]
     # the angle the fit explains (kept for the final fit): th + the friction's torque (from psi, already
     # smoothed phase by phase) twice integrated over J_f; and the half sample intervals
-    target, half_dtt = calibration_target(tt, th, psi[a:b + 1], float(f_visc), float(f_coul), float(J_f))
+    target, half_dtt = calibration_target(tt, th, psi[a:b + 1], float(f_visc), float(f_coul), float(J_f),
+                                           ROTOR_FRICTION_RATE_SCALE)
     y = target
 
     def twice(x):  # trapezoid integral of the integral, from 0, along the last axis
