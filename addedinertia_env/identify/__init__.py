@@ -31,6 +31,10 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
 
     # also records made in memory (benchmark episodes), not only those read from files
     checked = [check_plausible(rec) for rec in records]
+    from ..consistency import check_momentum_consistent  # noqa: PLC0415
+
+    for rec in records:  # the angles against the current: a record in degrees is refused here
+        check_momentum_consistent(rec)
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
     if "checked" in options:

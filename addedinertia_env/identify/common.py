@@ -15,6 +15,18 @@ from ..series_stats import median_step
 from .fit_kernels import lstsq as rounded_lstsq
 
 
+# Plausible added inertia relative to the hull's own (rig.J_hull: hull + rod + frame + stator). A floating
+# hull weighs the water it displaces, and Lamb's yaw coefficient k' of a prolate spheroid (L/B 4 to 10:
+# 0.54 to 0.86, Lamb 1932 art. 115; Newman 1977 table 4.1) puts its added inertia below that water's own
+# moment of inertia: lambda66 / J_hull is of order 1 (1.1 to 2.0 over the shared dev sets' seven hulls and
+# the presets, shell-built model hulls being lighter than solid ones). Above LAMBDA_RATIO_WARN the result
+# carries a warning; above LAMBDA_RATIO_REFUSE no hull on a rod can be that light against its water (J_hull
+# in the wrong unit, g m^2 for kg m^2, or a typo): refused. The motion shows only J_hull + lambda66, so a
+# wrong J_hull moves lambda66 by the same amount and nothing else in the record can flag it.
+LAMBDA_RATIO_WARN = 10.0
+LAMBDA_RATIO_REFUSE = 1000.0
+
+
 class IdentificationError(ValueError):
     """A record that a method cannot use (wrong kind, missing phase, nothing usable)."""
 
@@ -67,7 +79,9 @@ def largest_gap(rec: RunRecord, a: int, b: int) -> tuple[float, float] | None:
 
 def check_physical(result: "Result", records: list[RunRecord]) -> "Result":
     """Refuse a result no rig can have: a non-finite lambda66 or interval, a total inertia
-    ``J_hull + lambda66 <= 0``, or an interval wholly below zero (an added inertia is >= 0).
+    ``J_hull + lambda66 <= 0``, an interval wholly below zero (an added inertia is >= 0), or a
+    lambda66 over :data:`LAMBDA_RATIO_REFUSE` x ``J_hull``; warn (``details['warnings']``, which
+    ``addedinertia identify`` prints) beyond :data:`LAMBDA_RATIO_WARN` x ``J_hull``.
 
     Such a value means the records contradict their own ``rig`` blocks (wrong units, a bad
     calibration, a broken stretch of samples); it is an :class:`IdentificationError` that
@@ -85,6 +99,18 @@ def check_physical(result: "Result", records: list[RunRecord]) -> "Result":
             f"{result.method} method on {names}: lambda66 = {lam:.6g} kg m^2 (95 % interval {lo:.6g} .. {hi:.6g}) "
             f"is physically impossible; expected an added inertia >= 0 and J_hull + lambda66 > 0 (J_hull = "
             f"{j_hull:g} kg m^2): the records contradict their rig blocks (units, calibration, broken samples?)")
+    ratio = lam / j_hull
+    if ratio > LAMBDA_RATIO_REFUSE:
+        raise IdentificationError(
+            f"{result.method} method on {names}: lambda66 = {lam:.6g} kg m^2 is {ratio:.3g} x rig.J_hull = {j_hull:g} "
+            f"kg m^2; expected lambda66 / J_hull of order 1 (at most {LAMBDA_RATIO_REFUSE:g}): the motion measures "
+            f"J_hull + lambda66 = {j_hull + lam:.6g} kg m^2, so J_hull must be right for lambda66 to be; is rig.J_hull "
+            "in kg m^2 (hull + rod + frame + stator)?")
+    if ratio > LAMBDA_RATIO_WARN:
+        message = (f"lambda66 = {lam:.6g} kg m^2 is {ratio:.3g} x rig.J_hull = {j_hull:g} kg m^2, beyond the plausible "
+                   f"range (lambda66 / J_hull up to {LAMBDA_RATIO_WARN:g}); the motion measures J_hull + lambda66, so "
+                   "check rig.J_hull (hull + rod + frame + stator, kg m^2)")
+        result.details.setdefault("warnings", []).append(message)
     return result
 
 
