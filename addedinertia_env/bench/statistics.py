@@ -212,10 +212,13 @@ def plot_performance_profiles(matrices: dict[str, np.ndarray], path: str | Path,
     from rliable import library as rly  # noqa: PLC0415
     from rliable import plot_utils  # noqa: PLC0415
 
-    from ..atomic import save_figure  # noqa: PLC0415
-    from .plots import _axes  # noqa: PLC0415
+    import matplotlib  # noqa: PLC0415
 
-    plt = _axes()
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    from ..atomic import save_figure  # noqa: PLC0415
+
     finite = np.concatenate([v[np.isfinite(v)] for v in matrices.values()] + [np.array([1e-6, 1.0])])
     lo = max(float(np.min(finite[finite > 0])) if np.any(finite > 0) else 1e-6, 1e-7)
     hi = max(float(np.max(finite)), lo * 10)

@@ -38,6 +38,8 @@ def in_degrees(rec: RunRecord) -> RunRecord:
 
 
 def simulated() -> list[RunRecord]:
+    """Fourteen simulated reverse-symmetric records: wigley-2m and spheroid-7 with the default controller,
+    each with one hidden effect of :data:`EFFECTS` at a seeded realistic size."""
     from ..experiment.protocol import plan_from_preset  # noqa: PLC0415
     from ..rig.presets import load_preset, rig_from_mapping  # noqa: PLC0415
     from ..simulate import effects_from_name, simulate_run  # noqa: PLC0415
@@ -53,6 +55,7 @@ def simulated() -> list[RunRecord]:
 
 
 def env_episodes(n: int = 40) -> list[RunRecord]:
+    """``n`` episodes of eight batched environments driven by random actions (uniform in +-0.3), as records."""
     from ..vector.env import ReverseStrokeVectorEnv  # noqa: PLC0415
 
     env = ReverseStrokeVectorEnv(8)
@@ -66,6 +69,8 @@ def env_episodes(n: int = 40) -> list[RunRecord]:
 
 
 def row(label: str, records: list[RunRecord]) -> str:
+    """One Markdown row: ``label``, the number of records with a reverse stroke, the largest ``used`` of the
+    honest records, the smallest in degrees, and how many in degrees are refused."""
     honest = [momentum_account(r) for r in records]
     pairs = [(h["used"], momentum_account(in_degrees(r))["used"]) for h, r in zip(honest, records) if h is not None]
     caught = sum(d > 1.0 for _, d in pairs)
@@ -74,6 +79,7 @@ def row(label: str, records: list[RunRecord]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Print the table (module doc); returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", action="append", default=[], help="a dev-set archive (.tar.xz); repeatable")
     args = ap.parse_args(argv)
