@@ -369,3 +369,34 @@ def test_export_mesh_writes_a_gdf_quarter(capsys, tmp_path):
     assert len(lines) == 4 + 4 * n and abs(4 * n - 400) <= 40
     xyz = np.array([[float(v) for v in line.split()] for line in lines[4:]])
     assert xyz[:, 0].min() >= 0 and xyz[:, 1].min() >= 0 and xyz[:, 2].max() <= 1e-12  # the wetted quarter
+
+
+# --- Capytaine's own dataset (issue 30) ---------------------------------------------------
+
+@needs_capytaine
+def test_a_solve_is_written_as_capytaines_dataset_and_read_by_xarray(tmp_path):
+    import json
+
+    import xarray as xr
+
+    from addedinertia_env.hull.bem import solve_yaw
+    from addedinertia_env.hull.netcdf import write_netcdf
+
+    s = HullShape("spheroid", 2.0, 2.0 / 7.0)
+    results: list = []
+    omegas = [0.5, 1.57, 3.0]
+    r = solve_yaw(quarter_mesh(s, 100, "floating"), omegas, floating=True, results=results)
+    model = {"order": 2, "fit_error": 0.01, "poles": [[-1.0, 2.0]]}  # carried as given
+    path = write_netcdf(tmp_path / "spheroid.nc", results, {"hull": s.as_dict(), "floating": True,
+                                                             "memory_model": model}, "test")
+    ds = xr.open_dataset(path)
+    # the dataset holds the solve's own numbers: A66 and B66 at each frequency, and the limits
+    yaw = ds["added_mass"].sel(radiating_dof="Yaw", influenced_dof="Yaw")
+    damping = ds["radiation_damping"].sel(radiating_dof="Yaw", influenced_dof="Yaw")
+    for w, a, b in zip(r["omega"], r["A66"], r["B66"]):
+        assert float(yaw.sel(omega=w)) == pytest.approx(a, rel=1e-12)
+        assert float(damping.sel(omega=w)) == pytest.approx(b, rel=1e-12, abs=1e-12)
+    assert float(yaw.sel(omega=0.0)) == pytest.approx(r["zero_frequency"]["A66"], rel=1e-12)
+    assert float(yaw.sel(omega=np.inf)) == pytest.approx(r["infinite_frequency"]["A66"], rel=1e-12)
+    assert json.loads(ds.attrs["addedinertia_memory_model"]) == model and ds.attrs["addedinertia_memory_order"] == 2
+    ds.close()

@@ -1,11 +1,12 @@
-"""``addedinertia hull PRESET|MESH [--json] [--plot FILE] [--stability] [--from-record RUN.csv]``.
+"""``addedinertia hull PRESET|MESH [--json] [--plot FILE] [--stability] [--from-record RUN.csv] [--netcdf FILE.nc]``.
 
 Hydrodynamics of a hull from its geometry (docs/HYDRODYNAMICS.md): A66 and B66 over
 frequency by BEM (Capytaine, the optional ``[hull]`` extra), the zero- and
 infinite-frequency limits, the value at the rig's swing frequency, the convergence check,
 Cummins' retardation function, and (``--stability``) the ship's course stability from the
 same added masses. A preset answers from its cache ``configs/rigs/PRESET.bem.json``;
-``--solve`` recomputes (and ``--write-cache`` stores) it.
+``--solve`` recomputes (and ``--write-cache`` stores) it. ``--netcdf FILE.nc`` solves and also
+writes the solve as Capytaine's own dataset (:mod:`addedinertia_env.hull.netcdf`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--plot", metavar="FILE", default=None, help="figure of A66(omega), B66(omega) and K(t) (PNG)")
     p.add_argument("--solve", action="store_true", help=SOLVE_HELP)
+    p.add_argument("--netcdf", metavar="FILE.nc", default=None,
+                   help="also write the solve as Capytaine's own dataset (NetCDF, loadable by xarray), the fitted "
+                        "memory model in its attributes; solves (a cache holds numbers only; needs Capytaine)")
     p.add_argument("--write-cache", action="store_true", help="with --solve on a preset: store the result beside the preset")
     p.add_argument("--panels", type=positive_int, nargs=2, metavar=("COARSE", "FINE"), default=None,
                    help="panel counts of the two resolutions when solving (default 400 1600)")
@@ -69,17 +73,19 @@ def _study_for(args) -> tuple[dict, dict]:
         facts["swing_omega"] = args.swing_omega
     path = st.cache_path(facts["preset"])
     floating = not args.deep
-    if not args.solve and not args.panels and path.exists() and floating:
+    if not args.solve and not args.panels and path.exists() and floating and not args.netcdf:
         data = st.read_cache(path, shape)
         facts["cache"] = str(path)
         return data, facts
     if not args.solve:
         why = "a deeply submerged study is not cached" if args.deep else (
-            "--panels asks for a new solve" if args.panels else f"no cache at {path}")
+            "--panels asks for a new solve" if args.panels else
+            "--netcdf writes a solve's own dataset" if args.netcdf else f"no cache at {path}")
         info(f"{why}: solving with the BEM (a few minutes on 2 cores)")
     panels = tuple(args.panels) if args.panels else st.DEFAULT_PANELS
     try:
-        data = st.study(shape, swing_omega=facts["swing_omega"], panels=panels, floating=floating, progress=info)
+        data = st.study(shape, swing_omega=facts["swing_omega"], panels=panels, floating=floating, progress=info,
+                        results=args.bem_results)
     except CapytaineMissing as e:
         raise BadInput(f"{target}: {e}") from None
     data["preset"] = facts["preset"]
@@ -105,7 +111,8 @@ def _study_mesh(args) -> dict:
     try:
         mesh, report = load_user_mesh(args.hull, floating=floating)
         w = args.swing_omega or 1.57
-        r = solve_yaw(mesh, st.DEFAULT_OMEGAS if floating else [], floating=floating, depth_omega=None)
+        r = solve_yaw(mesh, st.DEFAULT_OMEGAS if floating else [], floating=floating, depth_omega=None,
+                      results=args.bem_results)
     except CapytaineMissing as e:
         raise BadInput(f"{args.hull}: {e}") from None
     except (MeshError, ValueError) as e:
@@ -132,12 +139,27 @@ def run(args) -> int:
             emit_json(fitted)
         return 0
 
+    args.bem_results = [] if getattr(args, "netcdf", None) else None
     data, facts = _study_for(args)
     if data.get("hull") is None:
         out = _mesh_summary(data)
     else:
         out = st.summary(data, swing_omega=facts.get("swing_omega"))
     out["source"] = facts.get("cache") or "solved now"
+    if args.netcdf:
+        from ..cli.bench import invoked_command  # noqa: PLC0415
+        from ..hull.netcdf import write_netcdf  # noqa: PLC0415
+
+        if facts.get("preset") and "memory_model" not in data:  # the preset's fitted model, when its cache has one
+            cached = st.cache_path(facts["preset"])
+            if cached.exists():
+                import json  # noqa: PLC0415
+
+                model = json.loads(cached.read_text()).get("memory_model")
+                if model is not None:
+                    data["memory_model"] = model
+        out["netcdf"] = str(write_netcdf(args.netcdf, args.bem_results, data, invoked_command(args)))
+        info(f"Capytaine dataset written to {out['netcdf']}")
     if facts.get("preset"):
         out["preset"] = {"name": facts["preset"], "lambda66": facts["lambda66"],
                          "lambda66_source": facts["lambda66_source"], "swing_period": facts["swing_period"]}

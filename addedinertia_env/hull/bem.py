@@ -118,7 +118,7 @@ def _body(cpt, mesh, *, lid_z: float | None):
 
 def solve_yaw(source, omegas, *, floating: bool = True, water_depth: float = math.inf,
               rho: float = RHO_WATER, g: float = GRAVITY, extra_depths: tuple[float, ...] = (),
-              depth_omega: float | None = None) -> dict[str, Any]:
+              depth_omega: float | None = None, results: list | None = None) -> dict[str, Any]:
     """Radiation solve of a hull in yaw: A66, B66 over ``omegas`` (rad/s) and the limits.
 
     ``source``: a generated :class:`QuarterMesh` or a Capytaine mesh (already checked).
@@ -126,6 +126,8 @@ def solve_yaw(source, omegas, *, floating: bool = True, water_depth: float = mat
     ``water_depth`` (m): depth of the frequency sweep (inf: deep water).
     ``extra_depths``, ``depth_omega``: A66 at ``depth_omega`` in water of each of these
     depths (the tank bottom's effect), each flagged when Capytaine cannot evaluate it.
+    ``results``: a list that receives Capytaine's own result objects of the yaw radiation problems
+    (zero frequency, the sweep, infinite frequency), for ``capytaine.assemble_dataset``.
     Returns a JSON-ready dict (see docs/HYDRODYNAMICS.md for the fields).
     """
     cpt = require_capytaine()
@@ -150,7 +152,7 @@ def solve_yaw(source, omegas, *, floating: bool = True, water_depth: float = mat
         out["mesh"].update(source="generated", hull=source.shape.as_dict(), nx=source.nx, nz=source.nz,
                            submergence=source.submergence)
 
-    def solve(dof: str, omega: float, *, body, depth: float = math.inf) -> tuple[dict, dict]:
+    def solve(dof: str, omega: float, *, body, depth: float = math.inf, keep: bool = False) -> tuple[dict, dict]:
         kw: dict[str, Any] = {"omega": omega, "rho": rho, "g": g}
         if floating:
             kw["water_depth"] = depth
@@ -158,12 +160,14 @@ def solve_yaw(source, omegas, *, floating: bool = True, water_depth: float = mat
             kw["free_surface"] = math.inf
         res = solver.solve(cpt.RadiationProblem(body=body, radiating_dof=dof, **kw), keep_details=False,
                            _check_wavelength=False)
+        if keep and results is not None:
+            results.append(res)
         return ({k: float(np.real(x)) for k, x in res.added_mass.items()},
                 {k: float(np.real(x)) for k, x in res.radiation_damping.items()})
 
     plain = _body(cpt, mesh, lid_z=None)
     if not floating:
-        a, _ = solve("Yaw", 1.0, body=plain)
+        a, _ = solve("Yaw", 1.0, body=plain, keep=True)
         a2, _ = solve("Sway", 1.0, body=plain)
         out.update(zero_frequency={"A66": a["Yaw"], "A22": a2["Sway"], "A26": a["Sway"],
                                    "method": "no free surface (deeply submerged, unbounded fluid)"},
@@ -193,16 +197,16 @@ def solve_yaw(source, omegas, *, floating: bool = True, water_depth: float = mat
         + [{"omega": w, "reason": f"waves shorter than 8 panel radii (mesh valid to {w_mesh:.3g} rad/s)"}
            for w in finite if w > w_mesh])
 
-    a0, _ = solve("Yaw", 0.0, body=plain)
+    a0, _ = solve("Yaw", 0.0, body=plain, keep=True)
     s0, _ = solve("Sway", 0.0, body=plain)
-    ainf, _ = solve("Yaw", math.inf, body=plain)
+    ainf, _ = solve("Yaw", math.inf, body=plain, keep=True)
     out["zero_frequency"] = {"A66": a0["Yaw"], "A22": s0["Sway"], "A26": a0["Sway"],
                              "method": "omega = 0: rigid-lid free surface (double body, halved), infinite depth"}
     out["infinite_frequency"] = {"A66": ainf["Yaw"], "method": "omega = inf: phi = 0 on the free surface, infinite depth"}
     A, B, W, failed = [], [], [], []
     for w in finite:
         try:
-            a, b = solve("Yaw", w, body=body, depth=water_depth)
+            a, b = solve("Yaw", w, body=body, depth=water_depth, keep=True)
         except Exception as e:  # noqa: BLE001 - recorded, never silently dropped
             failed.append({"omega": w, "error": f"{type(e).__name__}: {e}"})
             continue

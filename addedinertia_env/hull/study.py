@@ -78,8 +78,9 @@ def richardson(coarse: float, fine: float, finer: float) -> dict[str, float | No
 
 def study(shape: HullShape, *, swing_omega: float, panels: tuple[int, int] = DEFAULT_PANELS,
           omegas=DEFAULT_OMEGAS, floating: bool = True, convergence: bool = True,
-          progress=None) -> dict[str, Any]:
-    """The full BEM study of ``shape`` (see module docstring); JSON-ready dict."""
+          progress=None, results: list | None = None) -> dict[str, Any]:
+    """The full BEM study of ``shape`` (see module docstring); JSON-ready dict. ``results``: a list that
+    receives Capytaine's own result objects of the fine resolution's yaw problems (``bem.solve_yaw``)."""
     from .bem import solve_yaw  # noqa: PLC0415 - needs the optional Capytaine
 
     say = progress or (lambda *_: None)
@@ -89,7 +90,8 @@ def study(shape: HullShape, *, swing_omega: float, panels: tuple[int, int] = DEF
     for label, n in zip(("coarse", "fine"), panels):
         say(f"{label}: {n} panels, {len(omegas)} frequencies")
         res[label] = solve_yaw(quarter_mesh(shape, n, sub), omegas if floating else [], floating=floating,
-                               extra_depths=depths if floating else (), depth_omega=swing_omega if floating else None)
+                               extra_depths=depths if floating else (), depth_omega=swing_omega if floating else None,
+                               results=results if label == "fine" else None)
         say(f"  done in {res[label]['seconds']:.1f} s")
     levels = []
     if convergence:
