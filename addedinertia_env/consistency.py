@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from .plausibility import NOISE_SIGMAS, QUANT_STEPS, _count_step, _noise
-from .record import MAX_GAP_PERIODS, motion_phase
+from .record import MAX_GAP_PERIODS
 from .run_record import RecordError, RunRecord
 
 IMPULSE_MARGIN = 1.5  # the flywheel's momentum change may reach this many times the torques' impulse
@@ -46,8 +46,12 @@ def momentum_account(rec: RunRecord) -> dict | None:
     over 1 is refused), ``line`` and ``t`` (the CSV line and time of that sample)."""
     if rec.experiment.get("kind") != "reverse-symmetric":
         return None
-    mp = motion_phase(rec)
-    idx = np.nonzero(mp == "reverse")[0]
+    # the reverse stroke as the hull experienced it (record.motion_phase's 'reverse': a braked sample is
+    # never motion), without relabelling the other phases
+    moving = np.asarray(rec.phase) == "reverse"
+    if "brake" in rec.samples:
+        moving &= np.asarray(rec["brake"]) != 1.0
+    idx = np.nonzero(moving)[0]
     if idx.size < 2:
         return None
     breaks = np.nonzero(np.diff(idx) > 1)[0]
