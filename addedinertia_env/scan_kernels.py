@@ -211,17 +211,17 @@ def numpy_sign(x):
 
 
 @njit(cache=True, error_model="numpy")
-def reaction_work(t, i_mean, scale, phi_s, psi_s, k_t, f_visc, f_coul):
+def reaction_work(t, i_mean, scale, phi_s, psi_s, k_t, f_visc, f_coul, w_s):
     """Cumulative work of the motor's reaction on the hull from the first sample, J (``energy``'s
     ``_cumulative_work``, form ``reaction``): per interval ``k`` with ``omega = (psi_s[k+1] - psi_s[k]) /
-    (t[k+1] - t[k])``, ``-(k_t (scale i_mean[k]) - (f_visc omega + f_coul sign(omega))) (phi_s[k+1] -
-    phi_s[k])``, summed as ``concatenate([[0.0], cumsum(steps)])``."""
+    (t[k+1] - t[k])``, ``-(k_t (scale i_mean[k]) - (f_visc omega + f_coul tanh(omega / w_s))) (phi_s[k+1] -
+    phi_s[k])`` (the rotor's dry friction smoothed over the rate ``w_s``, rad/s, as the simulator's), summed as ``concatenate([[0.0], cumsum(steps)])``."""
     n = len(t)
     out = np.empty(max(n, 1))
     out[0] = 0.0
     for k in range(n - 1):
         omega = (psi_s[k + 1] - psi_s[k]) / (t[k + 1] - t[k])
-        torque = k_t * (scale * i_mean[k]) - (f_visc * omega + f_coul * numpy_sign(omega))
+        torque = k_t * (scale * i_mean[k]) - (f_visc * omega + f_coul * np.tanh(omega / w_s))
         step = -torque * (phi_s[k + 1] - phi_s[k])
         out[k + 1] = step if k == 0 else out[k] + step
     return out
@@ -263,4 +263,4 @@ def warm_up() -> None:
     gap_counts(x, 1.5)
     squared_step_sums(x)
     decay = np.exp(negative_step_ratios(x, 2.0))
-    reaction_work(x, relaxed_interval_means(x, x, decay, 2.0), 1.0, x, x, 1.0, 0.1, 0.01)
+    reaction_work(x, relaxed_interval_means(x, x, decay, 2.0), 1.0, x, x, 1.0, 0.1, 0.01, 0.01)

@@ -307,9 +307,9 @@ def place_rows(out, offsets, rows):
 
 
 @njit(cache=True, error_model="numpy")
-def calibration_target(tt, th, psi, f_visc, f_coul, J_f):
+def calibration_target(tt, th, psi, f_visc, f_coul, J_f, w_s):
     """The angle the flywheel calibration (``energy_calibration.flywheel_calibration``) explains, and the half sample
-    intervals: with ``om = gradient(psi, tt)`` and the friction ``f_visc om + f_coul sign(om)``, ``th +
+    intervals: with ``om = gradient(psi, tt)`` and the friction ``f_visc om + f_coul tanh(om / w_s)`` (dry friction smoothed over the rate ``w_s``), ``th +
     twice_integrated(friction) / J_f``, and ``0.5 * np.diff(tt)``: the numpy expressions element by element."""
     m = len(tt)
     om = gradient(psi, tt)
@@ -319,9 +319,9 @@ def calibration_target(tt, th, psi, f_visc, f_coul, J_f):
     target = np.empty(m)
     target[0] = th[0] + 0.0 / J_f
     first, second = 0.0, 0.0
-    prev = f_visc * om[0] + f_coul * numpy_sign(om[0])
+    prev = f_visc * om[0] + f_coul * np.tanh(om[0] / w_s)
     for k in range(m - 1):
-        cur = f_visc * om[k + 1] + f_coul * numpy_sign(om[k + 1])
+        cur = f_visc * om[k + 1] + f_coul * np.tanh(om[k + 1] / w_s)
         first_next = first + (cur + prev) * half[k]
         second = second + (first_next + first) * half[k]
         target[k + 1] = th[k + 1] + second / J_f
@@ -362,4 +362,4 @@ def warm_up() -> None:
     canonical_abscissae(t, 0, 0.0, 1.0, 4, 2.0**40)
     window_rows(t, np.arange(2), 3)
     accumulated_kernels(np.arange(8), t, np.array([3, 5]), t[:2], 8)
-    calibration_target(t, t, t, 0.1, 0.01, 2.0)
+    calibration_target(t, t, t, 0.1, 0.01, 2.0, 0.01)

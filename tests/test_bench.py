@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addedinertia_env.bench.leaderboard import bootstrap_median_ci, iqm, summarise
+from addedinertia_env.bench.leaderboard import iqm, summarise
+from addedinertia_env.bench.statistics import median_ci as bootstrap_median_ci
 from addedinertia_env.bench.runner import REQUIRED_FIELDS
 from addedinertia_env.bench.suites import load_suite
 from addedinertia_env.cli import main

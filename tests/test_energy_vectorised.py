@@ -21,6 +21,8 @@ from addedinertia_env.identify import identify
 from addedinertia_env.identify import energy, energy_balance, energy_calibration, energy_pooling
 from addedinertia_env.identify.common import _valid_convolution, savgol
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
+from addedinertia_env.identify.savgol_taps import conv_taps
+from addedinertia_env.rig.friction import ROTOR_FRICTION_RATE_SCALE
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv
 
 SHORT = dict(hold_s=0.5, fixed={"period_s": 3.0}, action_repeat=10)
@@ -59,10 +61,15 @@ def records():
 def test_savgol_equals_scipys_filter(n, window, degree, deriv):
     x = 0.3 + np.cumsum(np.random.default_rng(n).normal(size=n)) * 1e-3
     ours, scipys = savgol(x, window, degree, deriv, 1e-3), savgol_filter(x, window, degree, deriv, delta=1e-3)
-    np.testing.assert_allclose(ours, scipys, rtol=0, atol=1e-11 * np.max(np.abs(scipys)))
+    # scipy's filter to its own accuracy (its taps: a Vandermonde solve, 1e-8 off for a quintic over 201
+    # samples; ours are exact to rounding, tests/test_savgol_taps.py)
+    np.testing.assert_allclose(ours, scipys, rtol=0, atol=3e-8 * np.max(np.abs(scipys)))
+    # the taps: scipy's to its own accuracy (a Vandermonde solve, 1e-8 for a quintic over 201 samples)
+    taps = conv_taps(window, degree, deriv)
+    np.testing.assert_allclose(taps, savgol_coeffs(window, degree, deriv=deriv), rtol=0,
+                               atol=1e-7 * np.max(np.abs(taps)))
     # the interior: np.convolve's own dot products ('valid' mode), bit for bit those of its 'same' mode
     half = window // 2
-    taps = savgol_coeffs(window, degree, deriv=deriv)
     same = np.convolve(x, taps, "same") / 1e-3**deriv if deriv else np.convolve(x, taps, "same")
     np.testing.assert_array_equal(ours[half:n - half], same[half:n - half])
 
@@ -73,7 +80,7 @@ def test_savgol_equals_scipys_filter(n, window, degree, deriv):
 def test_savgol_of_a_constant_block_is_numpys_convolution(value, n, window, degree, deriv):
     # a braked hull's angle: every window the same numbers, one dot product copied (or every one computed)
     x = np.full(n, value)
-    taps = savgol_coeffs(window, degree, deriv=deriv)
+    taps = conv_taps(window, degree, deriv)
     np.testing.assert_array_equal(_valid_convolution(x, taps), np.convolve(x, taps, "valid"))
     for view in (x, np.full(2 * n, value)[::2], np.r_[7.0, x][1:]):  # strided, and offset by one sample
         with np.errstate(invalid="ignore"):  # inf: the edge maps' products are nan (and warn) either way
@@ -158,7 +165,7 @@ def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul):
     """The flywheel calibration's lag search with one least-squares fit per lag (rss per lag)."""
     tt, th = t[a:b + 1], theta[a:b + 1]
     om = np.gradient(psi[a:b + 1], tt)
-    friction = f_visc * om + f_coul * np.sign(om)
+    friction = f_visc * om + f_coul * np.tanh(om / ROTOR_FRICTION_RATE_SCALE)  # the rotor's smoothed dry friction
 
     def twice(x):
         c1 = np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(tt))])

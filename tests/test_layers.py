@@ -22,6 +22,7 @@ LAYERS: dict[str, int] = {
     # 2 data: run records and what reads them without a model
     "addedinertia_env.record": 2, "addedinertia_env.run_record": 2, "addedinertia_env.plausibility": 2, "addedinertia_env.daq": 2,
     "addedinertia_env.record_error": 2,
+    "addedinertia_env.consistency": 2,
     "addedinertia_env.plots": 2,
     # 3 the experiment and the task (observation, reward, controller context, metrics, scenarios)
     "addedinertia_env.experiment": 3, "addedinertia_env.task": 3, "addedinertia_env.metrics": 3,

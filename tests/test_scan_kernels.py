@@ -98,7 +98,7 @@ def test_motor_work_and_relaxed_current_equal_the_numpy_expressions():
     t = _times(rng, n)
     i = rng.normal(size=n)
     phi_s, psi_s = np.cumsum(rng.normal(size=n)) * 1e-3, np.cumsum(rng.normal(size=n)) * 1e-2
-    psi_s[100:110] = psi_s[100]  # a resting flywheel: omega of zero, sign 0
+    psi_s[100:110] = psi_s[100]  # a resting flywheel: omega of zero, no friction
     tau = 1.3e-3
     h = np.diff(t)
     a = np.exp(-h / tau)
@@ -108,12 +108,13 @@ def test_motor_work_and_relaxed_current_equal_the_numpy_expressions():
     i_ss = (i[1:] - a * i[:-1]) / (1.0 - a)
     i_mean = relaxed_interval_means(t, i, a, tau)
     np.testing.assert_array_equal(i_mean, i_ss + (i[:-1] - i[1:]) * tau / h)
-    k_t, f_visc, f_coul = 0.05, 1e-4, 2e-3
+    k_t, f_visc, f_coul, w_s = 0.05, 1e-4, 2e-3, 0.01
     for scale in (1.0, 1.013):
         omega = np.diff(psi_s) / h
-        torque = k_t * (scale * i_mean) - (f_visc * omega + f_coul * np.sign(omega))
+        torque = k_t * (scale * i_mean) - (f_visc * omega + f_coul * np.tanh(omega / w_s))
         expected = np.concatenate([[0.0], np.cumsum(-torque * np.diff(phi_s))])
-        np.testing.assert_array_equal(reaction_work(t, i_mean, scale, phi_s, psi_s, k_t, f_visc, f_coul), expected)
+        np.testing.assert_array_equal(reaction_work(t, i_mean, scale, phi_s, psi_s, k_t, f_visc, f_coul, w_s),
+                                      expected)
 
 
 def test_bitwise_constant_equals_comparing_the_bits():

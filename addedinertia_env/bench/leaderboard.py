@@ -8,10 +8,11 @@ Statistics per controller, over its episodes (rows):
   identification) is summarised beside it;
 * a failed episode (``rel_error`` null) counts as an infinite error, so failures rank
   a controller down rather than vanish from its median;
-* ``median`` and its 95 % bootstrap interval: percentile interval of the medians of
-  ``n_boot`` resamples with replacement (fixed seed; order statistics, no interpolation);
-* ``iqm``: mean of the middle 50 % of the sorted errors (interquartile mean, as in
-  Agarwal et al. 2021, "Deep RL at the edge of the statistical precipice");
+* ``median`` and its 95 % bootstrap interval: :func:`scipy.stats.bootstrap`'s percentile
+  interval over ``n_boot`` resamples (fixed seed; :mod:`.statistics`);
+* ``iqm``: mean of the middle 50 % of the errors (interquartile mean, as in Agarwal et al.
+  2021, "Deep RL at the edge of the statistical precipice"; its stratified-bootstrap
+  interval and the probability of improvement come from rliable, :mod:`.statistics`);
 * ``failure_rate``, median ``energy_J`` and median ``tracking_rms_rad``.
 
 Ranking and the tie rule: :mod:`.ranking`; the verdict: :mod:`.verdict`; rendering:
@@ -28,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from .runner import REQUIRED_FIELDS
+from .statistics import median_ci
 from .versions import ScoreVersionError, check_versions
 
 
@@ -76,33 +78,36 @@ def abs_errors(rows: list[dict]) -> np.ndarray:
 
 
 def iqm(x: np.ndarray) -> float:
-    """Interquartile mean: mean of the sorted values from n/4 to 3n/4 (fractional ends weighted)."""
-    x = np.sort(np.asarray(x, float))
-    n = len(x)
-    if n == 0:
-        return math.nan
-    lo, hi = n / 4.0, 3.0 * n / 4.0
-    total, weight = 0.0, 0.0
-    for k in range(n):
-        w = max(0.0, min(k + 1, hi) - max(k, lo))
-        if w > 0:
-            total += w * x[k]
-            weight += w
-    return float(total / weight)
+    """Interquartile mean: the mean of the middle 50 % (:func:`scipy.stats.trim_mean` with 25 % cut from
+    each end, rliable's ``aggregate_iqm``); nan for no values."""
+    from scipy.stats import trim_mean  # noqa: PLC0415
 
-
-def bootstrap_median_ci(x: np.ndarray, n_boot: int = 2000, level: float = 0.95, seed: int = 0) -> tuple[float, float]:
-    """Percentile bootstrap interval of the median (works with ``inf`` entries)."""
     x = np.asarray(x, float)
-    rng = np.random.default_rng(seed)
-    samples = x[rng.integers(0, len(x), size=(n_boot, len(x)))]
-    samples.sort(axis=1)
-    n = len(x)
-    meds = np.where(n % 2 == 1, samples[:, n // 2],
-                    0.5 * samples[:, (n - 1) // 2] + 0.5 * samples[:, n // 2]) if n > 1 else samples[:, 0]
-    a = (1.0 - level) / 2.0
-    return (float(np.quantile(meds, a, method="inverted_cdf")),
-            float(np.quantile(meds, 1.0 - a, method="inverted_cdf")))
+    if x.size == 0:
+        return math.nan
+    with np.errstate(invalid="ignore"):
+        return float(trim_mean(x, 0.25, axis=None))
+
+
+def scores(rows: list[dict]) -> tuple[str, dict[str, dict[tuple, list[float]]]]:
+    """The ranked statistic's per-episode values, ``(what they are, {controller: {scenario: [value per
+    run]}})``: the control error ``|e - e_oracle|`` (:mod:`.paired`) with oracle rows, else ``|rel_error|``;
+    ``inf`` for a failure. :func:`.statistics.score_matrix` turns them into rliable's matrices."""
+    from . import paired  # noqa: PLC0415
+
+    by: dict[str, list[dict]] = {}
+    for r in rows:
+        by.setdefault(r["controller"], []).append(r)
+    oracle_rows = by.get(paired.ORACLE, [])
+    out: dict[str, dict[tuple, list[float]]] = {}
+    if oracle_rows:
+        for name, rs in by.items():
+            out[name] = {k: [v] for k, v in paired.control_errors(rs, oracle_rows).items()}
+        return "control error |e_entry - e_oracle| (relative lambda66 error, paired by scenario)", out
+    for name, rs in by.items():
+        for r, err in zip(rs, abs_errors(rs)):
+            out.setdefault(name, {}).setdefault(paired.scenario_key(r), []).append(float(err))
+    return "|e| (relative lambda66 error of the energy method as written)", out
 
 
 def _kind(rows: list[dict]) -> str:
@@ -134,7 +139,7 @@ def summarise(rows: list[dict], n_boot: int = 2000, seed: int = 0) -> list[dict[
     out = []
     for name, rs in by.items():
         err = abs_errors(rs)
-        lo, hi = bootstrap_median_ci(err, n_boot=n_boot, seed=seed)
+        lo, hi = median_ci(err, n_boot=n_boot, seed=seed)
         corrected = [abs(r["rel_error_corrected"]) if r.get("rel_error_corrected") is not None else math.inf
                      for r in rs if "rel_error_corrected" in r]
         e = {

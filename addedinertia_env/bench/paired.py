@@ -12,7 +12,8 @@ sensor's gain error, an off data-sheet ``k_t`` acting on the same work, a hidden
 that biases every estimate) cancel. A failed episode has ``c = inf``; a scenario where the
 oracle failed has no pair and is counted (``oracle_failed``), never silently dropped.
 
-Statistics (scenarios are the resampling unit, fixed seed, percentile intervals):
+Statistics (scenarios are the resampling unit, fixed seed, percentile intervals of
+:func:`scipy.stats.bootstrap`, paired resampling for differences; :mod:`.statistics`):
 
 * ``median |c|`` with a 95 % paired bootstrap interval;
 * between two entries A and B on their common scenarios: ``d_s = |c_A,s| - |c_B,s|``
@@ -26,6 +27,8 @@ import math
 from typing import Any
 
 import numpy as np
+
+from .statistics import median, median_ci, paired_median_difference
 
 ORACLE = "oracle"
 
@@ -53,37 +56,11 @@ def control_errors(rows: list[dict], oracle_rows: list[dict]) -> dict[tuple, flo
     return out
 
 
-def _median(x: np.ndarray) -> float:
-    """Median that tolerates +-inf (no inf - inf): the mean of the two middle order statistics."""
-    s = np.sort(x)
-    n = len(s)
-    if n == 0:
-        return math.nan
-    a, b = s[(n - 1) // 2], s[n // 2]
-    return float(a) if a == b else float(0.5 * a + 0.5 * b)
-
-
-def bootstrap_median(x: np.ndarray, n_boot: int = 2000, level: float = 0.95, seed: int = 0) -> tuple[float, float]:
-    """Percentile bootstrap interval of the median of ``x`` (resampling its entries)."""
-    x = np.asarray(x, float)
-    if len(x) == 0:
-        return (math.nan, math.nan)
-    rng = np.random.default_rng(seed)
-    samples = np.sort(x[rng.integers(0, len(x), size=(n_boot, len(x)))], axis=1)
-    n = len(x)
-    lo_mid, hi_mid = samples[:, (n - 1) // 2], samples[:, n // 2]
-    with np.errstate(invalid="ignore"):
-        meds = np.where(lo_mid == hi_mid, lo_mid, 0.5 * lo_mid + 0.5 * hi_mid)
-    a = (1.0 - level) / 2.0
-    return (float(np.quantile(meds, a, method="inverted_cdf")),
-            float(np.quantile(meds, 1.0 - a, method="inverted_cdf")))
-
-
 def summary(c: dict[tuple, float], n_boot: int = 2000, seed: int = 0) -> dict[str, Any]:
     """Median ``|c|``, its paired bootstrap interval and the number of pairs."""
     x = np.array(list(c.values()), float)
-    lo, hi = bootstrap_median(x, n_boot=n_boot, seed=seed)
-    return {"median_abs_control_error": _median(x), "ci95_control_error": [lo, hi], "n_paired": int(len(x))}
+    lo, hi = median_ci(x, n_boot=n_boot, seed=seed)
+    return {"median_abs_control_error": median(x), "ci95_control_error": [lo, hi], "n_paired": int(len(x))}
 
 
 def difference(c_a: dict[tuple, float], c_b: dict[tuple, float], n_boot: int = 2000,
@@ -95,8 +72,8 @@ def difference(c_a: dict[tuple, float], c_b: dict[tuple, float], n_boot: int = 2
     both = ~np.isfinite(a) & ~np.isfinite(b)
     with np.errstate(invalid="ignore"):
         d = np.where(both, 0.0, a - b)
-    lo, hi = bootstrap_median(d, n_boot=n_boot, seed=seed)
-    return {"median": _median(d), "ci95": [lo, hi], "n": int(len(d)), "p_wilcoxon": wilcoxon_p(d)}
+    mid, (lo, hi) = paired_median_difference(a, b, n_boot=n_boot, seed=seed)
+    return {"median": mid, "ci95": [lo, hi], "n": int(len(d)), "p_wilcoxon": wilcoxon_p(d)}
 
 
 def wilcoxon_p(d: np.ndarray) -> float:

@@ -122,6 +122,46 @@ def figures_for(rows: list[dict], entries: list[dict], out: Path) -> dict[str, P
     }
 
 
+def aggregate_section(rows: list[dict], entries: list[dict], out: Path | None) -> str:
+    """rliable's aggregate statistics over the runs x scenarios score matrix (Markdown): the IQM with its
+    stratified-bootstrap interval and the probability of improvement over the best classical entry per
+    controller, and the performance profiles figure (beside ``out``, when given)."""
+    from .leaderboard import scores  # noqa: PLC0415
+    from .ranking import best  # noqa: PLC0415
+    from .statistics import RLIABLE_REPS, improvement_over, iqm_with_ci, plot_performance_profiles, score_matrix  # noqa: PLC0415
+
+    what, per = scores(rows)
+    scenarios, matrices = score_matrix(per)
+    if not scenarios:
+        return ""
+    iqms = iqm_with_ci(matrices)
+    classical = best(entries, "classical")
+    ref = classical["controller"] if classical is not None and classical["controller"] in matrices else None
+    poi = improvement_over(matrices, ref) if ref else {}
+    pct = lambda v: "inf" if v == float("inf") else f"{100 * v:.3f} %"  # noqa: E731
+    lines = [f"\n## Aggregate statistics (rliable)\n",
+             f"Over the {len(scenarios)} scenarios every controller ran, score = {what}, lower is better; "
+             f"`addedinertia bench leaderboard ... --format scores --out FILE.npz` writes the matrix. IQM with a 95 % "
+             f"stratified-bootstrap interval ({RLIABLE_REPS} resamples, seed 0); probability of improvement "
+             f"P(score < the best classical entry's{f', {ref}' if ref else ''}), Mann-Whitney per scenario averaged "
+             "over scenarios, with its interval (Agarwal et al. 2021).", "",
+             "| controller | IQM | IQM 95 % CI | P(improvement over best classical) | its 95 % CI |", "|---|---|---|---|---|"]
+    for e in entries:
+        name = e["controller"]
+        if name not in iqms:
+            continue
+        v, lo, hi = iqms[name]
+        p = poi.get(name)
+        lines.append(f"| {name} | {pct(v)} | {pct(lo)} .. {pct(hi)} | " + (f"{p[0]:.3f} | {p[1]:.3f} .. {p[2]:.3f} |"
+                                                                          if p else "- | - |"))
+    if out is not None:
+        fig_dir = out.parent / "figures"
+        path = plot_performance_profiles(matrices, fig_dir / f"{out.stem.lower()}-profiles.png", what.split(" (")[0])
+        rel = path.relative_to(out.parent)
+        lines += ["", f"![performance profiles: fraction of runs with error above tau]({rel})"]
+    return "\n".join(lines) + "\n"
+
+
 def build(rows: list[dict], command: str, fmt: str = "md", out: Path | None = None,
           title: str = "Controller leaderboard") -> tuple[str, list[dict[str, Any]]]:
     """``(text, entries)`` of the leaderboard in ``fmt`` (``md`` or ``html``); figures only with ``out``."""
@@ -135,4 +175,5 @@ def build(rows: list[dict], command: str, fmt: str = "md", out: Path | None = No
     for key, label in (("sensor_quality", "sensor quality"), ("preset", "rig preset")):
         if len({str(r.get(key)) for r in rows}) > 1 or key == "preset":
             text += f"\n## Median |error| (as written) by {label}\n\n" + breakdown(rows, order, key) + "\n"
+    text += aggregate_section(rows, entries, out)
     return text, entries

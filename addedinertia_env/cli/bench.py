@@ -2,7 +2,8 @@
 
 * ``bench run --suite NAME --controller NAME [--split test] [--seeds N] [--out FILE.jsonl]``
   one JSON line per episode (fields: addedinertia_env/bench/runner.py);
-* ``bench leaderboard FILES... [--format md|html|json] [--out FILE]`` ranks controllers;
+* ``bench leaderboard FILES... [--format md|html|json|scores] [--out FILE]`` ranks controllers
+  (``scores``: the runs x scenarios score matrix rliable reads, an ``.npz`` at ``--out`` and a JSON sidecar);
 * ``bench tune --suite NAME --controller NAME`` tunes on the suite's tuning split only
   and stores the gains in configs/controllers/tuned.yaml (addedinertia_env/bench/tuning.py).
 """
@@ -50,7 +51,10 @@ def register(sub) -> None:
 
     lb = bsub.add_parser("leaderboard", help="rank controllers from bench rows")
     lb.add_argument("files", nargs="+", metavar="FILE.jsonl")
-    lb.add_argument("--format", choices=("md", "html", "json"), default="md")
+    lb.add_argument("--format", choices=("md", "html", "json", "scores"), default="md",
+                    help="md, html, json: the leaderboard; scores: the runs x scenarios matrix of each controller's "
+                         "per-episode score (.npz, rliable's score_dict by dict(numpy.load(FILE))) and FILE.json "
+                         "(scenarios, what the score is); needs --out")
     lb.add_argument("--out", default=None, help="output file (figures go to FILE's folder, in figures/); default stdout")
     lb.add_argument("--title", default="Controller leaderboard")
     lb.set_defaults(func=run_leaderboard)
@@ -178,6 +182,20 @@ def run_leaderboard(args) -> int:
     except RowsError as e:
         raise BadInput(str(e)) from None
     out = Path(args.out) if args.out else None
+    if args.format == "scores":
+        from ..bench.leaderboard import scores  # noqa: PLC0415
+        from ..bench.statistics import score_matrix, write_scores  # noqa: PLC0415
+
+        if out is None:
+            raise BadInput("bench leaderboard --format scores: expected --out FILE.npz (a binary matrix file)")
+        what, per_controller = scores(rows)
+        scenarios, matrices = score_matrix(per_controller)
+        if not scenarios:
+            raise BadInput(f"{', '.join(args.files)}: no scenario that every controller ran; expected rows of the "
+                           "same suite and split for each controller")
+        path, side = write_scores(out, scenarios, matrices, what)
+        info(f"wrote {path} ({len(matrices)} controllers x {len(scenarios)} scenarios) and {side}")
+        return 0
     if args.format == "json":
         from ..bench.leaderboard import summarise  # noqa: PLC0415
         from ..bench.verdict import discrimination, verdict  # noqa: PLC0415

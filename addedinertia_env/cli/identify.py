@@ -41,6 +41,8 @@ def run(args) -> int:
         else:
             options["effect"] = args.effect
     result = identify(records, args.method, **options)
+    for warning in result.details.get("warnings", []):
+        info(f"warning: {warning}")
     if args.json:
         out = result.to_json(verbose=args.verbose)
         # how each record was sampled (jitter, dropped samples, gaps): never assumed uniform

@@ -273,7 +273,11 @@ def _prepare_run(k: int, rec: RunRecord, rig0, n: int, dt: float) -> RunData | s
             hold = float(t[r0 - 1] - t[free_stop - 1])
             segments.append(_hull_segment(k, "free", rec, f0 - 1, f0, free_stop, current, q_fly, 0.0, n))
             segments.append(_hull_segment(k, "reverse", rec, r0 - 1, r0, rev_stop, current, q_fly, hold, n))
-        flywheel = _flywheel_segment(k, rec, min(free_stop, r0) - 1, current, q_fly, n)
+        # The flywheel's balance holds through the hold and the reverse stroke whatever cut the free
+        # stroke short (a gap): it starts at the last sample before the hull is held.
+        held_after = np.nonzero(held[f0:r0])[0]
+        free_end = f0 + int(held_after[0]) if held_after.size else r0
+        flywheel = _flywheel_segment(k, rec, min(free_end, r0) - 1, current, q_fly, n)
     if any(s is None for s in segments):
         return "a stroke shorter than two integrator steps"
     return RunData(name=rec.name, kind=kind, alpha=alpha, hold_s=hold, segments=segments, flywheel=flywheel,

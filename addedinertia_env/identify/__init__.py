@@ -32,6 +32,10 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
     # in memory (a benchmark episode); a refusal raises RecordError.
     for rec in records:
         rec.views.limits  # noqa: B018
+    from ..consistency import check_momentum_consistent  # noqa: PLC0415
+
+    for rec in records:  # the angles against the current: a record in degrees is refused here
+        check_momentum_consistent(rec)
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
     try:

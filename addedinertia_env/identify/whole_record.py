@@ -43,7 +43,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from ..record import RunRecord
+from ..record import MAX_GAP_PERIODS, RunRecord
 from .common import IdentificationError, Result
 
 DEFAULT_CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, physics.md section 7 (current sensor gain error)
@@ -121,7 +121,8 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
                            "verdict": "model adequate" if adequate else "unexplained: residuals keep structure "
                            f"({max(s['hull_excess'], s['flywheel_excess']):.1f} x noise floor, lag-1 {s['lag1']:.2f}); "
                            "run discover",
-                           "skipped": list(data.skipped), "current_sampling": dict(data.current_mode_report),
+                           "skipped": list(data.skipped), "gaps": record_gaps(records),
+                           "current_sampling": dict(data.current_mode_report),
                            "release_lag_s": data.release_lag,
                            "ci_over_crb": sigma / crb if crb > 0 else None, "model": "+".join(effects) or "nominal",
                            "params": fit.params, "stderr": fit.stderr(), "n_runs": len(data.runs),
@@ -130,6 +131,20 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
                            "converged": fit.success,
                            "lambda66_start": float((model.start() if x0 is None else x0)[model.names.index("lambda66")]),
                            "n_evals": fit.n_evals})
+
+
+def record_gaps(records: list[RunRecord]) -> list[dict]:
+    """Every interval of ``t`` longer than five nominal periods (the spec's reporting threshold), per record:
+    ``run``, ``after_t`` (s), ``length_s``. A stroke is integrated up to a gap that no integrator step can
+    bridge (the input over it is unknown) and the samples after it, until the brake, are not fitted."""
+    out = []
+    for rec in records:
+        t = np.asarray(rec.t, dtype=float)
+        dt = np.diff(t)
+        limit = MAX_GAP_PERIODS / rec.known.sample_rate * (1 + 1e-6)
+        out += [{"run": rec.name, "after_t": float(t[k]), "length_s": float(dt[k])}
+                for k in np.nonzero(dt > limit)[0].tolist()]
+    return out
 
 
 def _rows_of_run(model, run: int) -> np.ndarray:
