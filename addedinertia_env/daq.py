@@ -2,7 +2,7 @@
 
 The simulator logs every sample on a perfect 1 kHz clock, the current at its instant,
 and the full rig block. Real DAQs differ in every way the spec allows
-(``../shared/spec/run-record.md``); this layer turns a simulated record into one with
+(``docs/RUN_RECORD.md``); this layer turns a simulated record into one with
 those habits, so that tests and hidden-effect checks draw quirks as well as effects:
 
 ==================  ==================================================================

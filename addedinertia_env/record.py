@@ -1,4 +1,4 @@
-"""Run records, format ``addedinertia-run/1`` (``../shared/spec/run-record.md``).
+"""Run records, format ``addedinertia-run/1`` (``docs/RUN_RECORD.md``).
 
 One experiment is a CSV of samples plus a JSON of metadata with the same stem. Readers
 refuse bad input with the file, the line or column, the value and what was expected;

@@ -1,6 +1,6 @@
 """A run record written as the experiment goes, so a fault or a crash never loses it.
 
-The JSON (``addedinertia-run/1``, ``../shared/spec/run-record.md``) is written at the
+The JSON (``addedinertia-run/1``, ``docs/RUN_RECORD.md``) is written at the
 start with ``experiment.status = "running"`` and rewritten at the end with
 ``"complete"`` or ``"aborted: <reason>"`` (atomically, via ``record.write``'s helper).
 CSV rows are appended as samples arrive and flushed at least every ``flush_s``. A

@@ -126,6 +126,12 @@ NOT_RUN = {
     "docs/LEARNING.md: addedinertia bench run --suite standard-v0 --split test --controller "
     "onnx:agents/policies/reverse_stroke.onnx \\":
         "the leaderboard's rows (the whole test split, minutes); SUBMITTING.md's example runs bench run",
+    "docs/DATASETS.md: import minari":
+        "loads the dataset the `--simulate 100` block above writes (each block runs in its own folder); "
+        "tests/test_minari_export.py writes one and loads it back with Minari, replaying its score",
+    "docs/DATASETS.md: import xarray as xr":
+        "reads the file the `hull --netcdf` block above writes (each block runs in its own folder); "
+        "tests/test_hull_netcdf.py writes such a file and loads it with xarray",
     "docs/CONTROLLERS.md: addedinertia bench tune --suite standard-v0 --controller NAME --candidates 6 --scenarios 6 "
     "--seed 0": "NAME is the reader's; tests/test_controllers.py runs the tuning",
 }
@@ -134,6 +140,8 @@ SLOW = {
     "README.md: source .venv/bin/activate",
     "docs/BENCH.md: .venv/bin/python -m hw_adapter.measure --out out/bench-figures.json          # 25 s",
     "docs/RADIATION_MEMORY.md: addedinertia hull wigley-2m --fit-memory      # fits the cached sweep; no BEM solve, ~2 s",
+    "docs/DATASETS.md: addedinertia dataset export --simulate 100 --controller feedforward-pd --minari "
+    "addedinertia/ffpd-sim-v0",
 }
 
 
@@ -146,10 +154,15 @@ def _clone(tmp_path: Path) -> Path:
     return tmp_path
 
 
-def _env() -> dict[str, str]:
+def _env(cwd: Path | None = None) -> dict[str, str]:
+    """The environment of an example: this interpreter's bin first, the checkout importable, no screen, and
+    Minari's datasets (docs/DATASETS.md) in the example's own folder, never the user's ``~/.minari``."""
     bindir = str(Path(sys.executable).parent)
-    return {**os.environ, "PATH": bindir + os.pathsep + os.environ.get("PATH", ""),
-            "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "MPLBACKEND": "Agg"}
+    env = {**os.environ, "PATH": bindir + os.pathsep + os.environ.get("PATH", ""),
+           "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "MPLBACKEND": "Agg"}
+    if cwd is not None:
+        env["MINARI_DATASETS_PATH"] = str(cwd / ".minari")
+    return env
 
 
 def _commands(text: str) -> list[tuple[str, str | None]]:
@@ -184,7 +197,7 @@ def _check_shown(shown: str, stdout: str, command: str) -> None:
 def _run_sh(example: Example, cwd: Path) -> list[subprocess.CompletedProcess]:
     done = []
     for command, shown in _commands(example.text):
-        proc = subprocess.run(["bash", "-c", command], cwd=cwd, env=_env(), capture_output=True, text=True,
+        proc = subprocess.run(["bash", "-c", command], cwd=cwd, env=_env(cwd), capture_output=True, text=True,
                               timeout=900)
         assert proc.returncode == 0, (f"{example.doc} line {example.line}: `{command}` exited {proc.returncode}\n"
                                       f"{proc.stderr[-2000:]}")
@@ -200,7 +213,7 @@ def _run(example: Example, tmp_path: Path) -> list[subprocess.CompletedProcess]:
         if not name.startswith("output:"):
             (cwd / name).write_text(text)
     if example.lang == "python":
-        proc = subprocess.run([sys.executable, "-c", example.text], cwd=cwd, env=_env(), capture_output=True,
+        proc = subprocess.run([sys.executable, "-c", example.text], cwd=cwd, env=_env(cwd), capture_output=True,
                               text=True, timeout=900)
         assert proc.returncode == 0, f"{example.doc} line {example.line}:\n{proc.stderr[-2000:]}"
         assert "Traceback" not in proc.stderr, proc.stderr[-2000:]  # nothing at interpreter exit either

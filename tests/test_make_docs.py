@@ -20,6 +20,10 @@ GENERATOR = re.compile(r"(?:\.venv/bin/)?(python -m addedinertia_env\.(?:reports
                        r"|addedinertia perf [^`\n]*--out docs/[^`\n]*)")
 # Generators named in docs that `make docs` does not run, and why.
 NOT_IN_MAKE_DOCS = {
+    "addedinertia_env.reports.momentum_check": "reads the developers' foreign-lab archives (--data PATH), which are "
+                                               "not part of the project: a clone has none to read",
+    "addedinertia_env.reports.digests": "a check that numbers are unchanged across a refactoring "
+                                        "(docs/ARCHITECTURE.md), not a table of the docs",
     "addedinertia_env.reports.ars_curves": "needs the training runs of `make hard-policy` (it exports a shipped policy)",
     "addedinertia_env.reports.dagger_curves": "needs the training runs of `make hard-policy-dagger` (it exports a "
                                               "shipped policy)",

@@ -9,7 +9,7 @@ never puts an old error beside a new one:
   on, the truth was A66 at the natural swing frequency, 1.7-2.0 % above A66(0) on the
   shipped hulls; in memory-free water it was the hull's lambda66.
 * :data:`SCORE_VERSION` ``paired-median-v1``: the truth is lambda66 = A66(0), the
-  zero-frequency added inertia, in every water (``../shared/spec/run-record.md``); the
+  zero-frequency added inertia, in every water (``docs/RUN_RECORD.md``); the
   ranked score is the median paired control error against the oracle (:mod:`.paired`).
 
 A suite whose truth changed takes a new name too (``memory-v1``: the memory presets, truth

@@ -2,7 +2,7 @@
 
 Input: a CSV with columns ``swing`` (successive half-swing numbers, 1, 2, 3, ...) and
 ``theta_deg`` (amplitude in degrees, > 0); other columns are ignored. This is the form
-of ``../shared/data/textbook_roll_decay.csv`` (source 004, tables 6.1 and 6.2).
+of ``addedinertia_env/data/textbook/textbook_roll_decay.csv`` (source 004, tables 6.1 and 6.2).
 
 Two things are done with it:
 
@@ -31,7 +31,7 @@ Two things are done with it:
    constant; a nu that falls with the amplitude says quadratic, one that rises says dry.
 
 The amplitude resolution: every printed amplitude is a multiple of 0.1025 deg (0.5 mm of
-trace at 0.205 deg/mm, ``../shared/data/README.md``), so a rounding error uniform over
+trace at 0.205 deg/mm, ``addedinertia_env/data/textbook/README.md``), so a rounding error uniform over
 one step has a standard deviation 0.1025 / sqrt(12) = 0.0296 deg.
 """
 

@@ -302,7 +302,7 @@ def _course_stability(s: dict, data: dict) -> list[str]:
          "Linear sway-yaw model; added masses from the BEM at zero frequency, `Y_v, Y_r, N_v, N_r` from Clarke, "
          "Gedling & Hine (1983); Hurwitz on `A s^2 + B s + C`. `--from-record` takes lambda66 and its 95 % interval "
          "from run records (the energy method by default) as they are: identify()'s lambda66 is A66(0), the "
-         "zero-frequency value manoeuvring needs (`../shared/spec/run-record.md`).", "",
+         "zero-frequency value manoeuvring needs (`docs/RUN_RECORD.md`).", "",
          "| added masses | lambda22 (kg) | lambda26 (kg m) | lambda66 (kg m^2) | C (Hurwitz) | stable | roots (1/s) | time constants (s) |",
          "|---|---|---|---|---|---|---|---|"]
     for label, r in (("BEM", n), ("Clarke (1983) regression", c), ("BEM, lambda66 -10 %", res["lambda66_range"]["at_ends"][0]),

@@ -1,7 +1,7 @@
 """The momentum check's margins, measured: docs/RELIABILITY.md's table (issue 30).
 
-    python -m addedinertia_env.reports.momentum_check --data ../shared/data/foreign-lab.tar.xz \\
-        --data ../shared/data/foreign-lab-2.tar.xz
+    python -m addedinertia_env.reports.momentum_check --data PATH/foreign-lab.tar.xz \\
+        --data PATH/foreign-lab-2.tar.xz
 
 For each group of records, the largest share of the allowance an honest record uses
 (:func:`~addedinertia_env.consistency.momentum_account`'s ``used``; over 1 is refused), the

@@ -1,7 +1,7 @@
 """Physical parameters of the rig, as frozen dataclasses with SI units.
 
 Every number here has a unit in its comment and a source in ``configs/rigs/*.yaml`` or
-in ``../shared/design/physics.md`` section 7 (the realistic default rig). Derived
+in ``docs/PHYSICS.md`` section 7 (the realistic default rig). Derived
 quantities are properties, never stored copies.
 
 Two views of a rig exist:

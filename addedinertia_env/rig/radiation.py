@@ -18,7 +18,7 @@ zero-frequency (rigid-lid) added inertia A66(0)**, which is what the presets sta
 lambda66 scales the whole curve with it.
 
 What lambda66 means with memory on (the truth for scoring, :func:`truth_block`,
-``../shared/spec/run-record.md``): **lambda66 is A66(0)**, the value manoeuvring models use,
+``docs/RUN_RECORD.md``): **lambda66 is A66(0)**, the value manoeuvring models use,
 in every truth block the simulator writes. Beside it the truth gives ``A66_swing``, A66 at the
 natural swing frequency ``w_n`` (the root of ``c = w^2 (J_h + A66(w))``, a free flywheel:
 physics.md s3; what a free decay measures, 1.7-2.0 % above A66(0) on the shipped hulls), and
