@@ -175,7 +175,8 @@ def test_swing_period_is_the_root_of_the_cummins_equation():
     # about half the relative inertia change, 0.5 x 0.2/17.5 ~ 0.6 %; the root predicts it to 1e-6
     assert abs(period / (2 * math.pi / w_n) - 1.0) < 1e-6
     assert period / period_a0 - 1.0 > 3e-3
-    assert forces.true_lambda66(p) == pytest.approx(p.spring.c / w_n**2 - p.hull.J_hull, rel=1e-12)
+    # the swing measures A66(w_n), which the truth block states beside lambda66 = A66(0)
+    assert MujocoRig(p, seed=0).truth()["A66_swing"] == pytest.approx(p.spring.c / w_n**2 - p.hull.J_hull, rel=1e-12)
 
 
 def test_energy_closes_with_the_water_stored_and_radiated():
@@ -227,7 +228,8 @@ def test_simulate_command_writes_the_memory_truth(tmp_path, capsys):
     truth = read_record(tmp_path / "run-0000.csv").meta["truth"]
     hydro = truth["hydrodynamics"]
     assert hydro["model"] == "cummins" and hydro["source"] == "configs/rigs/spheroid-7.bem.json"
-    assert hydro["A66_inf"] < hydro["A66_zero"] < hydro["A66_swing"] == truth["lambda66"]
+    # lambda66 is A66(0) (spec/run-record.md); A66(swing) and A66(inf) beside it
+    assert hydro["A66_inf"] == truth["A66_inf"] < hydro["A66_zero"] == truth["lambda66"] < truth["A66_swing"]
     capsys.readouterr()
     # an unknown model: a one-line error naming it, exit 2
     assert main(["simulate", "--rig", "spheroid-7", "--hydrodynamics", "potential", "--out", str(tmp_path)]) == 2
@@ -271,3 +273,23 @@ def test_two_rate_board_sim_carries_the_memory():
     assert a.phi == b.phi  # the board's loop passes a passive command through: the same memory-on rig
     assert board.truth()["hydrodynamics"]["model"] == "cummins"
     assert abs(board.rig.true_state().radiation_torque) > 0.1
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_every_truth_writer_gives_lambda66_as_a66_zero(preset):
+    # the MuJoCo rig, the batched single rig, the vector pool's slot truth and the scoring
+    # helper all read one function: lambda66 = A66(0) = the hull's lambda66, with A66(swing)
+    # (the Cummins root's) above it and A66(inf) below it; memory-free water unchanged
+    p = memory_rig(preset)
+    model = p.hydrodynamics
+    w_n = model.natural_frequency(p.hull.J_hull, p.hull.lambda66, p.spring.c)
+    for rig in (MujocoRig(p, seed=0), BatchedSingleRig(p, seed=0)):
+        truth = rig.truth()
+        assert truth["lambda66"] == p.hull.lambda66
+        assert truth["A66_swing"] == pytest.approx(p.hull.lambda66 * float(model.added_inertia_ratio(w_n)[0]), rel=1e-12)
+        assert truth["A66_inf"] == pytest.approx(p.hull.lambda66 * model.a_inf_ratio, rel=1e-12)
+        assert truth["A66_inf"] < truth["lambda66"] < truth["A66_swing"]
+    assert forces.true_lambda66(p) == p.hull.lambda66
+    plain = load_rig(preset, sensors=SensorParams.ideal())
+    truth = MujocoRig(plain, seed=0).truth()
+    assert truth["lambda66"] == plain.hull.lambda66 and "A66_swing" not in truth

@@ -103,7 +103,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
     sc = task.scenario
     from ..rig.forces import true_lambda66  # noqa: PLC0415
 
-    truth = true_lambda66(sc.rig)  # scoring only (A66 at the swing frequency with radiation memory)
+    truth = true_lambda66(sc.rig)  # scoring only: A66(0), with or without radiation memory
     row: dict[str, Any] = {
         "controller": task.controller, "suite": task.suite, "split": task.split, "scenario": sc.name,
         "seed": sc.seed, "preset": task.preset, "sensor_quality": sc.sensor_quality,

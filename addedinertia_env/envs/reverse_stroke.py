@@ -316,7 +316,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
             return math.nan
         from ..rig.forces import true_lambda66  # noqa: PLC0415
 
-        return true_lambda66(self.scenario.rig)  # A66 at the swing frequency with radiation memory
+        return true_lambda66(self.scenario.rig)  # A66(0), with or without radiation memory
 
     # --- internals --------------------------------------------------------------------
     def _score(self) -> dict[str, Any]:

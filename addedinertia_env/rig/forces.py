@@ -197,8 +197,8 @@ def kinetic_energy(w, omega, p: RigParams):
 def truth(p: RigParams, k_t: float) -> dict:
     """A simulated rig's run-record ``truth`` block (scoring only; every engine gives the same).
 
-    With radiation memory, ``lambda66`` is A66 at the natural swing frequency and a
-    ``hydrodynamics`` block gives A66(0), A66(swing), A66(inf) (:func:`.radiation.truth_block`).
+    ``lambda66`` is A66(0) (spec/run-record.md); with radiation memory ``A66_swing``,
+    ``A66_inf`` and a ``hydrodynamics`` block stand beside it (:func:`.radiation.truth_block`).
     """
     h = p.hull
     out = {"lambda66": h.lambda66, "effects": p.effects.to_dict(), "damping": {"b1": h.b1, "b2": h.b2},
@@ -210,9 +210,6 @@ def truth(p: RigParams, k_t: float) -> dict:
 
 
 def true_lambda66(p: RigParams) -> float:
-    """The lambda66 a run on this rig is scored against, kg m^2: the hull's lambda66, or with
-    radiation memory A66 at the natural swing frequency (:func:`.radiation.truth_block`)."""
-    model = getattr(p, "hydrodynamics", None)
-    if model is None:
-        return float(p.hull.lambda66)
-    return float(truth_block(p.hull.J_hull, p.hull.lambda66, p.spring.c, model)["lambda66"])
+    """The lambda66 a run on this rig is scored against, kg m^2: A66(0), the hull's lambda66,
+    with or without radiation memory (spec/run-record.md; :func:`.radiation.truth_block`)."""
+    return float(p.hull.lambda66)

@@ -17,13 +17,13 @@ zero-frequency (rigid-lid) added inertia A66(0)**, which is what the presets sta
 ``A66(omega)/A66(0)`` (computed for this hull) is kept. A scenario that draws another
 lambda66 scales the whole curve with it.
 
-What the experiment measures with memory on (the truth for scoring,
-:func:`truth_block`): the hull swings at its natural frequency ``w_n``, the root of
-``c = w^2 (J_h + A66(w))`` (a free flywheel: physics.md s3), where B66 is nil (~1e-4 N m s)
-and the water acts as the inertia ``A66(w_n)``, 1.7-2.0 % above A66(0) on the shipped hulls.
-A free decay or a forced oscillation at ``w_n`` measures A66(w_n) exactly (the Cummins
-equation's root); the energy method's half swings are that motion, so ``truth.lambda66`` is
-``A66(w_n)``, and A66(0) and A66(inf) are recorded beside it.
+What lambda66 means with memory on (the truth for scoring, :func:`truth_block`,
+``../shared/spec/run-record.md``): **lambda66 is A66(0)**, the value manoeuvring models use,
+in every truth block the simulator writes. Beside it the truth gives ``A66_swing``, A66 at the
+natural swing frequency ``w_n`` (the root of ``c = w^2 (J_h + A66(w))``, a free flywheel:
+physics.md s3; what a free decay measures, 1.7-2.0 % above A66(0) on the shipped hulls), and
+``A66_inf``, the infinite-frequency limit, kg m^2; the ``hydrodynamics`` block repeats them with
+``w_n`` and the model. Memory-free water: ``lambda66`` is the hull's one added inertia.
 """
 
 from __future__ import annotations
@@ -164,12 +164,14 @@ def _display(path: Path) -> str:
 
 
 def truth_block(J_hull: float, lambda66: float, c_spring: float, model: CumminsModel) -> dict[str, Any]:
-    """The record's truth about the water with memory on: lambda66 (= A66 at the natural frequency)
-    and the model's A66(0), A66(w_n), A66(inf), kg m^2."""
+    """The record's truth about the water with memory on: ``lambda66`` = A66(0) (the spec's
+    definition), ``A66_swing`` (A66 at the natural swing frequency) and ``A66_inf``, kg m^2, and
+    the ``hydrodynamics`` block (the model, A66(0), A66(w_n), A66(inf), ``swing_omega`` rad/s)."""
     w = model.natural_frequency(J_hull, lambda66, c_spring)
     a_swing = lambda66 * float(model.added_inertia_ratio(w)[0])
-    return {"lambda66": a_swing,
+    a_inf = lambda66 * model.a_inf_ratio
+    return {"lambda66": float(lambda66), "A66_swing": a_swing, "A66_inf": a_inf,
             "hydrodynamics": {"model": "cummins", "source": model.source, "order": model.order,
-                              "fit_error": model.fit_error, "A66_zero": lambda66, "A66_swing": a_swing,
-                              "A66_inf": lambda66 * model.a_inf_ratio, "swing_omega": w,
-                              "lambda66_is": "A66 at the natural swing frequency (docs/RADIATION_MEMORY.md)"}}
+                              "fit_error": model.fit_error, "A66_zero": float(lambda66), "A66_swing": a_swing,
+                              "A66_inf": a_inf, "swing_omega": w,
+                              "lambda66_is": "A66(0), the zero-frequency added inertia (spec/run-record.md)"}}
