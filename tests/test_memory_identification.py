@@ -32,7 +32,7 @@ def kernel_resonant(d_a: float, wn: float, z: float):
     return A, np.array([0.0, 1.0]), np.array([0.0, d_a * wn * wn]), 0.0
 
 
-def synthetic_record(a_inf: float, kernel, phi0: float = 0.1, hold: float = 0.3, seconds: float = 12.0,
+def synthetic_record(a_inf: float, kernel, phi0: float = 0.1, hold: float = 0.3, seconds: float = 8.0,
                      name: str = "synthetic", seed: int = 0) -> RunRecord:
     """A free decay from rest (the brake lets go at ``hold``), the hull's equation with the
     memory ``mu`` integrated by RK4 at 0.1 ms, sampled at 1 kHz with a 17-bit encoder."""
@@ -115,3 +115,21 @@ def test_too_short_a_record_is_not_identifiable():
     rec = synthetic_record(7.0, kernel_first_order(5.0, 0.25), seconds=1.5)
     got = identify_memory([rec], families={"r1": ("r",)})
     assert got.status.startswith("not identifiable:") and "unbraked motion" in got.status
+
+
+def test_discovery_candidate_names_radiation_memory_only_for_memory():
+    from addedinertia_env.discover import radiation_memory
+
+    fam = {"r1": ("r",), "c1": ("c",)}
+    from addedinertia_env.identify.memory import identify_memory as ident
+
+    mem = [synthetic_record(7.0, kernel_first_order(5.0, 0.25), phi0=a, seed=k, name=f"m{k}")
+           for k, a in enumerate((0.1, 0.06))]
+    plain = [synthetic_record(11.7, None, phi0=a, seed=k, name=f"p{k}") for k, a in enumerate((0.1, 0.06))]
+    yes = radiation_memory.candidate(mem, memory=ident(mem, families=fam))
+    no = radiation_memory.candidate(plain, memory=ident(plain, families=fam))
+    assert yes["named"] and yes["size"] == pytest.approx(5.0 / 12.0, rel=0.05)
+    assert not no["named"]
+    assert radiation_memory.merge("unexplained", [], yes) == ("radiation_memory", ["radiation_memory"])
+    assert radiation_memory.merge("fluid_memory", ["fluid_memory"], yes) == ("radiation_memory", ["radiation_memory"])
+    assert radiation_memory.merge("none", [], no) == ("none", [])

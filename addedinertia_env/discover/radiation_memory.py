@@ -28,7 +28,7 @@ from typing import Any
 from ..record import RunRecord
 
 NAME = "radiation_memory"
-MAX_RSS_RATIO = 0.25
+MAX_RSS_RATIO = 0.05  # as identify.memory.MEMORY_RSS_RATIO
 MIN_SIZE = 0.10
 MIN_POLE = 1.0  # rad/s: the free surface's kernel dies within about 2 s (physics.md section 6)
 

@@ -68,7 +68,7 @@ FAMILIES: dict[str, tuple[str, ...]] = {"r1": ("r",), "c1": ("c",), "r2": ("r", 
 MAX_STARTS = 2  # starting pole sets per family (a slow and a fast section, both ways round)
 WINDOW_S = 1.5  # s: integral-form windows (long against the memory's ~0.1-1 s, short against drift)
 ROW_STEP_S = 0.02  # s: one equation row every 20 ms (the integral form is smooth)
-MEMORY_RSS_RATIO = 0.5  # memory declared when the best passive model leaves < half the memory-free residual
+MEMORY_RSS_RATIO = 0.05  # memory declared when a passive model leaves < 5 % of the memory-free residual
 FAMILY_RSS_TOLERANCE = 1.25  # families within 25 % of the best residual are kept in the interval
 PASSIVITY_TOLERANCE = 0.02  # min Re K(jw) >= -2 % of max |Re K(jw)| on the grid (fit noise)
 OMEGA_GRID = np.logspace(-2, 3, 300)  # rad/s, passivity grid

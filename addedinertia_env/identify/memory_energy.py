@@ -176,10 +176,27 @@ def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sig
     return CorrectedEstimate(best[0], (lo_all, hi_all), out, best[1])
 
 
+def combine(energy: float, energy_ci, fit: float, fit_ci) -> tuple[float, tuple[float, float]]:
+    """A66(0) from the two estimates the records give under the identified memory: the energy
+    method corrected (the balance at the boundary angles) and the memory fit's own
+    ``A66(inf) + sum theta_i G_i(0)`` (the whole records' equation): their inverse-variance
+    mean, the interval widened by the Birge ratio when they disagree beyond their intervals
+    (:func:`~addedinertia_env.identify.common.pooled_interval`), and at least to +-1.96 x half
+    their difference."""
+    from .common import pooled_interval  # noqa: PLC0415
+
+    sig = [max(0.5 * (energy_ci[1] - energy_ci[0]), 1e-12) / 1.96, max(0.5 * (fit_ci[1] - fit_ci[0]), 1e-12) / 1.96]
+    value, lo, hi = pooled_interval(np.array([energy, fit]), np.array(sig))
+    # their disagreement is a method error neither interval holds (the fit's discretisation,
+    # the energy method's rate fits): counted as two standard deviations of it
+    half = max(0.5 * (hi - lo), 1.96 * 0.5 * abs(energy - fit))
+    return value, (value - half, value + half)
+
+
 def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunRecord], prior: str | None = None):
     """The energy method's :class:`~addedinertia_env.identify.common.Result` with the water's
     memory identified from ``all_records`` (decays and reverse runs) and corrected for:
-    ``lambda66`` becomes A66(0); the JSON adds ``A66_swing``, ``A66_inf`` (each with ``ci95``),
+    ``lambda66`` becomes A66(0) (:func:`combine`); the JSON adds ``A66_swing``, ``A66_inf`` (each with ``ci95``),
     the memory model, and the uncorrected value. Memory-free water (``memory: "none"``):
     the energy method's numbers unchanged. Not identifiable: the uncorrected value with its
     interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`)."""
@@ -196,7 +213,9 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
             details["lambda66_uncorrected_ci95"] = list(ci)
             details["memory_bias"] = corrected.bias
             details["memory_correction"] = corrected.per_family
-            value, ci = corrected.value, corrected.ci95
+            details["lambda66_energy_corrected"] = corrected.value
+            details["lambda66_energy_corrected_ci95"] = list(corrected.ci95)
+            value, ci = combine(corrected.value, corrected.ci95, mem.A_zero, mem.ci95["A66_zero"])
         else:
             details["memory"] = "not identifiable: no forward and reverse stroke to correct in the reverse runs"
     if str(details.get("memory", "")).startswith("not identifiable"):

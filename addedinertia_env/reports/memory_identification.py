@@ -87,21 +87,27 @@ def render(rows_path: str, answers_specs: list[str]) -> str:
         a0 = t["lambda66"]
         memory_water = t.get("A66_inf") is not None
         before = res.get("lambda66_uncorrected", res["lambda66"])
-        after = res["lambda66"]
+        after, ci_after = res["lambda66"], res["ci95"]
+        if "lambda66_uncorrected" in res and "lambda66_energy_corrected" not in res:
+            # a row made before identify combined the two estimates: the same function on its pieces
+            from ..identify.memory_energy import combine  # noqa: PLC0415
+
+            after, ci_after = combine(res["lambda66"], res["ci95"], res["A66_zero_memory_fit"],
+                                      res["A66_zero_memory_fit_ci95"])
         e_b, e_a = before / a0 - 1, after / a0 - 1
         fit0 = res.get("A66_zero_memory_fit")
         e_f = fit0 / a0 - 1 if fit0 is not None else None
         e_inf = res["A66_inf"] / t["A66_inf"] - 1 if memory_water and res.get("A66_inf") is not None else None
-        lo, hi = res["ci95"]
+        lo, hi = ci_after
         covers = lo <= a0 <= hi
         ratio = 0.5 * (hi - lo) / abs(after - a0) if after != a0 else float("inf")
         lines.append(f"| {label} | {'memory' if memory_water else 'memory-free'} | {res.get('memory')} | {a0:.4f} | "
                      f"{_pct(e_b)} | {_pct(e_a)} | {_pct(e_f)} | {_pct(e_inf, '+.1f')} | {'yes' if covers else 'no'} | "
                      f"{ratio:.1f} | {r['cpu_s']:.0f} |")
-        groups.setdefault(label.rpartition("-")[0], []).append((e_b, e_a, e_f, e_inf, covers, 0.5 * (hi - lo) / a0))
-    summary = ["| group | hulls | median abs error before | median abs error after | median abs error, memory fit | "
+        groups.setdefault((label.rpartition("-")[0], "memory" if memory_water else "memory-free"), []).append((e_b, e_a, e_f, e_inf, covers, 0.5 * (hi - lo) / a0))
+    summary = ["| group | water | hulls | median abs error before | median abs error after | median abs error, memory fit | "
                "median abs error A66(inf) | covered | median half-width / median abs error |",
-               "|---|---|---|---|---|---|---|---|"]
+               "|---|---|---|---|---|---|---|---|---|"]
     for g, v in groups.items():
         med = statistics.median
         eb, ea = med(abs(x[0]) for x in v), med(abs(x[1]) for x in v)
@@ -109,7 +115,7 @@ def render(rows_path: str, answers_specs: list[str]) -> str:
         ei = [abs(x[3]) for x in v if x[3] is not None]
         cov = sum(x[4] for x in v)
         hw = med(x[5] for x in v)
-        summary.append(f"| {g} | {len(v)} | {_pct(eb, '.3f')} | {_pct(ea, '.3f')} | "
+        summary.append(f"| {g[0]} | {g[1]} | {len(v)} | {_pct(eb, '.3f')} | {_pct(ea, '.3f')} | "
                        f"{_pct(med(ef), '.3f') if ef else '-'} | {_pct(med(ei), '.1f') if ei else '-'} | "
                        f"{cov}/{len(v)} | {hw / ea if ea > 0 else float('inf'):.1f} |")
     return "\n".join(summary) + "\n\nPer hull:\n\n" + "\n".join(lines) + "\n"
