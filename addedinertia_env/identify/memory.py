@@ -70,6 +70,7 @@ WINDOW_S = 1.5  # s: integral-form windows (long against the memory's ~0.1-1 s, 
 ROW_STEP_S = 0.02  # s: one equation row every 20 ms (the integral form is smooth)
 MEMORY_RSS_RATIO = 0.05  # memory declared when a passive model leaves < 5 % of the memory-free residual
 FAMILY_RSS_TOLERANCE = 1.25  # families within 25 % of the best residual are kept in the interval
+PASSIVE_GAP = 2.0  # a non-passive fit better than this many times the best passive one: memory not pinned down
 PASSIVITY_TOLERANCE = 0.02  # min Re K(jw) >= -2 % of max |Re K(jw)| on the grid (fit noise)
 OMEGA_GRID = np.logspace(-2, 3, 300)  # rad/s, passivity grid
 MIN_FREE_S = 3.0  # s of unbraked motion needed
@@ -537,6 +538,12 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
     best = min(passive, key=lambda f: f.rss)
     if best.rss >= MEMORY_RSS_RATIO * rss_none:
         return base  # the memory-free model explains the records about as well: no memory
+    best_any = min(fits, key=lambda f: f.rss)
+    if best.rss > PASSIVE_GAP * best_any.rss:
+        base.status = (f"not identifiable: the best passive model ({best.family}) leaves {best.rss / best_any.rss:.1f} "
+                       f"times the residual of a non-passive one ({best_any.family}); the records do not pin the "
+                       "memory down (expected longer free motion: a free decay beside the reverse runs)")
+        return base
     accepted = [f for f in passive if f.rss <= FAMILY_RSS_TOLERANCE * best.rss]
     # the one reported: the simplest of those that fit (fewest poles, then the smaller residual)
     best = min(accepted, key=lambda f: (_n_params(f), f.rss))
