@@ -69,7 +69,8 @@ def render(rows_path: str, answers_specs: list[str]) -> str:
     answers = {}
     for spec in answers_specs:
         prefix, _, path = spec.partition("=")
-        answers[prefix] = json.loads(Path(path).read_text())
+        data = json.loads(Path(path).read_text())
+        answers[prefix] = data.get("cases", data)
     rows = [json.loads(line) for line in Path(rows_path).read_text().splitlines() if line.strip()]
     seen = {}
     for r in rows:  # the last row of a label wins (a rerun)
