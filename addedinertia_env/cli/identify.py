@@ -18,6 +18,10 @@ def register(sub) -> None:
     p.add_argument("--effect", default=None, metavar="CAUSE",
                    help="whole-record: extend the model by this effect (a cause named by discover, "
                         "or two joined by '+'); default the nominal model")
+    p.add_argument("--memory", choices=("auto", "off"), default="auto",
+                   help="energy method: identify the water's radiation memory from the records (free decays "
+                        "given beside reverse runs help) and correct for it, so that lambda66 is A66(0) "
+                        "(default auto; docs/RADIATION_MEMORY.md); off: the energy balance alone")
     p.add_argument("--verbose", action="store_true", help="include every interval in the JSON")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -35,6 +39,8 @@ def run(args) -> int:
             info("--work applies to the energy method only; ignored")
         else:
             options["work"] = args.work
+    if args.method == "energy" and args.memory == "auto":
+        options["memory"] = True
     if args.effect is not None:
         if args.method != "whole-record":
             info("--effect applies to the whole-record method only; ignored")

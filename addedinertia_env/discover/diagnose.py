@@ -105,13 +105,14 @@ class Diagnosis:
     wall_s: float = 0.0
     pairs: list[Candidate] = field(default_factory=list)
     causes: list[str] = field(default_factory=list)  # every effect named (two for a pair); [] for none/unexplained
+    radiation_memory: dict | None = None  # the radiation_memory candidate's evidence (discover/radiation_memory.py)
 
     @property
     def chosen(self) -> Candidate | None:
         """The candidate (single or pair) whose model is the extended one."""
         if len(self.causes) > 1:
             return next((c for c in self.pairs if c.effects == tuple(self.causes)), None)
-        return next((c for c in self.candidates if c.cause == self.cause), None)
+        return next((c for c in self.candidates if c.cause == self.cause), None)  # None for radiation_memory
 
     @property
     def best(self) -> Candidate | None:
@@ -161,7 +162,8 @@ class Diagnosis:
                           "sampling": r.sampling} for r in self.data.runs],
                 "skipped": list(self.data.skipped), "release_lag_s": self.data.release_lag,
                 "current_sampling": dict(self.data.current_mode_report),
-                "thresholds": {k: v for k, v in self.thresholds.__dict__.items()}, "wall_s": self.wall_s}
+                "thresholds": {k: v for k, v in self.thresholds.__dict__.items()}, "wall_s": self.wall_s,
+                "radiation_memory": self.radiation_memory}
 
 
 def _rms(x: np.ndarray) -> float:
@@ -239,11 +241,12 @@ def _structured(fit: Fit, th: Thresholds) -> bool:
 
 
 def discover(records: list[RunRecord], thresholds: Thresholds | None = None, heldout: bool = True,
-             progress=None, pairs: bool = True, current_mode: str | None = None) -> Diagnosis:
+             progress=None, pairs: bool = True, current_mode: str | None = None, radiation: bool = True) -> Diagnosis:
     """Diagnose ``records`` (free decays and reverse-symmetric runs of one rig); see the module docstring.
 
     ``pairs``: also try two effects at once (after the singles). ``current_mode``: how
     the logged current is read (default: the rig block, else estimated; see :mod:`.prepare`).
+    ``radiation``: also test for radiation memory (:mod:`.radiation_memory`), outside the gray-box model.
     """
     import time  # noqa: PLC0415
 
@@ -280,8 +283,15 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
             order = sorted(best.effects, key=lambda e: -next(c.delta_bic for c in candidates if c.cause == e))
             causes, cause = order, order[0]
             best.effects = tuple(order)
+    memory = None
+    if radiation:  # the water's inertia depends on frequency: outside the gray-box model (discover/radiation_memory.py)
+        from . import radiation_memory  # noqa: PLC0415
+
+        memory = radiation_memory.candidate(records)
+        cause, causes = radiation_memory.merge(cause, causes, memory)
     return Diagnosis(cause=cause, data=data, nominal=nominal, candidates=candidates, heldout_nominal=ho_nominal,
-                     thresholds=th, wall_s=time.perf_counter() - t0, pairs=pair_cands, causes=causes)
+                     thresholds=th, wall_s=time.perf_counter() - t0, pairs=pair_cands, causes=causes,
+                     radiation_memory=memory)
 
 
 def _fit_singles(data: Prepared, th: Thresholds, progress=None) -> tuple[Fit, list[Candidate]]:

@@ -38,6 +38,15 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         check_momentum_consistent(rec)
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
+    memory = options.pop("memory", False)
+    if memory not in (False, True, "auto"):
+        raise ValueError(f"identify(): memory={memory!r}; expected False, True or 'auto'")
+    all_records, used = records, list(range(len(records)))
+    if method == "energy":  # free decays beside reverse runs: read for the water's memory, not refused
+        decays = [k for k, r in enumerate(records) if r.experiment.get("kind") == "free-decay"]
+        if decays and len(decays) < len(records):
+            used = [k for k in used if k not in decays]
+            records = [records[k] for k in used]
     try:
         result = estimator([r.without_truth() for r in records], **options)
     except IdentificationError as e:  # every refusal names the records it is about
@@ -52,7 +61,15 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         raise IdentificationError(f"{method} method on {names}: the records could not be analysed "
                                   f"({type(e).__name__}: {' '.join(str(e).split())[:200]}); expected records "
                                   "sampled evenly enough for the method, without long gaps in the strokes") from None
-    return check_physical(result, records)
+    result = check_physical(result, records)
+    if method == "energy":
+        if len(used) < len(all_records):
+            result.details["records_for_memory_only"] = [r.name for k, r in enumerate(all_records) if k not in used]
+        if memory:
+            from .memory_energy import with_memory  # noqa: PLC0415
+
+            result = with_memory(result, [r.without_truth() for r in all_records], [r.without_truth() for r in records])
+    return result
 
 
 __all__ = ["IdentificationError", "METHODS", "Result", "identify"]

@@ -112,7 +112,8 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
     n_good = sum(1 for iv in intervals if not iv.rejected) + sum(r.counts[0] for r in runs if r.counts)
     n_all = len(intervals) + sum(r.counts[1] for r in runs if r.counts)
     details = {"work": work, "asymmetry_correction": asymmetry_correction, "n_runs": len(good),
-               "per_run": [r.value for r in good], "rejected": n_all - n_good}
+               "per_run": [r.value for r in good], "per_run_sigma": [r.sigma for r in good],
+               "rejected": n_all - n_good}
     if interval_details:
         details["intervals"] = [iv.__dict__ for iv in intervals]
     return Result(method="energy", lambda66=value, ci95=(lo, hi), n_intervals=n_good, details=details)

@@ -1,0 +1,570 @@
+"""The water's radiation memory identified from the rig's own records (physics.md section 6).
+
+At a free surface the radiation moment on the hull is (Cummins 1962)
+
+    Q_rad = -A66(inf) phi'' - mu,     mu = integral_0^t K(t - s) phi'(s) ds,
+    K(j w) = B66(w) + j w (A66(w) - A66(inf)).
+
+The records hold what pins it down (no kernel shape assumed): right after the release and
+after the brake lets go the hull's acceleration is set by A66(inf) (the water has not yet
+responded); over the swing the water acts as A66 at the swing frequency; the transient in
+between shows how fast the water remembers. A66(0), the spec's lambda66, is an
+extrapolation from those frequencies: it is reported with the spread over the low-order
+passive model families that fit the records.
+
+**The hull's own equation.** The motor's torque is internal to hull + flywheel (it acts on
+the rotor and, as a reaction, on the stator fixed to the hull), so the hull row of the mass
+matrix (physics.md section 2) holds without the motor's current:
+
+    (J_h + J_f + A66(inf)) phi'' + J_f psi'' + mu + b1 w + b2 w|w| + q sgn w + T0
+        = -c (phi - phi_n)                                    (on every unbraked sample)
+
+Integrated twice from the start ``t0`` of a window (the *integral* form: angles only, no
+differentiated encoder noise, and the acceleration step at a release is not smeared by a
+filter)::
+
+    -(J_h + J_f) dphi - J_f dpsi - c II(phi - phi_n)
+        = A66(inf) dphi + sum_i theta_i d(G_i phi) + b1 I(dphi) + b2 II(w|w|) + q II(sgn w)
+          + T0 (t - t0)^2 / 2 - P0 (t - t0)
+
+``d`` is the change since ``t0``, ``I``/``II`` single/double integrals from ``t0``, ``P0`` the
+window's unknown initial momentum (one nuisance per window). The memory is
+``mu = s^2 (sum_i theta_i G_i(s)) phi``, i.e. ``K(s) = s sum_i theta_i G_i(s)`` with the
+``G_i`` a basis of strictly proper first- and second-order sections with chosen poles:
+linear in ``A66(inf)``, ``theta``, ``b1``, ``b2``... for given poles, so the poles are searched
+(variable projection, :func:`scipy.optimize.least_squares`) and the rest solved by least
+squares. Then ``A66(w) = A66(inf) + Re sum theta_i G_i(j w)``, ``A66(0) = A66(inf) + sum
+theta_i G_i(0)``, and the model is passive where ``Re K(j w) >= 0`` on a frequency grid.
+
+Families (:data:`FAMILIES`): one real pole (A66 falls monotonically: a mass coupled
+through a damper), one complex pair (A66 may rise above A66(0) before falling: the
+free-surface's resonant shape), two real poles, a pair and a real pole, two pairs. The
+memory-free model (``none``) is fitted too; memory is declared only when it explains most
+of what the memory-free model leaves (:data:`MEMORY_RSS_RATIO`) with a passive model.
+
+Intervals: per family, the coefficients' covariance is clustered by window (the integral
+form's residuals are correlated within a window), the pole positions' share added by
+perturbing them along the fit's Jacobian; the reported 95 % interval of each quantity is
+the union over the accepted families (passive, within :data:`FAMILY_RSS_TOLERANCE` of the
+best residual).
+
+Only the records' samples and ``rig`` blocks are read; never ``truth``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..record import RunRecord, braked
+
+# The passive families searched: each a tuple of sections, 'r' one real pole, 'c' a complex pair.
+FAMILIES: dict[str, tuple[str, ...]] = {"r1": ("r",), "c1": ("c",), "r2": ("r", "r"), "c1r1": ("c", "r"),
+                                        "c2": ("c", "c")}
+MAX_STARTS = 2  # starting pole sets per family (a slow and a fast section, both ways round)
+WINDOW_S = 1.5  # s: integral-form windows (long against the memory's ~0.1-1 s, short against drift)
+ROW_STEP_S = 0.02  # s: one equation row every 20 ms (the integral form is smooth)
+MEMORY_RSS_RATIO = 0.05  # memory declared when a passive model leaves < 5 % of the memory-free residual
+FAMILY_RSS_TOLERANCE = 1.25  # families within 25 % of the best residual are kept in the interval
+PASSIVE_GAP = 2.0  # a non-passive fit better than this many times the best passive one: memory not pinned down
+PASSIVITY_TOLERANCE = 0.02  # min Re K(jw) >= -2 % of max |Re K(jw)| on the grid (fit noise)
+OMEGA_GRID = np.logspace(-2, 3, 300)  # rad/s, passivity grid
+MIN_FREE_S = 3.0  # s of unbraked motion needed
+MIN_RELEASES = 1  # starts from rest (a release or a brake letting go) needed
+POLE_RANGE = (0.3, 60.0)  # rad/s: searched pole magnitudes (the rig's records resolve this band)
+Z95 = 1.96
+
+
+class MemoryNotIdentifiable(ValueError):
+    """The records cannot show the water's memory (no transient, too short, no passive fit)."""
+
+
+# --- the records, on a uniform grid -----------------------------------------------------
+@dataclass
+class _Series:
+    name: str
+    t: np.ndarray
+    phi: np.ndarray
+    psi: np.ndarray
+    free: np.ndarray  # bool: the hull unbraked (the equation holds)
+    dt: float
+    J_h: float
+    J_f: float
+    c: float
+    phi_n: float
+
+
+def _series(rec: RunRecord) -> _Series:
+    rig = rec.rig
+    dt = 1.0 / float(rig["sample_rate"])
+    t = np.asarray(rec.t, float)
+    grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-6)) + 1)
+    held = braked(rec)
+    if "brake" not in rec.samples:  # no brake column: the phases say when the hull moves freely
+        held = held | ~np.isin(np.asarray(rec.phase), ("free", "reverse"))
+    free = np.interp(grid, t, held.astype(float)) < 1e-9
+    # a gap in the samples (over five periods) is no place for an equation: treated as held
+    gaps = np.nonzero(np.diff(t) > 5.0 * dt)[0]
+    for k in gaps:
+        free[(grid >= t[k]) & (grid <= t[k + 1])] = False
+    return _Series(rec.name, grid, _smooth(np.interp(grid, t, rec["phi"])), _smooth(np.interp(grid, t, rec["psi"])), free, dt,
+                   float(rig["J_hull"]), float(rig["J_flywheel"]), float(rig["c_torsion"]),
+                   float(rig["phi_neutral"]))
+
+
+SMOOTH_HALF = 10  # samples: half-width of the Hann smoothing applied to phi and psi before the equation
+
+
+def _smooth(x: np.ndarray, half: int = SMOOTH_HALF) -> np.ndarray:
+    """A zero-phase Hann-window average (``2 half + 1`` samples). Every term of the hull's
+    equation but the drag is linear in the angles, so the smoothed angles obey the same
+    equation wherever the window lies in free motion (rows closer than ``half`` to a brake
+    are dropped); the encoder's quantisation above ~40 Hz, which a fast memory pole could
+    otherwise fit as inertia, is removed."""
+    if half < 1 or len(x) < 2 * half + 1:
+        return x
+    w = np.hanning(2 * half + 3)[1:-1]
+    w /= w.sum()
+    pad = np.r_[np.full(half, x[0]), x, np.full(half, x[-1])]
+    return np.convolve(pad, w, mode="valid")
+
+
+def _cumtrapz(y: np.ndarray, dt: float) -> np.ndarray:
+    out = np.empty_like(y)
+    out[0] = 0.0
+    np.cumsum((y[1:] + y[:-1]) * (0.5 * dt), out=out[1:])
+    return out
+
+
+def _free_segments(free: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.flatnonzero(np.diff(np.r_[0, free.astype(np.int8), 0]))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+@dataclass
+class _Window:
+    series: int
+    start: int
+    rows: np.ndarray  # sample indices of the equation rows
+
+
+class MemoryData:
+    """The integral-form equation rows of a hull's records (see the module doc)."""
+
+    BASE = ("A66_inf", "b1", "b2", "q", "T0")
+
+    def __init__(self, records: list[RunRecord], window_s: float = WINDOW_S, row_step_s: float = ROW_STEP_S):
+        self.series = [_series(r) for r in records]
+        self.windows: list[_Window] = []
+        base, ys = [], []
+        self.free_s = 0.0
+        self.releases = 0
+        for k, s in enumerate(self.series):
+            w = np.gradient(s.phi, s.dt)
+            step = max(1, int(round(row_step_s / s.dt)))
+            n_win = max(2, int(round(window_s / s.dt)))
+            for a, b in _free_segments(s.free):
+                if a > 0:
+                    self.releases += 1  # a start from rest: the brake let go
+                a, b = a + SMOOTH_HALF if a > 0 else a, b - SMOOTH_HALF if b < len(s.free) else b
+                if b - a < n_win // 3:
+                    continue
+                self.free_s += (b - a) * s.dt
+                for a0 in range(a, b - n_win // 3, n_win):
+                    b0 = min(a0 + n_win, b)
+                    seg = slice(a0, b0)
+                    tt = s.t[seg] - s.t[a0]
+                    dphi = s.phi[seg] - s.phi[a0]
+                    ww = w[seg]
+                    y = (-(s.J_h + s.J_f) * dphi - s.J_f * (s.psi[seg] - s.psi[a0])
+                         - s.c * _cumtrapz(_cumtrapz(s.phi[seg] - s.phi_n, s.dt), s.dt))
+                    cols = np.stack([dphi, _cumtrapz(dphi, s.dt), _cumtrapz(_cumtrapz(ww * np.abs(ww), s.dt), s.dt),
+                                     _cumtrapz(_cumtrapz(np.sign(ww), s.dt), s.dt), 0.5 * tt**2], axis=1)
+                    sel = np.arange(step, len(tt), step)
+                    if len(sel) < 3:
+                        continue
+                    self.windows.append(_Window(k, a0, sel + a0))
+                    base.append((cols[sel], tt[sel]))
+                    ys.append(y[sel])
+        if not self.windows:
+            raise MemoryNotIdentifiable("no unbraked motion long enough for the hull's equation")
+        n_rows = sum(len(y) for y in ys)
+        self.n_windows = len(self.windows)
+        X = np.zeros((n_rows, len(self.BASE) + self.n_windows))
+        self.window_of_row = np.zeros(n_rows, dtype=np.int64)
+        r = 0
+        for j, ((cols, tt), y) in enumerate(zip(base, ys)):
+            X[r:r + len(y), :len(self.BASE)] = cols
+            X[r:r + len(y), len(self.BASE) + j] = -tt
+            self.window_of_row[r:r + len(y)] = j
+            r += len(y)
+        self.X, self.Y = X, np.concatenate(ys)
+        scale = np.sqrt(np.mean(X**2, axis=0))
+        self.scale = np.where(scale > 0, scale, 1.0)
+        # the base columns projected out once (variable projection)
+        self.Q, _ = np.linalg.qr(X / self.scale)
+        self.Yp = self.Y - self.Q @ (self.Q.T @ self.Y)
+
+    # -- memory columns for a pole set -------------------------------------------------
+    def memory_columns(self, sections: list[tuple]) -> np.ndarray:
+        """``d(G_i phi)`` since each window's start for the basis of ``sections``
+        (``('r', a)``: 1/(s + a); ``('c', wn, z)``: 1/D and s/D, D = s^2 + 2 z wn s + wn^2)."""
+        from scipy import signal  # noqa: PLC0415
+
+        per_series = []
+        for s in self.series:
+            cols = []
+            for tf_num, tf_den in _section_tfs(sections):
+                bd, ad = signal.bilinear(tf_num, tf_den, 1.0 / s.dt)
+                zi = signal.lfilter_zi(bd, ad) * s.phi[0]
+                cols.append(signal.lfilter(bd, ad, s.phi, zi=zi)[0])
+            per_series.append(np.stack(cols, axis=1))
+        return np.vstack([per_series[w.series][w.rows] - per_series[w.series][w.start] for w in self.windows])
+
+    def projected_residual(self, sections: list[tuple]) -> np.ndarray:
+        """The residual of the memory-free equation after the memory columns of ``sections`` (a kernel's poles)
+        are fitted by least squares in the space the projection leaves, in the equation's units (N m s^2)."""
+        M = self.memory_columns(sections)
+        Mp = M - self.Q @ (self.Q.T @ M)
+        coef, *_ = np.linalg.lstsq(Mp, self.Yp, rcond=None)
+        return self.Yp - Mp @ coef
+
+    def solve(self, sections: list[tuple]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All coefficients (memory first, then :attr:`BASE`, then the windows' momenta), the
+        residual, and the full design."""
+        M = self.memory_columns(sections) if sections else np.zeros((len(self.Y), 0))
+        X = np.hstack([M, self.X])
+        sc = np.sqrt(np.mean(X**2, axis=0))
+        sc = np.where(sc > 0, sc, 1.0)
+        coef, *_ = np.linalg.lstsq(X / sc, self.Y, rcond=None)
+        coef = coef / sc
+        return coef, self.Y - X @ coef, X
+
+    def clustered_covariance(self, X: np.ndarray, resid: np.ndarray) -> np.ndarray:
+        """Coefficient covariance with the residuals clustered by window (sandwich form)."""
+        sc = np.sqrt(np.mean(X**2, axis=0))
+        sc = np.where(sc > 0, sc, 1.0)
+        Xs = X / sc
+        bread = np.linalg.pinv(Xs.T @ Xs)
+        scores = np.zeros((self.n_windows, X.shape[1]))
+        np.add.at(scores, self.window_of_row, Xs * resid[:, None])
+        g = self.n_windows
+        meat = scores.T @ scores * (g / max(g - 1, 1))
+        return (bread @ meat @ bread) / np.outer(sc, sc)
+
+
+def _section_tfs(sections: list[tuple]):
+    for sec in sections:
+        if sec[0] == "r":
+            yield [1.0], [1.0, sec[1]]
+        else:
+            wn, z = sec[1], sec[2]
+            den = [1.0, 2.0 * z * wn, wn * wn]
+            yield [1.0], den
+            yield [1.0, 0.0], den
+
+
+def _basis(sections: list[tuple], s: complex | np.ndarray) -> np.ndarray:
+    """The basis G_i(s), stacked along the last axis."""
+    s = np.asarray(s, dtype=complex)
+    out = []
+    for sec in sections:
+        if sec[0] == "r":
+            out.append(1.0 / (s + sec[1]))
+        else:
+            wn, z = sec[1], sec[2]
+            D = s * s + 2.0 * z * wn * s + wn * wn
+            out += [1.0 / D, s / D]
+    return np.stack(out, axis=-1) if out else np.zeros(s.shape + (0,))
+
+
+def _unpack(kinds: tuple[str, ...], x: np.ndarray) -> list[tuple]:
+    out, i = [], 0
+    for k in kinds:
+        if k == "r":
+            out.append(("r", float(np.exp(x[i]))))
+            i += 1
+        else:
+            out.append(("c", float(np.exp(x[i])), float(1.0 / (1.0 + np.exp(-x[i + 1])))))
+            i += 2
+    return out
+
+
+def _starts(kinds: tuple[str, ...]) -> list[np.ndarray]:
+    options = {"r": [(math.log(3.0),), (math.log(10.0),)],
+               "c": [(math.log(3.0), 0.0), (math.log(8.0), -0.5)]}
+    out = []
+    for combo in itertools.product(*(options[k] for k in kinds)):
+        x = np.array([v for part in combo for v in part])
+        out.append(x)
+    if len(kinds) == 1:
+        return out
+    return out[1:-1][:MAX_STARTS]  # one section slow and one fast, both ways round (equal poles are degenerate)
+
+
+# --- one family's fit ---------------------------------------------------------------------
+@dataclass
+class FamilyFit:
+    """One passive-model family fitted to the records (kg m^2, rad/s)."""
+
+    family: str
+    sections: list[tuple]
+    rss: float
+    A_inf: float
+    A_zero: float
+    A_swing: float
+    sigma: dict[str, float]  # 1-sigma of A_inf, A_zero, A_swing (clustered + pole positions)
+    passive: bool
+    min_re_K: float
+    theta: np.ndarray = field(repr=False)  # memory coefficients (kg m^2 x section units)
+    b1: float = 0.0
+    b2: float = 0.0
+    cov_theta: np.ndarray | None = field(default=None, repr=False)  # covariance of ``theta`` (clustered)
+
+    def added_inertia(self, omega) -> np.ndarray:
+        """A66(omega), kg m^2."""
+        omega = np.atleast_1d(np.asarray(omega, float))
+        return self.A_inf + np.real(_basis(self.sections, 1j * omega) @ self.theta)
+
+    def memory_moment(self, rate: np.ndarray, dt: float) -> np.ndarray:
+        """mu(t) (N m) for the hull rate ``rate`` (rad/s, uniform step ``dt``, from rest):
+        ``mu = s (sum theta_i G_i(s)) w``."""
+        from scipy import signal  # noqa: PLC0415
+
+        mu = np.zeros_like(rate)
+        k = 0
+        for num, den in _section_tfs(self.sections):
+            num = np.polymul(num, [1.0, 0.0])  # s G_i(s): proper
+            bd, ad = signal.bilinear(num, den, 1.0 / dt)
+            mu += self.theta[k] * signal.lfilter(bd, ad, rate)
+            k += 1
+        return mu
+
+    def summary(self) -> dict[str, Any]:
+        """This family's fit as JSON: its poles (1/s, real and imaginary parts), coefficients and residual."""
+        poles = []
+        for sec in self.sections:
+            if sec[0] == "r":
+                poles.append({"re": -sec[1], "im": 0.0})
+            else:
+                wn, z = sec[1], sec[2]
+                poles.append({"re": -z * wn, "im": wn * math.sqrt(max(1.0 - z * z, 0.0))})
+        return {"family": self.family, "order": sum(1 if s[0] == "r" else 2 for s in self.sections),
+                "poles_1_per_s": poles, "A66_inf": self.A_inf, "A66_zero": self.A_zero,
+                "A66_swing": self.A_swing, "passive": self.passive, "rss": self.rss}
+
+
+def _quantities(sections, coef, swing_omega) -> np.ndarray:
+    """Linear maps from the coefficients to (A_inf, A_zero, A_swing)."""
+    m = len(coef) - 0
+    g0 = np.real(_basis(sections, 0.0)) if sections else np.zeros(0)
+    gs = np.real(_basis(sections, 1j * swing_omega)) if sections else np.zeros(0)
+    n_mem = len(g0)
+    rows = np.zeros((3, m))
+    rows[:, n_mem] = 1.0  # A_inf
+    rows[1, :n_mem] = g0
+    rows[2, :n_mem] = gs
+    return rows
+
+
+def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega: float) -> FamilyFit:
+    """The best fit of one family (pole positions searched from a few starts)."""
+    from scipy.optimize import least_squares  # noqa: PLC0415
+
+    lb, ub = _bounds(kinds)
+    best = None
+    for x0 in _starts(kinds):
+        try:
+            r = least_squares(lambda x: data.projected_residual(_unpack(kinds, x)), x0, bounds=(lb, ub),
+                              x_scale=1.0, diff_step=1e-4, max_nfev=60, xtol=1e-6, ftol=1e-10)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if best is None or r.cost < best.cost:
+            best = r
+    if best is None:
+        raise MemoryNotIdentifiable(f"family {name}: no fit converged")
+    sections = _unpack(kinds, best.x)
+    coef, resid, X = data.solve(sections)
+    V = data.clustered_covariance(X, resid)
+    rows = _quantities(sections, coef, swing_omega)
+    values = rows @ coef
+    var = np.einsum("ij,jk,ik->i", rows, V, rows)
+    # the pole positions' share: the quantities' change along the poles' own covariance
+    try:
+        J = best.jac
+        s2 = float(resid @ resid) / max(len(resid) - X.shape[1] - len(best.x), 1)
+        Vx = np.linalg.pinv(J.T @ J) * s2 * _cluster_inflation(data, resid)
+        grads = []
+        for j in range(len(best.x)):
+            h = 1e-4
+            xp = best.x.copy()
+            xp[j] += h
+            sp = _unpack(kinds, xp)
+            cp, _, _ = data.solve(sp)
+            grads.append((_quantities(sp, cp, swing_omega) @ cp - values) / h)
+        G = np.array(grads).T  # 3 x n_x
+        var = var + np.einsum("ij,jk,ik->i", G, Vx, G)
+    except (np.linalg.LinAlgError, ValueError):
+        pass
+    n_mem = rows.shape[1] - data.X.shape[1]
+    theta = coef[:n_mem]
+    ReK = np.real(1j * OMEGA_GRID * (_basis(sections, 1j * OMEGA_GRID) @ theta))
+    scale = max(float(np.max(np.abs(ReK))), 1e-12)
+    passive = bool(np.min(ReK) >= -PASSIVITY_TOLERANCE * scale and values[1] > values[0] and values[0] > 0.0)
+    sig = np.sqrt(np.maximum(var, 0.0))
+    return FamilyFit(name, sections, float(resid @ resid), float(values[0]), float(values[1]), float(values[2]),
+                     {"A66_inf": float(sig[0]), "A66_zero": float(sig[1]), "A66_swing": float(sig[2])},
+                     passive, float(np.min(ReK)), theta, float(coef[n_mem + 1]), float(coef[n_mem + 2]),
+                     V[:n_mem, :n_mem])
+
+
+def _bounds(kinds: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of the packed pole parameters: log magnitudes within :data:`POLE_RANGE`, damping logits within +-6."""
+    lo, hi = (math.log(v) for v in POLE_RANGE)
+    lb, ub = [], []
+    for k in kinds:
+        lb.append(lo)
+        ub.append(hi)
+        if k == "c":
+            lb.append(-6.0)
+            ub.append(6.0)
+    return np.array(lb), np.array(ub)
+
+
+def _cluster_inflation(data: MemoryData, resid: np.ndarray) -> float:
+    """How much correlated the residuals are within a window: the clustered variance of a
+    mean residual over the independent one (>= 1)."""
+    sums = np.bincount(data.window_of_row, weights=resid, minlength=data.n_windows)
+    n = np.bincount(data.window_of_row, minlength=data.n_windows)
+    indep = float(resid @ resid)
+    clustered = float(sums @ sums)
+    return max(1.0, clustered / max(indep, 1e-300) / max(float(np.mean(n)), 1.0) * 1.0) if indep > 0 else 1.0
+
+
+# --- the hull's memory -------------------------------------------------------------------
+@dataclass
+class MemoryIdentification:
+    """What the records say about the water's memory (kg m^2, rad/s)."""
+
+    status: str  # "identified", "none" (memory-free water) or "not identifiable: ..."
+    swing_omega: float
+    A_zero: float = math.nan
+    A_inf: float = math.nan
+    A_swing: float = math.nan
+    ci95: dict[str, tuple[float, float]] = field(default_factory=dict)
+    best: FamilyFit | None = None
+    accepted: list[FamilyFit] = field(default_factory=list)
+    fits: list[FamilyFit] = field(default_factory=list)
+    rss_none: float = math.nan
+    free_s: float = 0.0
+    prior: str = "none (records alone)"
+
+    @property
+    def identified(self) -> bool:
+        """Whether a passive memory model was identified (status ``identified``)."""
+        return self.status == "identified"
+
+    def to_json(self) -> dict[str, Any]:
+        """The identification for ``identify --json``: ``memory`` (the family, ``none`` or ``not identifiable:
+        ...``) and, when identified, ``A66_swing``, ``A66_inf``, ``A66_zero_memory_fit`` (kg m^2) with their ci95."""
+        out: dict[str, Any] = {"memory": self.status if self.status != "identified" else self.best.family}
+        if self.identified:
+            out["A66_swing"] = self.A_swing
+            out["A66_swing_ci95"] = list(self.ci95["A66_swing"])
+            out["A66_inf"] = self.A_inf
+            out["A66_inf_ci95"] = list(self.ci95["A66_inf"])
+            out["A66_zero_memory_fit"] = self.A_zero
+            out["A66_zero_memory_fit_ci95"] = list(self.ci95["A66_zero"])
+            out["memory_model"] = {
+                "kind": "passive state-space radiation kernel K(s) = s sum theta_i G_i(s) (identify/memory.py)",
+                "family": self.best.family, "swing_omega_rad_s": self.swing_omega,
+                "families_kept": [f.family for f in self.accepted],
+                "fits": [f.summary() for f in self.fits], "rss_memory_free": self.rss_none,
+                "prior": self.prior, "free_motion_s": self.free_s}
+        else:
+            out["memory_model"] = {"swing_omega_rad_s": self.swing_omega, "rss_memory_free": self.rss_none,
+                                   "fits": [f.summary() for f in self.fits], "prior": self.prior,
+                                   "free_motion_s": self.free_s}
+        return out
+
+
+def swing_frequency(data: MemoryData) -> float:
+    """The hull's swing frequency (rad/s) from the neutral crossings of its free motion."""
+    halves = []
+    for s in data.series:
+        x = s.phi - s.phi_n
+        for a, b in _free_segments(s.free):
+            seg = x[a:b]
+            k = np.nonzero((seg[:-1] < 0) != (seg[1:] < 0))[0]
+            k = k[seg[k + 1] != seg[k]]
+            if len(k) < 2:
+                continue
+            tc = s.t[a + k] - seg[k] * s.dt / (seg[k + 1] - seg[k])
+            halves += list(np.diff(tc))
+    if not halves:
+        J = np.mean([s.J_h + s.J_f for s in data.series])
+        return float(math.sqrt(np.mean([s.c for s in data.series]) / (2.0 * J)))
+    return float(math.pi / np.median(halves))
+
+
+def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...]] | None = None) -> MemoryIdentification:
+    """The water's memory from a hull's records (free decays and reverse runs together)."""
+    families = FAMILIES if families is None else families
+    try:
+        data = MemoryData(records)
+    except MemoryNotIdentifiable as e:
+        return MemoryIdentification(f"not identifiable: {e}", math.nan)
+    w_s = swing_frequency(data)
+    if data.free_s < MIN_FREE_S:
+        return MemoryIdentification(f"not identifiable: {data.free_s:.2f} s of unbraked motion; expected at least "
+                                    f"{MIN_FREE_S:.0f} s (a free decay or reverse runs)", w_s, free_s=data.free_s)
+    if data.releases < MIN_RELEASES:
+        return MemoryIdentification("not identifiable: no start from rest (release or brake letting go) in the "
+                                    "records; expected the transient that shows A66(inf)", w_s, free_s=data.free_s)
+    rss_none = float(data.Yp @ data.Yp)
+    fits = []
+    for name, kinds in families.items():
+        if len(kinds) > 1 and fits and min(f.rss for f in fits) >= MEMORY_RSS_RATIO * rss_none:
+            break  # the one-section models explain nothing the memory-free one leaves: no memory (fast path)
+        try:
+            fits.append(fit_family(data, name, kinds, w_s))
+        except MemoryNotIdentifiable:
+            continue
+    passive = [f for f in fits if f.passive]
+    base = MemoryIdentification("none", w_s, fits=fits, rss_none=rss_none, free_s=data.free_s)
+    if not passive:
+        if fits and min(f.rss for f in fits) < MEMORY_RSS_RATIO * rss_none:
+            base.status = ("not identifiable: the records show memory but no passive low-order model fits "
+                           f"({', '.join(f.family for f in fits)} tried)")
+        return base
+    best = min(passive, key=lambda f: f.rss)
+    if best.rss >= MEMORY_RSS_RATIO * rss_none:
+        return base  # the memory-free model explains the records about as well: no memory
+    best_any = min(fits, key=lambda f: f.rss)
+    if best.rss > PASSIVE_GAP * best_any.rss:
+        base.status = (f"not identifiable: the best passive model ({best.family}) leaves {best.rss / best_any.rss:.1f} "
+                       f"times the residual of a non-passive one ({best_any.family}); the records do not pin the "
+                       "memory down (expected longer free motion: a free decay beside the reverse runs)")
+        return base
+    accepted = [f for f in passive if f.rss <= FAMILY_RSS_TOLERANCE * best.rss]
+    # the one reported: the simplest of those that fit (fewest poles, then the smaller residual)
+    best = min(accepted, key=lambda f: (_n_params(f), f.rss))
+    ci = {}
+    for key in ("A66_inf", "A66_zero", "A66_swing"):
+        lo = min(getattr(f, _attr(key)) - Z95 * f.sigma[key] for f in accepted)
+        hi = max(getattr(f, _attr(key)) + Z95 * f.sigma[key] for f in accepted)
+        ci[key] = (float(lo), float(hi))
+    return MemoryIdentification("identified", w_s, best.A_zero, best.A_inf, best.A_swing, ci, best, accepted, fits,
+                                rss_none, data.free_s)
+
+
+def _n_params(f: FamilyFit) -> int:
+    return sum(1 if sec[0] == "r" else 2 for sec in f.sections)
+
+
+def _attr(key: str) -> str:
+    return {"A66_inf": "A_inf", "A66_zero": "A_zero", "A66_swing": "A_swing"}[key]

@@ -1,0 +1,231 @@
+"""The energy method corrected for the water's memory (docs/RADIATION_MEMORY.md).
+
+With radiation memory the hull's kinetic energy holds only A66(inf); the rest of the water's
+inertia is the memory moment ``mu``, whose work ``W = integral mu w dt`` (the hull's work
+on the water) is not mirrored between the forward stroke (boundary angle to rest) and the
+reverse stroke (rest to boundary): a causal memory cannot be mirrored in time. Summing the
+two strokes' balances (physics.md section 4), the energy method's per-angle value is
+
+    lambda_E(phi1) = A66(inf) + (W_rev - W_fwd) / ((w1f^2 + w1r^2) / 2)   (+ its own noise)
+
+instead of A66(0). With a memory model identified from the records
+(:mod:`~addedinertia_env.identify.memory`) the works are computed from the *measured* motion,
+and each run's value is corrected by the model's bias at the same angles and weights:
+
+    bias = (W_rev - W_fwd) / KE - (A66(0) - A66(inf)),    lambda66 = lambda_E - bias.
+
+``A66(inf)`` cancels; the bias is linear in the memory coefficients for given poles, so its
+variance comes from their (window-clustered) covariance, and the reported interval is the
+union over the memory families that fit the records (the extrapolation to zero frequency
+is where they differ). Never reads ``truth``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..record import RunRecord, motion_phase
+from .memory import SMOOTH_HALF, FamilyFit, MemoryIdentification, _basis, _smooth
+
+FRACTIONS = (0.25, 0.75)  # the energy method's default dense range of boundary angles (energy.DEFAULT_FRACTIONS)
+N_ANGLES = 41
+# Not identifiable: the uncorrected estimate's interval is widened by the largest memory
+# bias measured on either water (docs/RADIATION_MEMORY.md: -14.6 % to +9 %).
+UNIDENTIFIED_BIAS = 0.15
+
+
+@dataclass
+class RunMemoryWork:
+    """One reverse run's memory works at its boundary angles (J, rad/s, kg m^2)."""
+
+    run: str
+    phi1: np.ndarray
+    weights: np.ndarray
+    KE: np.ndarray  # (w1f^2 + w1r^2) / 2, (rad/s)^2
+    dW_basis: np.ndarray  # angles x memory coefficients: (W_rev - W_fwd) per unit coefficient
+
+
+def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
+    """The memory works of ``fit``'s basis at the energy method's boundary angles of one
+    reverse-symmetric run (None when the run has no forward and reverse stroke)."""
+    dt = 1.0 / rec.known.sample_rate
+    t = np.asarray(rec.t, float)
+    grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-6)) + 1)
+    phase_raw = motion_phase(rec)
+    idx = np.clip(np.searchsorted(t, grid), 0, len(t) - 1)
+    phase = phase_raw[idx]
+    phi = _smooth(np.interp(grid, t, rec["phi"]), SMOOTH_HALF)
+    w = np.gradient(phi, dt)
+    w[(phase == "hold") | (phase == "idle")] = 0.0  # braked (the idle tail after the reverse stroke is never used)
+    fwd = np.flatnonzero(phase == "free")
+    rev = np.flatnonzero(phase == "reverse")
+    if len(fwd) < 10 or len(rev) < 10:
+        return None
+    k_mid = rev[0]
+    rest = float(np.median(phi[fwd[-1]:rev[0] + 1])) if rev[0] > fwd[-1] else float(phi[k_mid])
+    phi_n = rec.known.phi_neutral
+    from .energy import hann_weights  # noqa: PLC0415
+
+    f = np.linspace(FRACTIONS[0], FRACTIONS[1], N_ANGLES)
+    weights = hann_weights(f, FRACTIONS[0], FRACTIONS[1])
+    phi1 = phi_n + f * (rest - phi_n)
+    # the basis' memory moments and their works along the measured motion
+    cols = []
+    from scipy import signal  # noqa: PLC0415
+
+    from .memory import _section_tfs  # noqa: PLC0415
+
+    for num, den in _section_tfs(fit.sections):
+        bd, ad = signal.bilinear(np.polymul(num, [1.0, 0.0]), den, 1.0 / dt)
+        mu = signal.lfilter(bd, ad, w)
+        p = mu * w
+        cols.append(np.r_[0.0, np.cumsum((p[1:] + p[:-1]) * 0.5 * dt)])
+    Wc = np.stack(cols, axis=1)  # cumulative work per unit coefficient
+    KE, dW, keep = [], [], []
+    for j, a in enumerate(phi1):
+        k1 = _crossing(phi, fwd, a)
+        k4 = _crossing(phi, rev, a)
+        if k1 is None or k4 is None:
+            keep.append(False)
+            KE.append(np.nan)
+            dW.append(np.full(Wc.shape[1], np.nan))
+            continue
+        w1f, w1r = abs(_at(w, k1)), abs(_at(w, k4))
+        W1, W4, Wm = _at(Wc, k1), _at(Wc, k4), Wc[k_mid]
+        dW.append((W4 - Wm) - (Wm - W1))
+        KE.append(0.5 * (w1f**2 + w1r**2))
+        keep.append(True)
+    keep = np.array(keep)
+    if not keep.any():
+        return None
+    return RunMemoryWork(rec.name, phi1[keep], weights[keep], np.array(KE)[keep], np.array(dW)[keep])
+
+
+def _crossing(phi: np.ndarray, idx: np.ndarray, level: float):
+    """The fractional sample index where ``phi`` first crosses ``level`` within the samples ``idx``."""
+    seg = phi[idx] - level
+    k = np.nonzero((seg[:-1] < 0) != (seg[1:] < 0))[0]
+    if not len(k):
+        return None
+    k = int(k[0])
+    frac = seg[k] / (seg[k] - seg[k + 1]) if seg[k] != seg[k + 1] else 0.0
+    return float(idx[k] + frac)
+
+
+def _at(x: np.ndarray, k: float):
+    i = int(math.floor(k))
+    f = k - i
+    if i + 1 >= len(x):
+        return x[-1]
+    return x[i] * (1 - f) + x[i + 1] * f
+
+
+def family_bias(work: RunMemoryWork, fit: FamilyFit) -> tuple[float, np.ndarray]:
+    """The run's Hann-weighted bias (kg m^2) under ``fit`` and its gradient in the memory coefficients."""
+    g = work.weights / work.weights.sum()
+    g0 = np.real(_basis(fit.sections, 0.0))
+    per_coef = (g[:, None] * (work.dW_basis / work.KE[:, None])).sum(axis=0) - g0
+    return float(per_coef @ fit.theta), per_coef
+
+
+@dataclass
+class CorrectedEstimate:
+    """The energy method's lambda66 (kg m^2) with the memory's work removed: the value and its ci95, each
+    passive family's own value, and the bias removed (kg m^2)."""
+
+    value: float
+    ci95: tuple[float, float]
+    per_family: dict[str, dict]
+    bias: float
+
+
+def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sigma: list[float],
+                     memory: MemoryIdentification) -> CorrectedEstimate | None:
+    """lambda66 = A66(0) from the energy method's per-run values corrected by each accepted
+    family's memory bias; the interval is the union over the families."""
+    from .common import pooled_interval  # noqa: PLC0415
+
+    out = {}
+    lo_all, hi_all = math.inf, -math.inf
+    best = None
+    for fit in memory.accepted:
+        vals, sigs, biases = [], [], []
+        for rec, v, s in zip(records, per_run, per_run_sigma):
+            work = run_memory_work(rec, fit)
+            if work is None or not np.isfinite(v):
+                continue
+            b, grad = family_bias(work, fit)
+            sb = float(np.sqrt(max(grad @ fit.cov_theta @ grad, 0.0))) if fit.cov_theta is not None else 0.0
+            vals.append(v - b)
+            sigs.append(math.hypot(s, sb) if np.isfinite(s) else sb)
+            biases.append(b)
+        if not vals:
+            continue
+        value, lo, hi = pooled_interval(np.array(vals), np.array(sigs))
+        # the model's bias error is common to every run: not averaged away by pooling
+        common = float(np.mean([math.sqrt(max(sg**2 - (s if np.isfinite(s) else 0.0)**2, 0.0))
+                                for sg, s in zip(sigs, per_run_sigma)]))
+        half = math.hypot(0.5 * (hi - lo), 1.96 * common)
+        lo, hi = value - half, value + half
+        out[fit.family] = {"lambda66": value, "ci95": [lo, hi], "bias": float(np.mean(biases))}
+        lo_all, hi_all = min(lo_all, lo), max(hi_all, hi)
+        if fit is memory.best:
+            best = (value, float(np.mean(biases)))
+    if best is None:
+        return None
+    return CorrectedEstimate(best[0], (lo_all, hi_all), out, best[1])
+
+
+def combine(energy: float, energy_ci, fit: float, fit_ci) -> tuple[float, tuple[float, float]]:
+    """A66(0) from the two estimates the records give under the identified memory: the energy
+    method corrected (the balance at the boundary angles) and the memory fit's own
+    ``A66(inf) + sum theta_i G_i(0)`` (the whole records' equation): their inverse-variance
+    mean, the interval widened by the Birge ratio when they disagree beyond their intervals
+    (:func:`~addedinertia_env.identify.common.pooled_interval`), and at least to +-1.96 x half
+    their difference."""
+    from .common import pooled_interval  # noqa: PLC0415
+
+    sig = [max(0.5 * (energy_ci[1] - energy_ci[0]), 1e-12) / 1.96, max(0.5 * (fit_ci[1] - fit_ci[0]), 1e-12) / 1.96]
+    value, lo, hi = pooled_interval(np.array([energy, fit]), np.array(sig))
+    # their disagreement is a method error neither interval holds (the fit's discretisation,
+    # the energy method's rate fits): counted as two standard deviations of it
+    half = max(0.5 * (hi - lo), 1.96 * 0.5 * abs(energy - fit))
+    return value, (value - half, value + half)
+
+
+def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunRecord], prior: str | None = None):
+    """The energy method's :class:`~addedinertia_env.identify.common.Result` with the water's
+    memory identified from ``all_records`` (decays and reverse runs) and corrected for:
+    ``lambda66`` becomes A66(0) (:func:`combine`); the JSON adds ``A66_swing``, ``A66_inf`` (each with ``ci95``),
+    the memory model, and the uncorrected value. Memory-free water (``memory: "none"``):
+    the energy method's numbers unchanged. Not identifiable: the uncorrected value with its
+    interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`)."""
+    from .memory import identify_memory  # noqa: PLC0415
+
+    mem = identify_memory(all_records)
+    details = dict(result.details)
+    details.update(mem.to_json())
+    value, ci = result.lambda66, result.ci95
+    if mem.identified:
+        corrected = corrected_energy(reverse_records, details.get("per_run", []), details.get("per_run_sigma", []), mem)
+        if corrected is not None:
+            details["lambda66_uncorrected"] = value
+            details["lambda66_uncorrected_ci95"] = list(ci)
+            details["memory_bias"] = corrected.bias
+            details["memory_correction"] = corrected.per_family
+            details["lambda66_energy_corrected"] = corrected.value
+            details["lambda66_energy_corrected_ci95"] = list(corrected.ci95)
+            value, ci = combine(corrected.value, corrected.ci95, mem.A_zero, mem.ci95["A66_zero"])
+        else:
+            details["memory"] = "not identifiable: no forward and reverse stroke to correct in the reverse runs"
+    if str(details.get("memory", "")).startswith("not identifiable"):
+        half = UNIDENTIFIED_BIAS * abs(value)
+        ci = (min(ci[0], value - half), max(ci[1], value + half))
+        details["ci95_widened_by"] = f"+-{100 * UNIDENTIFIED_BIAS:.0f} % (the bias an unidentified memory may carry)"
+    from .common import Result  # noqa: PLC0415
+
+    return Result(method=result.method, lambda66=value, ci95=(float(ci[0]), float(ci[1])),
+                  n_intervals=result.n_intervals, details=details)
