@@ -47,9 +47,8 @@ def evaluate_case(folder: Path) -> dict:
     t2 = time.perf_counter()
     energy = [identify([r], "energy").lambda66 for r in reverse]
     g = diag.gain()
-    bp = diag.best_pair
     return {"case": folder.name, "cause": diag.cause, "causes": diag.causes,
-            "best_pair": bp.cause if bp is not None else None, "skipped": diag.data.skipped,
+            "skipped": diag.data.skipped,
             "current_sampling": diag.data.current_mode_report.get("used"),
             "lambda66_nominal": g["lambda66_nominal"], "lambda66_extended": g["lambda66_extended"],
             "whole_record": wr.lambda66, "ci95": list(wr.ci95), "crb": wr.details["crb"],
