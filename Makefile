@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
+.PHONY: pair-table foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -109,6 +109,10 @@ accuracy-table: $(STAMP)
 
 clean:
 	rm -rf out build *.egg-info .pytest_cache
+
+# docs/DISCOVERY.md: two hidden effects at once, every pair of the vocabulary (issue 27)
+pair-table: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.pair_table --seeds 1 --none-seeds 2 --out docs/DISCOVERY.md
 
 # docs/DISCOVERY.md: detection and false-alarm rates of `discover` (about 1 min per dataset of 4 runs on 2 cores)
 detection-table: $(STAMP)

@@ -144,12 +144,17 @@ class Diagnosis:
     @property
     def best(self) -> Candidate | None:
         """The accepted candidate whose model is the final one (``None`` for ``none``/``unexplained``)."""
+        if not self.causes:
+            return None
         want = tuple(sorted(self.causes))
         for rnd in reversed(self.rounds):
             for c in rnd:
                 if c.accepted and tuple(sorted(c.effects)) == want:
                     return c
-        return None
+        # the backward check left a set no round proposed: the final fit itself
+        return Candidate(cause=self.cause, effects=tuple(self.causes), against="nominal", predicted_drop=0.0,
+                         fit=self.extended, delta_bic=None, n_eff=None, z=None, size_ok=True, heldout_rms=None,
+                         heldout_gain=None, accepted=True, reason="after the backward check", round=0)
 
     @property
     def heldout_nominal(self) -> float | None:

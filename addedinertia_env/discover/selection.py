@@ -17,8 +17,9 @@ without a change here):
    single run), BIC with an effective sample size, size and z decide instead;
 4. repeat until no effect pays for itself or ``max_effects`` are in the model;
 5. **backward check** in the final model, whose residuals are the whitest: every effect
-   must still be physically big and clear of its standard error (z, inflated for the
-   residuals' correlation); one that is not is dropped and the rest refitted.
+   (a single one too) must still be physically big and clear of its standard error (z,
+   inflated for the residuals' correlation); one that is not is dropped and the rest
+   refitted.
 
 ``cause`` is the effect whose omission from the final model would move lambda66 the
 most (leave-one-out); the fits of the nominal model, of each named effect alone and of
@@ -299,7 +300,7 @@ def _backward(data: Prepared, chosen: tuple[str, ...], fits: dict, th) -> list[d
     """Effects of the final model that are no longer big and clear of their standard error there."""
     dropped = []
     current = chosen
-    while len(current) > 1:
+    while current:
         fit = fits[canonical(current)]
         se = fit.stderr()
         weak = []
@@ -307,8 +308,10 @@ def _backward(data: Prepared, chosen: tuple[str, ...], fits: dict, th) -> list[d
             z = effect_z(e, fit, se)
             if z < th.min_z or not size_ok(e, fit, th.min_size):
                 name, size = physical_size(e, fit.params)
-                weak.append((z, e, f"in the model with {label(tuple(x for x in current if x != e))}: "
-                                   f"{name} {size:+.4g}, z = {z:.1f}"))
+                others = tuple(x for x in current if x != e)
+                weak.append((z, e, f"in the final model{' with ' + label(others) if others else ''}: "
+                                   f"{name} {size:+.4g}, z = {z:.1f} (needs {th.min_z:g} and a size of "
+                                   f"{th.min_size[name]:g})"))
         if not weak:
             break
         z, e, why = min(weak)
