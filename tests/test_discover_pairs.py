@@ -81,7 +81,7 @@ def test_every_pair_is_named_exactly_under_drawn_daq_quirks(pair):
 
     # seed 2: every effect inside the range discovery resolves with holds of 0.5 and 5 s (at
     # seed 1, fluid memory's tau is 26 s: missed even alone, docs/DISCOVERY.md "Limits")
-    records, quirks = quirky(pair_dataset(pair, 2), 2)
+    records, quirks = quirky(pair_dataset(pair, 2), 2, "+".join(pair))
     check_pair(records, pair, 2, quirks)
 
 

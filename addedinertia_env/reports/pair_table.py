@@ -20,6 +20,7 @@ import argparse
 import json
 import sys
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -46,11 +47,12 @@ def _records(label: str, seed: int, cache: Path | None, make):
     return make(None)
 
 
-def quirky(records, seed: int):
-    """``records`` as a DAQ with two quirks drawn from ``seed`` would log them, and the quirks."""
+def quirky(records, seed: int, label: str = ""):
+    """``records`` as a DAQ with two quirks drawn from ``seed`` and ``label`` (the hidden pair:
+    each pair of a seed meets its own quirks) would log them, and the quirks."""
     from ..daq import apply_quirks, draw_quirks  # noqa: PLC0415
 
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 27, 11]))
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 27, 11, zlib.crc32(label.encode())]))
     quirks = draw_quirks(rng)
     return [apply_quirks(r, quirks, rng) for r in records], quirks.to_dict()
 
@@ -66,7 +68,7 @@ def evaluate(pair: tuple[str, ...], seed: int, cache: Path | None, quirks: bool 
         truth_effects = {}
     q = None
     if quirks:
-        records, q = quirky(records, seed)
+        records, q = quirky(records, seed, label)
     t0, c0 = time.perf_counter(), time.process_time()
     diag = discover(records)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
