@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
+.PHONY: pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -110,6 +110,11 @@ accuracy-table: $(STAMP)
 clean:
 	rm -rf out build *.egg-info .pytest_cache
 
+# docs/DISCOVERY.md: two hidden effects at once, every pair of the vocabulary (issue 27)
+pair-table: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.pair_table --seeds 3 --none-seeds 4 --out docs/DISCOVERY.md
+	$(BIN)/python -m addedinertia_env.reports.pair_table --quirks --first-seed 2 --seeds 1 --none-seeds 2 --out docs/DISCOVERY.md --jsonl out/pair-table-quirks.jsonl
+
 # docs/DISCOVERY.md: detection and false-alarm rates of `discover` (about 1 min per dataset of 4 runs on 2 cores)
 detection-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.detection_table --seeds 10 --out docs/DISCOVERY.md
@@ -140,9 +145,11 @@ tune-hard: $(STAMP)
 # energy on each case, scored against its answers.json. The archive is the developers'
 # development set, not part of the project: give its path, make foreign-lab-table FOREIGN_LAB=PATH.
 FOREIGN_LAB ?=
+FOREIGN_LAB_2 ?=
 foreign-lab-table: $(STAMP)
 	@test -n "$(FOREIGN_LAB)" || { echo "make foreign-lab-table: give the archive: FOREIGN_LAB=PATH/foreign-lab.tar.xz" >&2; exit 2; }
 	$(BIN)/python -m addedinertia_env.reports.foreign_lab --data $(FOREIGN_LAB) --out docs/DISCOVERY.md
+	$(if $(FOREIGN_LAB_2),$(BIN)/python -m addedinertia_env.reports.foreign_lab --data $(FOREIGN_LAB_2) --out docs/DISCOVERY.md)
 
 # Every generated reference table and figure in docs/ from one command: `make docs` (hours on
 # 2 cores: the leaderboards, the accuracy and detection tables, the learning curves). The
@@ -150,8 +157,8 @@ foreign-lab-table: $(STAMP)
 # do that, and rewrite agents/policies/). `make docs-quick` regenerates the tables that take
 # minutes. With FOREIGN_LAB=PATH the tables made from the developers' foreign-lab set are
 # regenerated too (docs/DISCOVERY.md's, docs/ENERGY_METHOD.md's section).
-docs: docs-quick docs-reports docs-accuracy detection-table perf leaderboard leaderboard-realistic leaderboard-hard docs-learning
-	$(if $(FOREIGN_LAB),$(MAKE) foreign-lab-table FOREIGN_LAB=$(FOREIGN_LAB))
+docs: docs-quick docs-reports docs-accuracy detection-table pair-table perf leaderboard leaderboard-realistic leaderboard-hard docs-learning
+	$(if $(FOREIGN_LAB),$(MAKE) foreign-lab-table FOREIGN_LAB=$(FOREIGN_LAB) FOREIGN_LAB_2=$(FOREIGN_LAB_2))
 
 docs-quick: docs-environment
 	$(BIN)/python -m addedinertia_env.reports.hydrodynamics

@@ -110,15 +110,14 @@ def test_hidden_effect_found_under_drawn_daq_quirks(effect, seed):
 
 @pytest.mark.slow
 def test_two_effects_at_once_are_both_named():
-    """Dry bearing friction and a stiffening spring together: the pair search names both."""
+    """Dry bearing friction and a stiffening spring together: the model selection names both."""
     from addedinertia_env.rig.effects import BearingCoulomb, Effects, SpringStiffening
 
     hidden = Effects(bearing_coulomb=BearingCoulomb(torque=0.06), spring_stiffening=SpringStiffening(k3=6.0))
     records = simulate_dataset("pair", 31, effects=hidden)
     diag = discover(records)
-    best = diag.best_pair
-    assert best is not None and set(best.effects) == set(hidden.active)
-    assert set(diag.causes) == set(hidden.active), [c.to_json()["reason"] for c in diag.pairs]
+    assert set(diag.causes) == set(hidden.active), [(c.cause, c.against, c.reason) for r in diag.rounds for c in r]
+    assert diag.best is not None and set(diag.best.effects) == set(hidden.active)
     truth = records[0].truth_lambda66()
     assert abs(diag.gain()["lambda66_extended"] / truth - 1) < 3e-3
 

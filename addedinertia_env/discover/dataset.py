@@ -74,3 +74,11 @@ def simulate_dataset(effect: str, seed: int, spec: DatasetSpec | None = None,
             write_record(rec, Path(out) / f"{run_id}.csv")
         records.append(rec)
     return records
+
+
+def simulate_pair_dataset(pair: tuple[str, str], seed: int, spec: DatasetSpec | None = None,
+                          out: str | Path | None = None) -> list[RunRecord]:
+    """The standard dataset with both effects of ``pair`` hidden (:func:`.pairs.hidden_pair`: sizes drawn from ``seed``)."""
+    from .pairs import hidden_pair  # noqa: PLC0415
+
+    return simulate_dataset("+".join(pair), seed, spec, out=out, effects=hidden_pair(pair, seed))

@@ -1,21 +1,19 @@
-"""What the nominal model gets wrong, which effect explains it, and what extending the model gains.
+"""What the nominal model gets wrong, which effects explain it, and what extending the model gains.
 
 Procedure (``docs/DISCOVERY.md`` explains the choices):
 
 1. fit the nominal model (``lambda66``, ``b1``, ``b2``) to every stroke of every run
    jointly by output error (:mod:`.fit`), hull and flywheel channels together;
-2. for each candidate effect, add its one or two parameters and refit from the nominal
-   solution;
-3. judge each candidate by (a) BIC with an effective sample size (AR(1) of the residuals),
-   (b) the physical size of its fitted parameter (clear of its standard error and of the
-   rig's known sensor imperfections), and, for the best few, (c) two-fold held-out
-   prediction: fit on half of the runs, predict the other half, and back;
-4. name the best candidate that passes all three; otherwise ``unexplained`` when the
-   nominal residuals stay well above the noise floor and far from white, else ``none``;
-5. **pairs after singles**: the best few singles are fitted two at a time; a pair is
-   named (``causes``, both) when it beats the chosen single (or the nominal model) by
-   the same three tests with both of its effects significant. When nothing explains
-   structured residuals, the cause is ``unexplained`` and the best pair is shown.
+2. **model selection over combinations** (:mod:`.selection`): the model grows by the
+   effect of the vocabulary that most improves the prediction of held-out runs, and
+   keeps growing while a further effect pays for itself (held-out gain and physical
+   size); a backward check drops any effect that is no longer big and clear of its
+   standard error in the final model;
+3. ``causes`` lists every effect the final model holds, ``cause`` the one whose omission
+   would move lambda66 the most; with none: ``unexplained`` when the nominal residuals
+   stay well above the noise floor and far from white, else ``none``;
+4. the gain of each named effect: lambda66 and residuals of the nominal model, of each
+   named effect alone and of the final combination (``effects_gain``).
 
 Every record is used: free decays and reverse-symmetric runs of one hull are fitted
 jointly with one parameter set (:mod:`.prepare`); a record no model can use is listed
@@ -26,33 +24,32 @@ Never reads ``truth``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..record import RunRecord
-from . import residuals as resid
-from .fit import Fit, bic, effective_n, fit_model
 from ..rig.effects import registry
-from .model import GrayBoxModel, candidate_specs
-from .model import candidates as candidate_names
+from . import residuals as resid
+from .fit import Fit, fit_model
+from .model import GrayBoxModel
 from .prepare import Prepared, prepare, with_release_lag
+from .selection import Selection, Step, heldout_rms, label, leave_one_out, select, singles
+
+__all__ = ["Candidate", "Diagnosis", "Thresholds", "best_release_lag", "choose_release_lag", "discover",
+           "heldout_rms"]
 
 
 @dataclass(frozen=True)
 class Thresholds:
-    """Decision thresholds, fixed before the detection table was run (docs/DISCOVERY.md).
+    """Decision thresholds, set from physics and convention (docs/DISCOVERY.md), not tuned on dev cases."""
 
-    Set from physics and convention, then checked on one dataset per effect at seed 100
-    (which the detection table, seeds 0-9, does not use); not tuned on the table.
-    """
-
-    min_delta_bic: float = 10.0  # "very strong" evidence on the Kass-Raftery scale, with n_eff
-    min_heldout_gain: float = 0.10  # held-out RMS must drop by at least 10 %
-    min_z: float = 4.0  # fitted size / its (correlation-inflated) standard error
-    top_k_heldout: int = 3  # candidates that get the held-out check (best by BIC)
-    top_k_pairs: int = 3  # singles (best by BIC) whose pairs are fitted
+    min_delta_bic: float = 10.0  # "very strong" evidence on the Kass-Raftery scale, with n_eff (no held-out runs only)
+    min_heldout_gain: float = 0.10  # an added effect must cut the held-out prediction RMS by at least 10 %
+    min_z: float = 4.0  # fitted size / its (correlation-inflated) standard error, in the final model
+    top_k_fit: int = 3  # per round, effects (largest score-test drop) fitted and held out
+    score_fraction: float = 0.1  # and only those whose predicted drop is at least this fraction of the largest
+    max_effects: int = 3  # the most effects one extended model holds
     unexplained_excess: float = 3.0  # residual RMS / noise floor, either channel, that is "structure"
     unexplained_lag1: float = 0.8  # and residuals this correlated
     # Smallest fitted size called an effect, per size parameter: clear of the rig's known
@@ -63,95 +60,151 @@ class Thresholds:
 
 @dataclass
 class Candidate:
-    """One candidate effect (or pair) fitted: its fit, evidence (delta BIC, z, held-out gain) and verdict."""
+    """One candidate model (the model so far plus one effect), its evidence and verdict."""
 
-    cause: str  # an effect of the vocabulary, or "a+b" for a pair
-    fit: Fit
-    delta_bic: float  # against the nominal model (pairs: against their reference, see ``against``)
-    n_eff: float
-    z: float  # smallest z of the candidate's effects
-    size_ok: bool
-    heldout_rms: float | None = None  # normalised (noise units), both channels
-    heldout_gain: float | None = None
-    accepted: bool = False
-    reason: str = ""
-    effects: tuple[str, ...] = ()
-    against: str = "nominal"
+    cause: str  # the effect this candidate adds
+    effects: tuple[str, ...]  # every effect of its model
+    against: str  # the model it is judged against ("nominal" or "a+b")
+    predicted_drop: float  # score test, cost units
+    fit: Fit | None
+    delta_bic: float | None
+    n_eff: float | None
+    z: float | None
+    size_ok: bool | None
+    heldout_rms: float | None
+    heldout_gain: float | None
+    accepted: bool
+    reason: str
+    round: int
+
+    @classmethod
+    def from_step(cls, s: Step, rnd: int) -> "Candidate":
+        """A :class:`~.selection.Step` of round ``rnd`` (1 = singles against the nominal model)."""
+        return cls(cause=s.added, effects=s.effects, against=label(s.base), predicted_drop=s.predicted_drop,
+                   fit=s.fit, delta_bic=s.delta_bic, n_eff=s.n_eff, z=s.z, size_ok=s.size_ok,
+                   heldout_rms=s.heldout_rms, heldout_gain=s.heldout_gain, accepted=s.accepted, reason=s.reason,
+                   round=rnd)
+
+    @property
+    def score(self) -> float:
+        """What ranks it: the held-out gain (fraction) when held out, else delta BIC, else 0."""
+        if self.heldout_gain is not None:
+            return self.heldout_gain
+        return self.delta_bic if self.delta_bic is not None else 0.0
 
     def to_json(self) -> dict:
-        """The candidate as a JSON-ready dict: its fitted effect sizes with standard errors, delta BIC, held-out gain, lambda66 (kg m^2) and verdict."""
-        p = self.fit.params
-        se = self.fit.stderr()
-        extra = {k: p[k] for k in p if k not in ("lambda66", "b1", "b2")}
-        return {"cause": self.cause, "effects": list(self.effects or (self.cause,)), "against": self.against,
-                "score": self.delta_bic, "delta_bic": self.delta_bic, "n_eff": self.n_eff,
-                "params": extra, "stderr": {k: se[k] for k in extra}, "z": self.z, "size_ok": self.size_ok,
-                "residual_rms": self.fit.hull_rms,
-                "flywheel_rms": _rms(self.fit.flywheel_residuals),
-                "lambda66": p["lambda66"], "heldout_rms": self.heldout_rms, "heldout_gain": self.heldout_gain,
-                "accepted": self.accepted, "reason": self.reason}
+        """The candidate as a JSON-ready dict: fitted sizes with standard errors, evidence, lambda66 (kg m^2), verdict."""
+        out = {"cause": self.cause, "effects": list(self.effects), "against": self.against, "round": self.round,
+               "score": self.score, "predicted_drop": self.predicted_drop, "delta_bic": self.delta_bic,
+               "n_eff": self.n_eff, "z": self.z, "size_ok": self.size_ok, "heldout_rms": self.heldout_rms,
+               "heldout_gain": self.heldout_gain, "accepted": self.accepted, "reason": self.reason,
+               "params": {}, "stderr": {}, "residual_rms": None, "flywheel_rms": None, "lambda66": None}
+        if self.fit is not None:
+            p, se = self.fit.params, self.fit.stderr()
+            extra = [k for k in p if k not in registry.NOMINAL_PARAM_NAMES]
+            out.update(params={k: p[k] for k in extra}, stderr={k: se[k] for k in extra},
+                       residual_rms=self.fit.hull_rms, flywheel_rms=_rms(self.fit.flywheel_residuals),
+                       lambda66=p["lambda66"])
+        return out
 
 
 @dataclass
 class Diagnosis:
-    """The result of :func:`discover`: the named cause, the nominal and candidate fits, the gain."""
+    """The result of :func:`discover`: the named causes, every candidate judged, the fits and the gain."""
 
     cause: str
     data: Prepared
-    nominal: Fit
-    candidates: list[Candidate]
-    heldout_nominal: float | None
+    selection: Selection
     thresholds: Thresholds
-    wall_s: float = 0.0
-    pairs: list[Candidate] = field(default_factory=list)
-    causes: list[str] = field(default_factory=list)  # every effect named (two for a pair); [] for none/unexplained
+    causes: list[str] = field(default_factory=list)  # every effect named, in the order they joined; [] for none
     radiation_memory: dict | None = None  # the radiation_memory candidate's evidence (discover/radiation_memory.py)
+    lambda66_shift: dict = field(default_factory=dict)  # effect -> lambda66(final) - lambda66(final without it)
+    wall_s: float = 0.0
 
     @property
-    def chosen(self) -> Candidate | None:
-        """The candidate (single or pair) whose model is the extended one."""
-        if len(self.causes) > 1:
-            return next((c for c in self.pairs if c.effects == tuple(self.causes)), None)
-        return next((c for c in self.candidates if c.cause == self.cause), None)  # None for radiation_memory
-
-    @property
-    def best(self) -> Candidate | None:
-        """The named cause's candidate (``None`` for ``none`` or ``unexplained``)."""
-        return self.chosen
-
-    @property
-    def best_pair(self) -> Candidate | None:
-        """The pair of effects with the lowest cost, if pairs were tried."""
-        return min(self.pairs, key=lambda c: c.fit.cost) if self.pairs else None
+    def nominal(self) -> Fit:
+        """The nominal fit."""
+        return self.selection.nominal
 
     @property
     def extended(self) -> Fit:
-        """The fit of the named cause, else the nominal fit."""
-        b = self.chosen
-        return b.fit if b is not None else self.nominal
+        """The final model's fit (the nominal fit when nothing is named)."""
+        return self.selection.final
+
+    @property
+    def rounds(self) -> list[list[Candidate]]:
+        """Every candidate considered, per round of the selection."""
+        return [[Candidate.from_step(s, k + 1) for s in steps] for k, steps in enumerate(self.selection.steps)]
+
+    @property
+    def candidates(self) -> list[Candidate]:
+        """Round 1: each effect of the vocabulary added to the nominal model alone."""
+        r = self.rounds
+        return r[0] if r else []
+
+    @property
+    def best(self) -> Candidate | None:
+        """The accepted candidate whose model is the final one (``None`` for ``none``/``unexplained``)."""
+        if not self.causes:
+            return None
+        want = tuple(sorted(self.causes))
+        for rnd in reversed(self.rounds):
+            for c in rnd:
+                if c.accepted and tuple(sorted(c.effects)) == want:
+                    return c
+        # the backward check left a set no round proposed: the final fit itself
+        return Candidate(cause=self.cause, effects=tuple(self.causes), against="nominal", predicted_drop=0.0,
+                         fit=self.extended, delta_bic=None, n_eff=None, z=None, size_ok=True, heldout_rms=None,
+                         heldout_gain=None, accepted=True, reason="after the backward check", round=0)
+
+    @property
+    def heldout_nominal(self) -> float | None:
+        """Held-out prediction RMS of the nominal model (noise units), if held out."""
+        return self.selection.heldout.get(())
+
+    def _heldout_final(self) -> float | None:
+        from .selection import canonical  # noqa: PLC0415
+
+        return self.selection.heldout.get(canonical(self.causes))
 
     def gain(self) -> dict:
         """What the extended model gains over the nominal one: residual RMS (rad) and lambda66 (kg m^2) of each, held-out gain."""
-        ext = self.extended
-        b = self.chosen
-        return {"residual_rms_nominal": self.nominal.hull_rms, "residual_rms_extended": ext.hull_rms,
-                "flywheel_rms_nominal": _rms(self.nominal.flywheel_residuals),
-                "flywheel_rms_extended": _rms(ext.flywheel_residuals),
-                "lambda66_nominal": self.nominal.params["lambda66"], "lambda66_extended": ext.params["lambda66"],
-                "heldout_rms_nominal": self.heldout_nominal,
-                "heldout_rms_extended": b.heldout_rms if b is not None else self.heldout_nominal,
-                "heldout_gain": b.heldout_gain if b is not None else 0.0}
+        ext, nom = self.extended, self.nominal
+        ho_n, ho_x = self.heldout_nominal, self._heldout_final()
+        return {"residual_rms_nominal": nom.hull_rms, "residual_rms_extended": ext.hull_rms,
+                "flywheel_rms_nominal": _rms(nom.flywheel_residuals), "flywheel_rms_extended": _rms(ext.flywheel_residuals),
+                "lambda66_nominal": nom.params["lambda66"], "lambda66_extended": ext.params["lambda66"],
+                "heldout_rms_nominal": ho_n, "heldout_rms_extended": ho_x,
+                "heldout_gain": (1.0 - ho_x / ho_n) if (ho_n and ho_x is not None) else 0.0}
+
+    def effects_gain(self) -> list[dict]:
+        """lambda66 and residuals of the nominal model, of each named effect alone and of the final combination."""
+        from .selection import canonical  # noqa: PLC0415
+
+        rows = [("nominal", ())] + [(e, (e,)) for e in self.causes]
+        if len(self.causes) > 1:
+            rows.append(("+".join(self.causes), canonical(self.causes)))
+        out = []
+        for name, key in rows:
+            fit = self.selection.fits[canonical(key)]
+            out.append({"model": name, "effects": list(key), "lambda66": fit.params["lambda66"],
+                        "residual_rms": fit.hull_rms, "flywheel_rms": _rms(fit.flywheel_residuals),
+                        "hull_excess": fit.hull_rms / self.data.phi_noise,
+                        "heldout_rms": self.selection.heldout.get(canonical(key)),
+                        "lambda66_shift_if_left_out": self.lambda66_shift.get(name) if key else None,
+                        "params": {k: v for k, v in fit.params.items() if k not in registry.NOMINAL_PARAM_NAMES}})
+        return out
 
     def to_json(self) -> dict:
-        """The whole diagnosis as a JSON-ready dict (``discovery.json``): cause, candidates, nominal and extended fits, residual summaries, runs, thresholds."""
-        nominal_se = self.nominal.stderr()
+        """The whole diagnosis as a JSON-ready dict (``discovery.json``): causes, candidates per round, fits, gain per effect, residual summaries, runs, thresholds."""
         ext = self.extended
-        bp = self.best_pair
-        return {"cause": self.cause, "causes": list(self.causes),
-                "candidates": [c.to_json() for c in self.candidates],
-                "pairs": [c.to_json() for c in self.pairs], "best_pair": bp.to_json() if bp is not None else None,
-                "gain": self.gain(),
-                "nominal": {"params": self.nominal.params, "stderr": nominal_se},
+        rounds = self.rounds
+        return {"cause": self.cause, "causes": list(self.causes) or [self.cause],
+                "candidates": [c.to_json() for c in (rounds[0] if rounds else [])],
+                "rounds": [[c.to_json() for c in rnd] for rnd in rounds],
+                "dropped": list(self.selection.dropped),
+                "gain": self.gain(), "effects_gain": self.effects_gain(),
+                "nominal": {"params": self.nominal.params, "stderr": self.nominal.stderr()},
                 "extended": {"cause": self.cause, "causes": list(self.causes), "params": ext.params,
                              "stderr": ext.stderr()},
                 "residuals_nominal": resid.summary(self.nominal),
@@ -170,71 +223,6 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
 
 
-def _physical_size(cause: str, params: dict[str, float]) -> tuple[str, float]:
-    """The parameter that measures an effect's size, and its departure from 'no effect'."""
-    spec = registry.get(cause)
-    return spec.size_param, params[spec.size_param] - spec.param(spec.size_param).neutral
-
-
-def _significance(effects: tuple[str, ...], fit: Fit, th: Thresholds) -> tuple[float, bool]:
-    """Smallest z over ``effects`` and whether every one is big and clear of its standard error."""
-    se = fit.stderr()
-    zs, ok = [], True
-    for e in effects:
-        name, size = _physical_size(e, fit.params)
-        z = abs(size) / se[name] if se[name] > 0 else math.inf
-        zs.append(z)
-        ok = ok and abs(size) >= th.min_size[name] and z >= th.min_z
-    return (min(zs) if zs else math.inf), ok
-
-
-def _start_for(model: GrayBoxModel, nominal: Fit, singles: dict[str, Fit] | None = None) -> np.ndarray:
-    """Start values: nominal parameters from ``nominal``, each effect's from its single fit if given."""
-    x = model.start()
-    x[:3] = nominal.theta[:3]
-    for e in model.effects:
-        fit = (singles or {}).get(e)
-        if fit is not None:
-            for spec in candidate_specs(e):
-                x[model.names.index(spec.name)] = fit.params[spec.name]
-    return x
-
-
-def _holdout_folds(data: Prepared) -> list[tuple[list[int], list[int]]]:
-    """Two folds, each training set covering as many (kind, amplitude, hold) levels as it can.
-
-    Within each experiment kind the runs are ordered by (amplitude, hold) and dealt
-    alternately (for four runs of two amplitudes x two holds: {1st, 4th} / {2nd, 3rd},
-    so that each fold has both amplitudes and both holds).
-    """
-    n = len(data.runs)
-    if n < 2:
-        return []
-    a, b = [], []
-    for kind in sorted({r.kind for r in data.runs}):
-        order = sorted((k for k in range(n) if data.runs[k].kind == kind),
-                       key=lambda k: (round(data.runs[k].alpha, 4), round(data.runs[k].hold_s, 2)))
-        pattern = (0, 3) if len(order) == 4 else (0, 2)
-        mod = 4 if len(order) == 4 else 2
-        for j, k in enumerate(order):
-            (a if j % mod in pattern else b).append(k)
-    if not a or not b:
-        order = list(range(n))
-        a, b = order[::2], order[1::2]
-    return [(a, b), (b, a)]
-
-
-def heldout_rms(data: Prepared, effect, start: np.ndarray) -> float:
-    """Normalised RMS of predictions of held-out runs (fits on the other runs), both folds pooled."""
-    sq, n = 0.0, 0
-    for train, test in _holdout_folds(data):
-        fit = fit_model(GrayBoxModel(data.subset(train), effect), x0=start, max_nfev=25)
-        r = GrayBoxModel(data.subset(test), effect).residuals(fit.theta[None, :])[0]
-        sq += float(r @ r)
-        n += len(r)
-    return math.sqrt(sq / n) if n else float("nan")
-
-
 def _structured(fit: Fit, th: Thresholds) -> bool:
     s = resid.summary(fit)
     return max(s["hull_excess"], s["flywheel_excess"]) > th.unexplained_excess and s["lag1"] > th.unexplained_lag1
@@ -244,7 +232,7 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
              progress=None, pairs: bool = True, current_mode: str | None = None, radiation: bool = True) -> Diagnosis:
     """Diagnose ``records`` (free decays and reverse-symmetric runs of one rig); see the module docstring.
 
-    ``pairs``: also try two effects at once (after the singles). ``current_mode``: how
+    ``pairs``: allow more than one effect (``False``: at most one). ``current_mode``: how
     the logged current is read (default: the rig block, else estimated; see :mod:`.prepare`).
     ``radiation``: also test for radiation memory (:mod:`.radiation_memory`), outside the gray-box model.
     """
@@ -253,62 +241,30 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
     t0 = time.perf_counter()
     th = thresholds or Thresholds()
     data = prepare([r.without_truth() for r in records], current_mode=current_mode)
-    nominal, candidates = _fit_singles(data, th, progress)
-    # When the brake let go, within one sample period: judged with the best-fitting model
-    # (the nominal one misjudges it where an effect dominates its residuals); refit all if later.
-    best = min([nominal] + [c.fit for c in candidates], key=lambda f: f.cost)
-    lag = best_release_lag(data, best)
+    limit = th.max_effects if pairs else 1
+    sel = select(data, th, heldout=heldout, progress=progress, max_effects=limit)
+    # When the brake let go, within one sample period: judged with the selected model (the
+    # nominal one misjudges it where an effect dominates its residuals); selected again if later.
+    lag = best_release_lag(data, sel.final)
     if lag > 0.0:
         data = with_release_lag(data, lag)
-        nominal, candidates = _fit_singles(data, th, progress)
-    candidates.sort(key=lambda c: -c.delta_bic)
-    ho_nominal = None
-    if heldout and len(data.runs) >= 2:
-        ho_nominal = heldout_rms(data, None, nominal.theta)
-        for c in [c for c in candidates if c.delta_bic >= th.min_delta_bic and c.size_ok][: th.top_k_heldout]:
-            c.heldout_rms = heldout_rms(data, c.cause, c.fit.theta)
-            c.heldout_gain = 1.0 - c.heldout_rms / ho_nominal
-    for c in candidates:
-        _judge(c, th, heldout and ho_nominal is not None)
-    accepted = [c for c in candidates if c.accepted]
-    single = max(accepted, key=lambda c: c.delta_bic) if accepted else None
-    cause = single.cause if single is not None else ("unexplained" if _structured(nominal, th) else "none")
-    causes = [single.cause] if single is not None else []
-    pair_cands: list[Candidate] = []
-    if pairs:
-        pair_cands = _pair_search(data, nominal, candidates, single, ho_nominal, th, heldout, progress)
-        won = [c for c in pair_cands if c.accepted]
-        if won:
-            best = max(won, key=lambda c: c.delta_bic)
-            order = sorted(best.effects, key=lambda e: -next(c.delta_bic for c in candidates if c.cause == e))
-            causes, cause = order, order[0]
-            best.effects = tuple(order)
+        sel = select(data, th, heldout=heldout, progress=progress, max_effects=limit)
+    causes = list(sel.effects)
+    shift = leave_one_out(data, sel) if causes else {}
+    singles(data, sel)
+    if causes:
+        cause = max(causes, key=lambda e: abs(shift[e]))
+        causes = sorted(causes, key=lambda e: -abs(shift[e]))
+    else:
+        cause = "unexplained" if _structured(sel.nominal, th) else "none"
     memory = None
     if radiation:  # the water's inertia depends on frequency: outside the gray-box model (discover/radiation_memory.py)
         from . import radiation_memory  # noqa: PLC0415
 
         memory = radiation_memory.candidate(records)
         cause, causes = radiation_memory.merge(cause, causes, memory)
-    return Diagnosis(cause=cause, data=data, nominal=nominal, candidates=candidates, heldout_nominal=ho_nominal,
-                     thresholds=th, wall_s=time.perf_counter() - t0, pairs=pair_cands, causes=causes,
-                     radiation_memory=memory)
-
-
-def _fit_singles(data: Prepared, th: Thresholds, progress=None) -> tuple[Fit, list[Candidate]]:
-    """The nominal fit and every single candidate's, judged by BIC and size (not yet held out)."""
-    nominal = fit_model(GrayBoxModel(data))
-    candidates = []
-    for cause in candidate_names():
-        if progress:
-            progress(cause)
-        model = GrayBoxModel(data, cause)
-        fit = fit_model(model, x0=_start_for(model, nominal))
-        n_eff = effective_n(fit)
-        dbic = bic(nominal, n_eff) - bic(fit, n_eff)
-        z, size_ok = _significance((cause,), fit, th)
-        candidates.append(Candidate(cause=cause, fit=fit, delta_bic=dbic, n_eff=n_eff, z=z, size_ok=size_ok,
-                                    effects=(cause,)))
-    return nominal, candidates
+    return Diagnosis(cause=cause, data=data, selection=sel, thresholds=th, causes=causes, lambda66_shift=shift,
+                     wall_s=time.perf_counter() - t0, radiation_memory=memory)
 
 
 def best_release_lag(data: Prepared, fit: Fit) -> float:
@@ -332,50 +288,3 @@ def choose_release_lag(data: Prepared, effect=None) -> tuple[Prepared, Fit]:
         data = with_release_lag(data, lag)
         fit = fit_model(GrayBoxModel(data, effect), x0=fit.theta)
     return data, fit
-
-
-def _judge(c: Candidate, th: Thresholds, with_heldout: bool) -> None:
-    reasons = []
-    if c.delta_bic < th.min_delta_bic:
-        reasons.append(f"delta BIC {c.delta_bic:.1f} < {th.min_delta_bic}")
-    if not c.size_ok:
-        reasons.append(f"fitted size not significant (z = {c.z:.1f})")
-    if with_heldout:
-        if c.heldout_gain is None:
-            reasons.append("not among the best for the held-out check")
-        elif c.heldout_gain < th.min_heldout_gain:
-            reasons.append(f"held-out gain {c.heldout_gain:.1%} < {th.min_heldout_gain:.0%}")
-    c.accepted = not reasons
-    c.reason = "; ".join(reasons) if reasons else "accepted"
-
-
-def _pair_search(data: Prepared, nominal: Fit, singles: list[Candidate], chosen: Candidate | None,
-                 ho_nominal: float | None, th: Thresholds, heldout: bool, progress=None) -> list[Candidate]:
-    """Pairs of the best few singles, each judged against the chosen single (or the nominal model)."""
-    top = [c for c in singles if c.delta_bic > 0][: th.top_k_pairs]
-    if len(top) < 2:
-        return []
-    fits = {c.cause: c.fit for c in singles}
-    ref = chosen.fit if chosen is not None else nominal
-    ref_name = chosen.cause if chosen is not None else "nominal"
-    ref_ho = (chosen.heldout_rms if chosen is not None else ho_nominal)
-    out = []
-    for i in range(len(top)):
-        for j in range(i + 1, len(top)):
-            effects = (top[i].cause, top[j].cause)
-            if progress:
-                progress("+".join(effects))
-            model = GrayBoxModel(data, effects)
-            fit = fit_model(model, x0=_start_for(model, nominal, fits))
-            n_eff = effective_n(fit)
-            dbic = bic(ref, n_eff) - bic(fit, n_eff)
-            z, size_ok = _significance(effects, fit, th)
-            out.append(Candidate(cause="+".join(effects), fit=fit, delta_bic=dbic, n_eff=n_eff, z=z, size_ok=size_ok,
-                                 effects=effects, against=ref_name))
-    for c in out:
-        if heldout and ref_ho is not None and c.delta_bic >= th.min_delta_bic and c.size_ok:
-            c.heldout_rms = heldout_rms(data, c.effects, c.fit.theta)
-            c.heldout_gain = 1.0 - c.heldout_rms / ref_ho
-        _judge(c, th, heldout and ref_ho is not None)
-    out.sort(key=lambda c: -c.delta_bic)
-    return out

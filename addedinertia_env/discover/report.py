@@ -31,7 +31,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
 
     folder.mkdir(parents=True, exist_ok=True)
     out = []
-    fits = [("nominal", diag.nominal)] + ([(diag.cause, diag.extended)] if diag.best is not None else [])
+    fits = [("nominal", diag.nominal)] + ([("+".join(diag.causes), diag.extended)] if diag.causes else [])
     # 1. residuals against time, by stroke, each run a line
     fig, axes = plt.subplots(len(fits), 2, figsize=(11, 3.2 * len(fits)), squeeze=False, sharey="row")
     for row, (label, fit) in enumerate(fits):
@@ -88,7 +88,8 @@ def markdown(diag: Diagnosis, figures: list[Path]) -> str:
     j = diag.to_json()
     g = j["gain"]
     sn, sx = j["residuals_nominal"], j["residuals_extended"]
-    lines = [f"# Discovery report: cause `{diag.cause}`", "",
+    lines = [f"# Discovery report: cause `{diag.cause}`" + (f" (causes: {', '.join(diag.causes)})"
+                                                            if len(diag.causes) > 1 else ""), "",
              f"Runs: {', '.join(r.name for r in diag.data.runs)}.", "",
              "## Runs", "", "| run | alpha (rad) | hold (s) | current offset removed (A) | current noise (A) |",
              "|---|---|---|---|---|"]
@@ -103,14 +104,26 @@ def markdown(diag: Diagnosis, figures: list[Path]) -> str:
               f"- against amplitude: RMS ratio largest/smallest twist {sn['amplitude_trend']:.2f}; against hold time: "
               f"longest/shortest {sn['hold_trend']:.2f}",
               f"- against motor current (reverse strokes): correlation {sn['corr_current']:+.2f}", "",
-              "## Candidates", "",
-              "| cause | delta BIC (n_eff) | fitted size | z | held-out gain | hull RMS (urad) | lambda66 | verdict |",
-              "|---|---|---|---|---|---|---|---|"]
-    for c in j["candidates"]:
-        size = ", ".join(f"{k} = {v:.4g}" for k, v in c["params"].items())
-        ho = "-" if c["heldout_gain"] is None else f"{c['heldout_gain']:.1%}"
-        lines.append(f"| `{c['cause']}` | {c['delta_bic']:.1f} ({c['n_eff']:.0f}) | {size} | {c['z']:.1f} | {ho} | "
-                     f"{c['residual_rms'] * 1e6:.2f} | {c['lambda66']:.4f} | {c['reason']} |")
+              "## Candidates, round by round", "",
+              "Each round adds to the model so far the effect that most improves the prediction of held-out runs "
+              "(docs/DISCOVERY.md).", "",
+              "| round | model so far + cause | predicted drop | fitted size | z | held-out gain | hull RMS (urad) "
+              "| lambda66 | verdict |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for rnd in j["rounds"]:
+        for c in rnd:
+            size = ", ".join(f"{k} = {v:.4g}" for k, v in c["params"].items()) or "-"
+            ho = "-" if c["heldout_gain"] is None else f"{c['heldout_gain']:.1%}"
+            lines.append(f"| {c['round']} | {c['against']} + `{c['cause']}` | {c['predicted_drop']:.3g} | {size} | "
+                         f"{_fmt(c['z'], '.1f')} | {ho} | {_fmt(c['residual_rms'] and c['residual_rms'] * 1e6, '.2f')} | "
+                         f"{_fmt(c['lambda66'], '.4f')} | {c['reason']} |")
+    lines += ["", "## What each named effect is worth", "",
+              "| model | lambda66 (kg m^2) | hull RMS (urad) | x noise floor | held-out RMS | lambda66 shift if left out |",
+              "|---|---|---|---|---|---|"]
+    for row in j["effects_gain"]:
+        lines.append(f"| {row['model']} | {row['lambda66']:.4f} | {row['residual_rms'] * 1e6:.2f} | "
+                     f"{row['hull_excess']:.2f} | {_fmt(row['heldout_rms'])} | "
+                     f"{_fmt(row['lambda66_shift_if_left_out'], '+.4f')} |")
     lines += ["", "## Gain", "",
               "| | nominal | extended |", "|---|---|---|",
               f"| hull residual RMS (urad) | {g['residual_rms_nominal'] * 1e6:.2f} | {g['residual_rms_extended'] * 1e6:.2f} |",
@@ -124,8 +137,8 @@ def markdown(diag: Diagnosis, figures: list[Path]) -> str:
     return "\n".join(lines)
 
 
-def _fmt(x) -> str:
-    return "-" if x is None else f"{x:.3f}"
+def _fmt(x, spec: str = ".3f") -> str:
+    return "-" if x is None else format(x, spec)
 
 
 def write_report(diag: Diagnosis, folder: str | os.PathLike) -> Path:

@@ -74,7 +74,8 @@ def run_case(preset: str, seed: int, memory: bool, discover_too: bool = True,
     if discover_too:
         diag = discover(records)
         j = diag.to_json()
-        best = max(j["candidates"], key=lambda c: c["delta_bic"]) if j["candidates"] else None
+        fitted = [c for c in j["candidates"] if c["delta_bic"] is not None]  # the screened-out ones have none
+        best = max(fitted, key=lambda c: c["delta_bic"]) if fitted else None
         out["discover"] = {"cause": diag.cause, "causes": list(diag.causes),
                            "lambda66_nominal": j["gain"]["lambda66_nominal"],
                            "best_candidate": best["cause"] if best else None,
