@@ -176,6 +176,11 @@ def _read_meta(json_path: Path) -> dict[str, Any]:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise RecordError(f"{json_path}: key 'rig.{key}' is {value!r}; expected a finite number >= 0 "
                                   "(0 or absent: neglected or unknown)")
+    gear = rig.get("gear_ratio")
+    if gear is not None and (isinstance(gear, bool) or not isinstance(gear, (int, float)) or not math.isfinite(gear)
+                             or gear < 1):
+        raise RecordError(f"{json_path}: key 'rig.gear_ratio' is {gear!r}; expected a number >= 1 (motor turns per "
+                          "flywheel turn; absent: 1)")
     mode = rig.get("current_sampling")
     if mode is not None and mode not in CURRENT_SAMPLING:
         raise RecordError(f"{json_path}: key 'rig.current_sampling' is {mode!r}; expected one of {CURRENT_SAMPLING}")
