@@ -17,9 +17,11 @@ from . import ranking
 from .plots import pareto_front
 from .verdict import pct, rank_text, training_cost, verdict
 
-COLUMNS = ("rank", "controller", "kind", "median |control error| vs oracle", "95 % CI (paired)",
+COLUMNS = ("rank", "controller", "kind", "score: mean min(|error|, cap)", "95 % CI of score",
+           "median |control error| vs oracle", "95 % CI (paired)",
            "median |error| (as written)", "95 % CI of median", "median |error| corrected", "IQM |error|", "failures",
-           "median energy", "median tracking RMS", "episodes", "training cost", "version", "commit")
+           "median energy", "median tracking RMS", "current sign changes", "chatter", "episodes", "training cost",
+           "score version", "version", "commit")
 
 
 def cells(e: dict) -> list[str]:
@@ -27,12 +29,15 @@ def cells(e: dict) -> list[str]:
     lo, hi = e["ci95_median"]
     cci = e.get("ci95_control_error")
     rank = rank_text(e)
-    return [rank, e["controller"], e.get("kind", "?"), pct(e.get("median_abs_control_error")),
+    sci = e.get("ci95_score")
+    return [rank, e["controller"], e.get("kind", "?"), pct(e.get("mean_score")),
+            f"{pct(sci[0])} .. {pct(sci[1])}" if sci else "-", pct(e.get("median_abs_control_error")),
             f"{pct(cci[0])} .. {pct(cci[1])}" if cci else "-", pct(e["median_abs_error"]),
             f"{pct(lo)} .. {pct(hi)}", pct(e.get("median_abs_error_corrected")), pct(e["iqm_abs_error"]),
             f"{100 * e['failure_rate']:.0f} %", _num(e["median_energy_J"], "J", 2),
-            _num(1e3 * e["median_tracking_rms_rad"], "mrad", 3), str(e["episodes"]), training_cost(e),
-            e["version"], e["commit"]]
+            _num(1e3 * e["median_tracking_rms_rad"], "mrad", 3), _num(e.get("mean_current_sign_changes"), "", 1),
+            _num(e.get("mean_chatter_A"), "A", 3), str(e["episodes"]), training_cost(e),
+            e.get("score_version", "-"), e["version"], e["commit"]]
 
 
 def md_cell(text: str) -> str:
@@ -148,6 +153,7 @@ def _sort_value(col: str, e: dict) -> str | None:
     def num(x):
         return "1e300" if x is None or not math.isfinite(x) else repr(float(x))
     return {"rank": num(e["rank"]) if e.get("rank") is not None else "1e301",
+            "score: mean min(|error|, cap)": num(e.get("mean_score")),
             "median |control error| vs oracle": num(e.get("median_abs_control_error")),
             "median |error| (as written)": num(e["median_abs_error"]),
             "median |error| corrected": num(e.get("median_abs_error_corrected")),

@@ -38,7 +38,9 @@ from ..experiment.runner import run_experiment
 from ..identify import identify
 from ..metrics import cycles_metrics
 from ..scenarios import build_rig
+from .score import row_fields as score_fields
 from .suites import EpisodeTask
+from .wear import episode_wear
 
 # The ranked score: the patent's energy method as written (no model-based correction of the
 # strokes' dissipation mismatch), so that what the controller fails to retrace shows. The
@@ -137,6 +139,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
             if n >= learning:
                 records.append(rec)
         m = cycles_metrics(records)
+        row.update(episode_wear(records, sc.rig.motor.i_max))  # current sign changes, chatter (bench/wear.py)
         row.update(energy_J=m.energy_J, saturated_frac=m.saturated_frac,
                    tracking_rms_rad=m.tracking_rms_rad if math.isfinite(m.tracking_rms_rad) else None)
         try:
@@ -153,6 +156,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
                    abs_rel_error=abs(est / truth - 1.0))
     except Exception as e:  # noqa: BLE001 - any failure of one episode is that episode's result
         row["failure"] = f"{type(e).__name__}: {e}"
+    row.update(score_fields(row))  # the ranked score's version and this episode's score (bench/score.py)
     row["wall_s"] = time.perf_counter() - t0
     return row
 
