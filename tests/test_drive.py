@@ -152,3 +152,26 @@ def test_a_gearbox_shows_as_rig_gear_ratio_and_reads_back():
     assert back.k_t == pytest.approx(0.25) and back.gear_ratio == 5.0 and back.to_block() == block
     assert "gear_ratio" not in RigParams().known().to_block()
     assert MujocoRig(rig, seed=0).truth()["drive"] == {"gear_ratio": 5.0}
+
+
+def test_a_suite_draws_its_drive_with_units_and_keeps_the_flywheel_k_t(tmp_path):
+    from addedinertia_env.bench.suites import load_suite
+    from addedinertia_env.scenarios import make_scenario
+
+    suite = load_suite("drive-v0")
+    for seed in suite.seeds("test")[:4]:
+        sc = suite.scenario(seed)
+        d = sc.rig.drive
+        assert 3.0 <= d.gear_ratio <= 8.0 and 0.81 <= d.gear_efficiency <= 0.90 and 24.0 <= sc.rig.motor.u_max <= 48.0
+        base = make_scenario(seed, preset=suite.preset_for(seed), ranges=suite.ranges, fixed=suite.fixed)
+        assert sc.rig.known().k_t == pytest.approx(base.rig.motor.k_t, rel=1e-12)  # the flywheel sees the drawn k_t
+        assert sc.rig.hull == base.rig.hull and sc.plan == base.plan  # the drive draws from its own stream
+    text = (suite_dir := tmp_path / "s.yaml")
+    for block, words in [("{gear_drag: [0.005, 0.02]}", "missing unit"),
+                         ("{gear_efficiency: ['80 %', '110 %']}", "gear_efficiency"),
+                         ("{backlash: ['1 deg', '2 deg']}", "unknown key 'backlash'"),
+                         ("{supply: ['5 V', '6 V']}", "expected more than R i_max = 7.5 V")]:
+        text.write_text(f"name: t\nsplits: {{test: {{first_seed: 1, count: 2}}}}\ndrive: {block}\n")
+        with pytest.raises(ConfigError) as err:
+            load_suite(str(suite_dir))
+        assert words in str(err.value) and str(suite_dir) in str(err.value), str(err.value)
