@@ -35,7 +35,7 @@ class DriveAwarePD(FeedforwardPD):
 
     name = "drive-aware"
     DEFAULTS: dict[str, Any] = {**FeedforwardPD.DEFAULTS, "prespin_fraction": 0.5, "headroom": 0.9}
-    KNOBS = {**FeedforwardPD.KNOBS, "prespin_fraction": (0.0, 1.2, "lin")}
+    KNOBS = {"prespin_fraction": (0.0, 1.2, "lin")}  # the plan; the loop keeps feedforward-pd's default gains
 
     def reset(self, context: ControllerContext) -> None:
         """As :class:`FeedforwardPD`, then the pre-spin scaled by ``prespin_fraction`` and cut to the supply."""

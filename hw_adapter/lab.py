@@ -17,6 +17,7 @@ A lab file is YAML (example: ``hw_adapter/labs/example.yaml``)::
     R: 0.5                 # ohm
     L: 0.0005              # H
     motor_friction: {viscous: 0.0001, coulomb: 0.002}
+    gear_ratio: 1.0        # optional: motor turns per flywheel turn (k_t is then the motor's own)
     limits: {phi_max: 0.35, rate_max: 1.0}     # optional, SafetyLimits fields
     experiment: {alpha: 0.1, hold_s: 2.0}      # optional, ExperimentPlan fields
 
@@ -43,7 +44,7 @@ from .safety import SafetyLimits
 
 MECHANICAL_KEYS = ("J_hull", "J_flywheel", "c_torsion", "phi_neutral", "k_t", "R", "L")
 POSITIVE_KEYS = ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L")
-LAB_KEYS = {"name", *MECHANICAL_KEYS, "motor_friction", "limits", "experiment"}
+LAB_KEYS = {"name", *MECHANICAL_KEYS, "motor_friction", "limits", "experiment", "gear_ratio"}
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,9 @@ def load_lab(name_or_path: str) -> LabConfig:
     preset = load_preset(name_or_path)  # raises ConfigError naming the known presets
     known = rig_from_mapping(preset).known()
     constants: dict[str, Any] = {k: getattr(known, k) for k in MECHANICAL_KEYS}
+    if known.gear_ratio != 1.0:  # a geared preset: the motor's own k_t and the ratio, as a lab file states them
+        constants["k_t"] = known.motor_k_t if known.motor_k_t is not None else known.k_t / known.gear_ratio
+        constants["gear_ratio"] = known.gear_ratio
     constants["motor_friction"] = {"viscous": known.friction_viscous, "coulomb": known.friction_coulomb}
     return LabConfig(name=str(preset.get("name", name_or_path)), constants=constants,
                      experiment=dict(preset.get("experiment") or {}), source=preset["_path"])
@@ -106,6 +110,11 @@ def lab_from_mapping(data: Any, where: str) -> LabConfig:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
             raise ConfigError(f"{where}: motor_friction.{k} = {v!r}: expected a finite number >= 0")
     constants["motor_friction"] = {k: float(v) for k, v in friction.items()}
+    if "gear_ratio" in data:
+        g = data["gear_ratio"]
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not math.isfinite(g) or g < 1:
+            raise ConfigError(f"{where}: gear_ratio = {g!r}: expected a number >= 1 (motor turns per flywheel turn)")
+        constants["gear_ratio"] = float(g)
     limits = data.get("limits") or {}
     allowed = {f.name for f in dataclasses.fields(SafetyLimits)}
     if not isinstance(limits, dict) or set(limits) - allowed:
@@ -124,8 +133,10 @@ def known_rig(lab: LabConfig, caps: Caps) -> KnownRig:
     """What the experimenter knows of this bench: the lab's constants joined with the board's
     CAPS (limits, encoder counts, sample rate); the board and lab names ride along in ``extra``."""
     c, fric = lab.constants, lab.constants["motor_friction"]
+    gear = c.get("gear_ratio")  # a geared bench: k_t at the flywheel, the motor's own kept for the record
     return KnownRig(J_hull=c["J_hull"], J_flywheel=c["J_flywheel"], c_torsion=c["c_torsion"],
-                    phi_neutral=c["phi_neutral"], k_t=c["k_t"], R=c["R"], L=c["L"], i_max=caps.i_max,
+                    phi_neutral=c["phi_neutral"], k_t=c["k_t"] * (gear or 1.0), gear_ratio=gear or 1.0,
+                    motor_k_t=c["k_t"] if gear is not None else None, R=c["R"], L=c["L"], i_max=caps.i_max,
                     u_max=caps.u_max, friction_viscous=fric.get("viscous", 0.0),
                     friction_coulomb=fric.get("coulomb", 0.0), phi_counts=caps.phi_counts,
                     psi_counts=caps.psi_counts, sample_rate=caps.sample_rate,

@@ -175,3 +175,21 @@ def test_a_suite_draws_its_drive_with_units_and_keeps_the_flywheel_k_t(tmp_path)
         with pytest.raises(ConfigError) as err:
             load_suite(str(suite_dir))
         assert words in str(err.value) and str(suite_dir) in str(err.value), str(err.value)
+
+
+def test_a_geared_preset_runs_its_drive_and_its_lab_states_the_ratio():
+    from hw_adapter.lab import known_rig, lab_from_mapping, load_lab
+    from hw_adapter.messages import Caps
+
+    rig = rig_from_mapping(load_preset("wigley-2m-geared"))
+    assert rig.drive.gear_ratio == 5.0 and rig.drive.gear_efficiency == 0.85 and rig.motor.u_max == 24.0
+    assert rig.known().k_t == pytest.approx(0.25)
+    lab = load_lab("wigley-2m-geared")  # the emulator's stand-in lab: the motor's own k_t and the ratio
+    assert lab.constants["k_t"] == 0.05 and lab.constants["gear_ratio"] == 5.0
+    caps = Caps(firmware_version=1, flags=0, sample_period_us=1000, phi_counts=131072, psi_counts=16384,
+                i_max=15.0, u_max=24.0, watchdog_ms=50, brake_response_ms=5)
+    known = known_rig(lab, caps)
+    assert known.k_t == pytest.approx(0.25) and known.to_block()["gear_ratio"] == 5.0
+    with pytest.raises(ConfigError, match="gear_ratio = 0.5"):
+        lab_from_mapping({**{k: 1.0 for k in ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L")},
+                          "phi_neutral": 0.0, "gear_ratio": 0.5}, "lab.yaml")
