@@ -206,7 +206,7 @@ def run_tune(args) -> int:
                f"--candidates {args.candidates} --scenarios {args.scenarios} --seed {args.seed}")
     for t in result["trials"]:
         info(f"  score {100 * t['score']:.3f} %  energy {t['median_energy_J']:.2f} J  {t['params']}")
-    info(f"best: {result['params']} (median |control error| {100 * result['score']:.3f} % on the tuning split)")
+    info(f"best: {result['params']} (ranked score {100 * result['score']:.3f} % on the tuning split)")
     if not args.dry_run:
         info(f"wrote {write_tuned(args.controller, result, command, path=suite.tuned_path)}")
     if args.json:
