@@ -86,6 +86,29 @@ def pairwise_table(entries: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def score_pairwise_table(entries: list[dict]) -> str:
+    """Paired tests between every two rows on the ranked score (Markdown): the mean of
+    ``s_row - s_column`` over their common scenarios (:func:`.score.difference`); ``*`` when its
+    95 % bootstrap interval excludes zero. Empty with fewer than two entries that have scores."""
+    from . import score  # noqa: PLC0415
+
+    rows = [e for e in entries if e.get("scenario_scores")]
+    if len(rows) < 2:
+        return ""
+    lines = ["| row minus column | " + " | ".join(f"`{e['controller']}`" for e in rows) + " |",
+             "|" + "---|" * (len(rows) + 1)]
+    for a in rows:
+        cells = []
+        for b in rows:
+            if a is b:
+                cells.append("-")
+                continue
+            d = score.difference(a["scenario_scores"], b["scenario_scores"])
+            cells.append(f"{100 * d['mean']:+.3f} %{'*' if score.clearly(d) else ''}")
+        lines.append(f"| `{a['controller']}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,
                     preamble: str = "") -> str:
     """The leaderboard as Markdown: ``preamble``, the table of ``entries``, the tie rule, the verdict, the paired tests and the figures (linked relative to ``relative_to``)."""
@@ -97,9 +120,15 @@ def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None,
     said = verdict(entries)
     if said:
         lines += ["", "## Verdict (computed from the table above)", ""] + said
+    score_pairs = score_pairwise_table(entries)
+    if score_pairs:
+        lines += ["", "## Paired tests on the ranked score", "",
+                  "Mean over the common scenarios of s_row - s_column (s = min(|e|, cap), a failure at the cap); "
+                  "`*`: its paired 95 % bootstrap interval excludes zero (positive: the row is clearly worse).", "",
+                  score_pairs]
     pairs = pairwise_table(entries)
     if pairs:
-        lines += ["", "## Paired tests between entries", "",
+        lines += ["", "## Paired tests on the control error", "",
                   "Median over the common scenarios of |c_row| - |c_column| (c = e - e_oracle); `*`: its paired "
                   "95 % bootstrap interval excludes zero (positive: the row is clearly worse).", "", pairs]
     for title, path in (figures or {}).items():

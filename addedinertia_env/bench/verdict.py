@@ -96,6 +96,9 @@ def verdict(entries: list[dict], baseline: str = "pd", target: float = TARGET) -
         label = ("**NON-DISCRIMINATING**" if not disc["discriminating"] else
                  "**Discriminating, small headroom**" if disc["headroom_small"] else "**Discriminating**")
         out.append(f"- {label}: {above}; {zero}.")
+        zero_e, best_e = next((e for e in entries if e["controller"] == "zero"), None), ranking.best(entries)
+        if zero_e is not None and best_e is not None and zero_e.get("scenario_scores") and best_e.get("scenario_scores"):
+            out.append(f"- `zero` against `{best_e['controller']}`: " + compare(zero_e, best_e) + ".")
     best = ranking.best(entries, "classical")
     learned = [e for e in entries if e.get("kind") == "learned" and e.get("rank") is not None]
     if best is not None:
