@@ -219,6 +219,7 @@ class BatchedRig:
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))  # c phi_n, N m
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)  # motor.terminal_voltage's, per sample
         self._constants = self._constant_table(p)
+        self._drive_flaws = forces.has_drive_torque(p) or forces.has_driver_lag(p)  # step-by-step path (kept per batch)
         table = np.stack([substep_matrix(h, kind, *self._map_args(p)) for kind in range(4)])
         # (n, kind, out, in) in float64, then cast: one environment's maps contiguous (one
         # environment, index 0, when the physics is shared).
@@ -245,7 +246,7 @@ class BatchedRig:
         no radiation or water memory): then a whole sample runs in :func:`~.kernels.rig_sample`."""
         p = self.params
         return not (active_params(p.effects, "hull_torque") or forces.has_radiation_memory(p) or forces.has_water_memory(p)
-                    or forces.has_drive_torque(p) or forces.has_driver_lag(p))
+                    or self._drive_flaws)
 
     @staticmethod
     def _map_args(p: BatchedParams, idx=None):
@@ -281,6 +282,7 @@ class BatchedRig:
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)
         self._constants = self._constant_table(p)
+        self._drive_flaws = forces.has_drive_torque(p) or forces.has_driver_lag(p)
         self.sensors.set_envs(idx, batch_keys(list(seeds), len(idx)))
 
     # --- the state, by name -----------------------------------------------------------
