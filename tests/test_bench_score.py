@@ -64,3 +64,15 @@ def test_sign_changes_count_crossings_of_the_band_only():
     chatter = 5.0 * (-1.0) ** np.arange(100)  # +-5 A at the sample rate
     assert np.sqrt(np.mean(np.square(np.diff(chatter)))) == pytest.approx(10.0)
     assert sign_changes(chatter, band=0.3) == 99
+
+
+def test_the_cli_refuses_rows_of_another_score_version(tmp_path, capsys):
+    import json
+
+    from addedinertia_env.cli import main
+
+    path = tmp_path / "rows.jsonl"
+    path.write_text("\n".join(json.dumps(r) for r in _rows("a", [0.01]) + _rows("b", [0.02], version="median-v0")))
+    assert main(["bench", "leaderboard", str(path), "--format", "json"]) == 2
+    err = capsys.readouterr().err
+    assert "median-v0" in err and str(path) in err and len(err.strip().splitlines()) == 1

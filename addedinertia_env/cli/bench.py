@@ -156,9 +156,12 @@ def run_leaderboard(args) -> int:
     from ..bench.report import build  # noqa: PLC0415
     from ..jsonable import plain  # noqa: PLC0415
 
+    from ..bench.score import ScoreVersionError, check_versions  # noqa: PLC0415
+
     try:
         rows = load_rows(args.files)
-    except RowsError as e:
+        check_versions(rows, where=", ".join(map(str, args.files)))  # one score version per board
+    except (RowsError, ScoreVersionError) as e:
         raise BadInput(str(e)) from None
     out = Path(args.out) if args.out else None
     if args.format == "json":
