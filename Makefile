@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
+.PHONY: pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -132,6 +132,17 @@ leaderboard-hard:
 	$(MAKE) leaderboard BENCH_SUITE=hard-v0 LEADERBOARD_DOC=docs/LEADERBOARD_hard.md \
 	  LEADERBOARD_HTML=docs/leaderboard_hard.html \
 	  LEARNED_POLICIES="agents/policies/reverse_stroke.onnx agents/policies/hard_residual.onnx agents/policies/hard_dagger.onnx"
+
+# docs/LEADERBOARD_drive.md: drive-v0, the suite where the drive's flaws make control decide
+# (configs/suites/drive-v0.yaml, docs/DRIVE.md); `make tune-drive` first.
+leaderboard-drive:
+	$(MAKE) leaderboard BENCH_SUITE=drive-v0 LEADERBOARD_DOC=docs/LEADERBOARD_drive.md \
+	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v0.html LEARNED_POLICIES= \
+	  BENCH_CONTROLLERS="oracle zero pd pid lqr feedforward-pd drive-aware"
+
+# The drive-aware entry's pre-spin on drive-v0's tuning split (configs/controllers/tuned-drive-v0.yaml).
+tune-drive: $(STAMP)
+	$(BIN)/addedinertia bench tune --suite drive-v0 --controller drive-aware --candidates 8 --scenarios 8 --seed 0
 
 # Re-tune every classical controller on hard-v0's tuning split with one budget
 # (configs/controllers/tuned-hard-v0.yaml; about 25 min on 2 shared cores).

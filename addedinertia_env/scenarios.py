@@ -127,13 +127,14 @@ def make_scenario(seed: int, preset: str = "wigley-2m", ranges: dict[str, Any] |
     if draw["J_flywheel"] is not None:
         motor = dataclasses.replace(motor, J_flywheel=draw["J_flywheel"])
     if draw["k_t"] is not None:
-        motor = dataclasses.replace(motor, k_t=draw["k_t"])
+        # the drawn k_t is the torque per ampere at the flywheel: a geared motor's own constant is k_t / ratio
+        motor = dataclasses.replace(motor, k_t=draw["k_t"] / base.drive.gear_ratio)
     if draw["period_s"] is not None:
         spring = dataclasses.replace(spring, c=(hull.J_hull + hull.lambda66) * (2 * math.pi / draw["period_s"]) ** 2)
     quality = draw["sensor_quality"] or "realistic"
     rig = RigParams(hull=hull, spring=spring, motor=motor, sensors=sensors_for_quality(quality, base.sensors),
                     effects=effects if effects is not None else base.effects, brake_torque=base.brake_torque,
-                    physics_substeps=base.physics_substeps, hydrodynamics=base.hydrodynamics)
+                    physics_substeps=base.physics_substeps, hydrodynamics=base.hydrodynamics, drive=base.drive)
     plan = plan_from_preset(preset_data, alpha=draw["alpha"], hold_s=draw["hold_s"])
     return Scenario(name=name or f"{preset}/{seed}", seed=seed, rig=rig, plan=plan, sensor_seed=sensor_ss,
                     controller_seed=ctrl_ss, sensor_quality=quality)

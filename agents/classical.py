@@ -16,6 +16,7 @@ CLASSICAL: dict[str, str] = {
     "lqr": "agents.lqr:LQR",
     "ilc": "agents.ilc:ILC",
     "mpc": "agents.mpc:MPC",
+    "drive-aware": "agents.drive_aware:DriveAwarePD",
 }
 
 

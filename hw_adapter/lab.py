@@ -19,6 +19,7 @@ A lab file is YAML (example: ``hw_adapter/labs/example.yaml``)::
     R: 0.5                 # ohm
     L: 0.0005              # H; optional (0: neglected, absent: unknown)
     motor_friction: {viscous: 0.0001, coulomb: 0.002}   # optional (absent: 0)
+    gear_ratio: 1.0        # optional: motor turns per flywheel turn (k_t is then the motor's own)
     limits: {phi_max: 0.35, rate_max: 1.0}     # optional, SafetyLimits fields
     experiment: {alpha: 0.1, hold_s: 2.0}      # optional, ExperimentPlan fields
 
@@ -29,6 +30,7 @@ experimenter-known constants (``RigParams.known()``, a ``KnownRig``; never the t
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -99,6 +101,11 @@ def lab_from_mapping(data: Any, where: str) -> LabConfig:
     constants: dict[str, Any] = {k: float(data[k]) for k in LAB_RIG_KEYS
                                  if data.get(k) is not None and k != "motor_friction"}
     constants["motor_friction"] = {k: float(v) for k, v in friction.items()}
+    if "gear_ratio" in data:
+        g = data["gear_ratio"]
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not math.isfinite(g) or g < 1:
+            raise ConfigError(f"{where}: gear_ratio = {g!r}: expected a number >= 1 (motor turns per flywheel turn)")
+        constants["gear_ratio"] = float(g)
     limits = data.get("limits") or {}
     allowed = {f.name for f in dataclasses.fields(SafetyLimits)}
     if not isinstance(limits, dict) or set(limits) - allowed:

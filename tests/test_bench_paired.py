@@ -79,7 +79,9 @@ def test_paired_difference_sees_what_unpaired_intervals_miss():
     assert not (hi_a < lo_b or hi_b < lo_a)  # unpaired |e| intervals overlap: the bias swamps them
     d = paired.difference(entries["b"]["control_errors"], entries["a"]["control_errors"], n_boot=500)
     assert paired.clearly(d) == 1 and d["p_wilcoxon"] < 0.01  # paired: b clearly worse
-    assert entries["a"]["rank"] == 1 and entries["b"]["rank"] == 2
+    # Ranked on the published error (bench/score.py), the common 5 % bias dominates both: b's extra
+    # noise moves |e| up as often as down, so the two are tied; the control error beside it tells them apart.
+    assert entries["a"]["rank"] == entries["b"]["rank"] == 1
 
 
 def test_tie_rule_orders_tied_entries_by_energy():
@@ -87,15 +89,16 @@ def test_tie_rule_orders_tied_entries_by_energy():
     bias = _bias(n, seed=5)
     rng = np.random.default_rng(6)
     frugal, spender = rng.normal(0, 0.003, n), rng.normal(0, 0.003, n)
-    frugal, spender = sorted((frugal, spender), key=lambda x: -np.median(np.abs(x)))
+    frugal, spender = sorted((frugal, spender), key=lambda x: -np.mean(np.minimum(np.abs(bias + x), 0.1)))
     rows = (_rows("oracle", bias, kind="reference") + _rows("frugal", bias + frugal, energy=2.0)
             + _rows("spender", bias + spender, energy=9.0))
     entries = summarise(rows, n_boot=500)
     by = {e["controller"]: e for e in entries}
     assert by["spender"]["score"] < by["frugal"]["score"] and by["spender"]["rank"] == by["frugal"]["rank"] == 1
-    # spender's median |c| is lower, but the two cannot be told apart: the cheaper one ranks first
+    # spender's ranked score is lower, but the two cannot be told apart: the cheaper one ranks first
     assert [e["controller"] for e in entries if e["rank"] is not None] == ["frugal", "spender"]
-    assert entries[0]["controller"] == "oracle" and entries[0]["rank"] is None  # reference, no rank
+    # the oracle is a reference (no rank), listed by its own score: not the floor of the published error
+    assert next(e for e in entries if e["controller"] == "oracle")["rank"] is None
 
 
 def test_verdict_says_non_discriminating_with_numbers_when_zero_is_as_good():

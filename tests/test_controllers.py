@@ -92,5 +92,5 @@ def test_tuning_candidates_and_score():
     xs = np.array([c["x"] for c in cands[1:]])
     assert np.all((xs >= 1.0) & (xs <= 100.0)) and np.median(np.log10(xs)) == pytest.approx(1.0, abs=0.4)
     assert sample_candidates({"x": (1.0, 2.0, "lin")}, 5, seed=3) == sample_candidates({"x": (1.0, 2.0, "lin")}, 5, seed=3)
-    assert score([0.01, -0.02, None]) == pytest.approx(0.02)
-    assert score([0.01, None, None]) == 1.0
+    assert score([0.01, -0.02, None]) == pytest.approx((0.01 + 0.02 + 0.10) / 3)  # a failure at the 10 % cap
+    assert score([0.01, None, 0.5]) == pytest.approx(0.07)

@@ -131,6 +131,9 @@ def summarise(rows: list[dict], n_boot: int = 2000, seed: int = 0) -> list[dict[
     from . import paired  # noqa: PLC0415
     from .ranking import rank  # noqa: PLC0415
 
+    from . import score  # noqa: PLC0415
+
+    score.check_versions(rows)
     by: dict[str, list[dict]] = {}
     for r in rows:
         by.setdefault(r["controller"], []).append(r)
@@ -159,6 +162,7 @@ def summarise(rows: list[dict], n_boot: int = 2000, seed: int = 0) -> list[dict[
             "median_abs_control_error": None, "ci95_control_error": None, "n_paired": 0,
             "oracle_failed": oracle_failed if oracle_rows else None,
         }
+        e.update(score.entry_score(rs, n_boot=n_boot, seed=seed))  # the ranked score (bench/score.py)
         if oracle_rows:
             e["control_errors"] = paired.control_errors(rs, oracle_rows)
             e.update(paired.summary(e["control_errors"], n_boot=n_boot, seed=seed))
@@ -168,4 +172,4 @@ def summarise(rows: list[dict], n_boot: int = 2000, seed: int = 0) -> list[dict[
 
 def public(entries: list[dict]) -> list[dict]:
     """Entries without their per-scenario working data (for JSON output)."""
-    return [{k: v for k, v in e.items() if k != "control_errors"} for e in entries]
+    return [{k: v for k, v in e.items() if k not in ("control_errors", "scenario_scores")} for e in entries]

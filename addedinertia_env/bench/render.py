@@ -17,9 +17,11 @@ from . import ranking
 from .plots import pareto_front
 from .verdict import pct, rank_text, training_cost, verdict
 
-COLUMNS = ("rank", "controller", "kind", "median |control error| vs oracle", "95 % CI (paired)",
+COLUMNS = ("rank", "controller", "kind", "score: mean min(|error|, cap)", "95 % CI of score",
+           "median |control error| vs oracle", "95 % CI (paired)",
            "median |error| (as written)", "95 % CI of median", "median |error| corrected", "IQM |error|", "failures",
-           "median energy", "median tracking RMS", "episodes", "training cost", "version", "commit")
+           "median energy", "median tracking RMS", "current sign changes", "chatter", "episodes", "training cost",
+           "score version", "version", "commit")
 
 
 def cells(e: dict) -> list[str]:
@@ -27,12 +29,15 @@ def cells(e: dict) -> list[str]:
     lo, hi = e["ci95_median"]
     cci = e.get("ci95_control_error")
     rank = rank_text(e)
-    return [rank, e["controller"], e.get("kind", "?"), pct(e.get("median_abs_control_error")),
+    sci = e.get("ci95_score")
+    return [rank, e["controller"], e.get("kind", "?"), pct(e.get("mean_score")),
+            f"{pct(sci[0])} .. {pct(sci[1])}" if sci else "-", pct(e.get("median_abs_control_error")),
             f"{pct(cci[0])} .. {pct(cci[1])}" if cci else "-", pct(e["median_abs_error"]),
             f"{pct(lo)} .. {pct(hi)}", pct(e.get("median_abs_error_corrected")), pct(e["iqm_abs_error"]),
             f"{100 * e['failure_rate']:.0f} %", _num(e["median_energy_J"], "J", 2),
-            _num(1e3 * e["median_tracking_rms_rad"], "mrad", 3), str(e["episodes"]), training_cost(e),
-            e["version"], e["commit"]]
+            _num(1e3 * e["median_tracking_rms_rad"], "mrad", 3), _num(e.get("mean_current_sign_changes"), "", 1),
+            _num(e.get("mean_chatter_A"), "A", 3), str(e["episodes"]), training_cost(e),
+            e.get("score_version", "-"), e["version"], e["commit"]]
 
 
 def md_cell(text: str) -> str:
@@ -81,6 +86,29 @@ def pairwise_table(entries: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def score_pairwise_table(entries: list[dict]) -> str:
+    """Paired tests between every two rows on the ranked score (Markdown): the mean of
+    ``s_row - s_column`` over their common scenarios (:func:`.score.difference`); ``*`` when its
+    95 % bootstrap interval excludes zero. Empty with fewer than two entries that have scores."""
+    from . import score  # noqa: PLC0415
+
+    rows = [e for e in entries if e.get("scenario_scores")]
+    if len(rows) < 2:
+        return ""
+    lines = ["| row minus column | " + " | ".join(f"`{e['controller']}`" for e in rows) + " |",
+             "|" + "---|" * (len(rows) + 1)]
+    for a in rows:
+        cells = []
+        for b in rows:
+            if a is b:
+                cells.append("-")
+                continue
+            d = score.difference(a["scenario_scores"], b["scenario_scores"])
+            cells.append(f"{100 * d['mean']:+.3f} %{'*' if score.clearly(d) else ''}")
+        lines.append(f"| `{a['controller']}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,
                     preamble: str = "") -> str:
     """The leaderboard as Markdown: ``preamble``, the table of ``entries``, the tie rule, the verdict, the paired tests and the figures (linked relative to ``relative_to``)."""
@@ -92,9 +120,15 @@ def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None,
     said = verdict(entries)
     if said:
         lines += ["", "## Verdict (computed from the table above)", ""] + said
+    score_pairs = score_pairwise_table(entries)
+    if score_pairs:
+        lines += ["", "## Paired tests on the ranked score", "",
+                  "Mean over the common scenarios of s_row - s_column (s = min(|e|, cap), a failure at the cap); "
+                  "`*`: its paired 95 % bootstrap interval excludes zero (positive: the row is clearly worse).", "",
+                  score_pairs]
     pairs = pairwise_table(entries)
     if pairs:
-        lines += ["", "## Paired tests between entries", "",
+        lines += ["", "## Paired tests on the control error", "",
                   "Median over the common scenarios of |c_row| - |c_column| (c = e - e_oracle); `*`: its paired "
                   "95 % bootstrap interval excludes zero (positive: the row is clearly worse).", "", pairs]
     for title, path in (figures or {}).items():
@@ -148,6 +182,7 @@ def _sort_value(col: str, e: dict) -> str | None:
     def num(x):
         return "1e300" if x is None or not math.isfinite(x) else repr(float(x))
     return {"rank": num(e["rank"]) if e.get("rank") is not None else "1e301",
+            "score: mean min(|error|, cap)": num(e.get("mean_score")),
             "median |control error| vs oracle": num(e.get("median_abs_control_error")),
             "median |error| (as written)": num(e["median_abs_error"]),
             "median |error| corrected": num(e.get("median_abs_error_corrected")),

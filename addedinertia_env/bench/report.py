@@ -37,14 +37,19 @@ def preamble(rows: list[dict], command: str) -> str:
              "(`identify(records, 'energy', asymmetry_correction=False)`); `corrected` = the default identification "
              "(dissipation mismatch corrected with a damping law fitted to the free stroke). A failed run or "
              "identification counts as an infinite error."]
+    from .score import CAP, SCORE_VERSION  # noqa: PLC0415
+
+    lines.append(f"Ranked score ({SCORE_VERSION}, bench/score.py): the mean over the scenarios of min(|e|, "
+                 f"{100 * CAP:.0f} %), a failed run or identification counting {100 * CAP:.0f} %, with a 95 % "
+                 "bootstrap interval of the mean (2000 resamples of the scenarios, seed 0). Tie rule: an entry whose "
+                 "paired 95 % interval of the mean difference of scores against its group's leader (same scenarios, "
+                 "same sensor noise) includes zero joins the group; ties are listed by energy.")
     if paired:
-        lines.append("Ranked score: the control error |e_entry - e_oracle|, paired by scenario (same scenario, same "
-                     "sensor noise), its median with a 95 % paired bootstrap interval (2000 resamples of the "
-                     "scenarios, seed 0); paired tests between entries: median of | c_A | - | c_B | with its bootstrap "
-                     "interval and the Wilcoxon signed-rank p. Ties (interval including zero) are ordered by energy.")
-    else:
-        lines.append("Ranked score: median |e| with a 95 % percentile-bootstrap interval (2000 resamples, seed 0); "
-                     "no oracle rows, so no paired control error.")
+        lines.append("Beside it, not ranked: the control error |e_entry - e_oracle|, paired by scenario, its median "
+                     "with a 95 % paired bootstrap interval; paired tests between entries: median of | c_A | - | c_B | "
+                     "with its bootstrap interval and the Wilcoxon signed-rank p.")
+    lines.append("Wear per episode (mean over cycles): sign changes of the commanded current (hysteresis 2 % of "
+                 "i_max) and chatter (RMS of its sample-to-sample change) over hold + reverse stroke (bench/wear.py).")
     lines.append("IQM = mean of the middle 50 %; energy = integral of |u i| dt over hold + reverse stroke. "
                  "ILC learns for 2 unscored cycles, then is scored.")
     coverage = _coverage(rows)

@@ -42,6 +42,8 @@ from ..scenarios import build_rig
 from ..scoring import AS_WRITTEN, CORRECTED, score_episode
 from .suites import EpisodeTask
 from .versions import row_fields as score_version_fields
+from .score import row_fields as score_fields
+from .wear import episode_wear
 
 # The ranked score: the patent's energy method as written (no model-based correction of the
 # strokes' dissipation mismatch), so that what the controller fails to retrace shows. The
@@ -141,6 +143,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
                 records.append(rec)
         # the one scoring (addedinertia_env/scoring.py): ranked as written, the corrected score beside it
         ranked = score_episode(records, AS_WRITTEN)
+        row.update(episode_wear(records, sc.rig.motor.i_max))  # current sign changes, chatter (bench/wear.py)
         row.update(lambda66_true=ranked.lambda66_true, energy_J=ranked.energy_J, saturated_frac=ranked.saturated_frac,
                    tracking_rms_rad=ranked.tracking_rms_rad if math.isfinite(ranked.tracking_rms_rad) else None)
         corrected = score_episode(records, CORRECTED, metrics=False)
@@ -155,6 +158,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
                        abs_rel_error=abs(ranked.rel_error))
     except Exception as e:  # noqa: BLE001 - any failure of one episode is that episode's result
         row["failure"] = f"{type(e).__name__}: {e}"
+    row.update(score_fields(row))  # the ranked score's version and this episode's score (bench/score.py)
     row["wall_s"] = time.perf_counter() - t0
     return row
 

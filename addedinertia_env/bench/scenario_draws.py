@@ -29,6 +29,7 @@ from ..rig.effects import EFFECT_NAMES, Effects
 from ..rig.params import MotorParams
 from ..rig.presets import ConfigError
 from ..scenarios import Scenario
+from .drive_draws import apply_drive, validate_drive
 
 LOOP_KEYS = tuple(f.name for f in dataclasses.fields(ControlLoop))
 MOTOR_KEYS = tuple(f.name for f in dataclasses.fields(MotorParams))
@@ -83,6 +84,7 @@ def validate_extras(data: dict[str, Any], path: Path) -> dict[str, Any]:
             if not _is_value(v) or (isinstance(v, (int, float)) and v < 0) or (isinstance(v, list) and v[0] < 0):
                 raise _bad(path, f"{block}.{k}", v, "a number >= 0 or [low, high] with 0 <= low <= high")
         out[block] = dict(spec)
+    out["drive"] = validate_drive(data.get("drive"), path)  # the drive's flaws, with units (drive_draws.py)
     return out
 
 
@@ -119,4 +121,5 @@ def apply_extras(scenario: Scenario, extras: dict[str, Any]) -> Scenario:
     if extras.get("loop"):
         rng = _rng(seed, "loop")
         loop = ControlLoop(**{k: _draw(v, rng) for k, v in sorted(extras["loop"].items())})
-    return dataclasses.replace(scenario, rig=rig, loop=loop)
+    out = dataclasses.replace(scenario, rig=rig, loop=loop)
+    return apply_drive(out, extras["drive"]) if extras.get("drive") else out

@@ -38,7 +38,7 @@ from .scenario_draws import apply_extras, validate_extras
 
 SUITE_DIR = CONFIG_DIR / "suites"
 SUITE_KEYS = {"name", "description", "presets", "ranges", "fixed", "splits", "effects", "loop", "motor", "cycles",
-              "tuned"}
+              "tuned", "drive"}
 TUNED_DIR = CONFIG_DIR / "controllers"
 TRAIN_FIRST_SEED = 10**9  # declared splits lie below; seeds from here on are the "train" pseudo-split
 SPLITS = ("tuning", "test")

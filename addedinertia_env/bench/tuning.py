@@ -4,10 +4,9 @@ Procedure (docs/CONTROLLERS.md): a seeded random search over the controller's
 ``KNOBS`` (log-uniform or uniform in each documented range). Candidate 0 is the
 controller's hand-set ``DEFAULTS``; every candidate is scored on the same scenarios of
 the suite's *tuning* split (never the test split), and the score is the benchmark's
-ranked one, paired with the oracle: the median over the scenarios of the control error
-``|e_candidate - e_oracle|`` (``e`` the relative lambda66 error of the energy method as
-written, the oracle run once on the same scenarios and sensor noise), with a failed
-identification counted as 100 %. Every controller
+ranked one (:mod:`.score`): the mean over the scenarios of ``min(|e|, CAP)`` (``e`` the
+relative lambda66 error of the energy method as written), a failed run or
+identification counting ``CAP``. Every controller
 gets the same budget: the same number of candidates times the same scenarios (ILC runs
 its learning cycles inside each scenario, as in the benchmark; only the scored last
 cycle differs from the others). The winner is written to ``configs/controllers/tuned.yaml``
@@ -31,6 +30,7 @@ from agents.tuned import TUNED_PATH, load_tuned, resolve_params  # noqa: F401 - 
 
 from ..atomic import atomic_write_text
 from .runner import run_tasks
+from .score import SCORE_VERSION, episode_score
 from .suites import load_suite
 
 
@@ -49,22 +49,11 @@ def sample_candidates(knobs: dict[str, tuple[float, float, str]], n: int, seed: 
     return out
 
 
-def score(abs_errors: list[float | None]) -> float:
-    """Median ``|lambda66 error|``; a failure (None or not finite) counts as 1.0 (100 %)."""
-    vals = [1.0 if (e is None or not math.isfinite(e)) else min(abs(e), 1.0) for e in abs_errors]
-    return float(np.median(vals)) if vals else math.inf
-
-
-def control_errors(rows: list[dict], oracle_rows: list[dict]) -> list[float | None]:
-    """``e_row - e_oracle`` per scenario (None where the row failed); ``e_row`` alone where
-    the oracle failed on that scenario."""
-    out: list[float | None] = []
-    for r, o in zip(rows, oracle_rows):
-        if r.get("rel_error") is None:
-            out.append(None)
-        else:
-            out.append(r["rel_error"] - (o["rel_error"] if o.get("rel_error") is not None else 0.0))
-    return out
+def score(errors: list[float | None]) -> float:
+    """The ranked score of :mod:`.score` over relative lambda66 errors: the mean of ``min(|e|, CAP)``,
+    a failure (None or not finite) counting ``CAP``; ``inf`` for no errors."""
+    vals = [episode_score({"rel_error": e}) for e in errors]
+    return float(np.mean(vals)) if vals else math.inf
 
 
 def tune(controller: str, suite: str = "standard-v0", candidates: int = 8, scenarios: int = 8,
@@ -80,15 +69,13 @@ def tune(controller: str, suite: str = "standard-v0", candidates: int = 8, scena
     scen = s.scenarios("tuning")[:scenarios]
     cands = sample_candidates(knobs, candidates, seed)
     defaults = {k: v for k, v in cls.DEFAULTS.items() if k in knobs}
-    oracle = [s.task(sc, "oracle") for sc in scen]
-    tasks = oracle + [s.task(sc, controller, {**defaults, **cand}, tuned=False) for cand in cands for sc in scen]
+    tasks = [s.task(sc, controller, {**defaults, **cand}, tuned=False) for cand in cands for sc in scen]
     rows = run_tasks(tasks, jobs=jobs, progress=progress, desc=f"tune {controller}")
-    oracle_rows, rows = rows[:len(scen)], rows[len(scen):]
     trials = []
     for k, cand in enumerate(cands):
         chunk = rows[k * len(scen):(k + 1) * len(scen)]
         full = {**defaults, **cand}
-        trials.append({"params": full, "score": score(control_errors(chunk, oracle_rows)),
+        trials.append({"params": full, "score": score([r.get("rel_error") for r in chunk]),
                        "median_energy_J": float(np.median([r["energy_J"] or 0.0 for r in chunk]))})
     best = min(trials, key=lambda t: (t["score"], t["median_energy_J"]))
     return {"params": best["params"], "score": best["score"], "trials": trials,
@@ -101,7 +88,7 @@ def write_tuned(name: str, result: dict[str, Any], command: str, path: Path | No
     path = path or TUNED_PATH
     data = (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
     data[name] = {"params": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in result["params"].items()},
-                  "tuning_score_median_abs_error": round(float(result["score"]), 6),
+                  "tuning_score": round(float(result["score"]), 6), "score_version": SCORE_VERSION,
                   "budget": result.get("budget", {}), "command": command}
     header = ("# Tuned controller gains, written by `addedinertia bench tune` (addedinertia_env/bench/tuning.py).\n"
               "# Each entry: the parameters, the tuning-split score, the budget and the command.\n")

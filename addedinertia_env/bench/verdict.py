@@ -96,6 +96,9 @@ def verdict(entries: list[dict], baseline: str = "pd", target: float = TARGET) -
         label = ("**NON-DISCRIMINATING**" if not disc["discriminating"] else
                  "**Discriminating, small headroom**" if disc["headroom_small"] else "**Discriminating**")
         out.append(f"- {label}: {above}; {zero}.")
+        zero_e, best_e = next((e for e in entries if e["controller"] == "zero"), None), ranking.best(entries)
+        if zero_e is not None and best_e is not None and zero_e.get("scenario_scores") and best_e.get("scenario_scores"):
+            out.append(f"- `zero` against `{best_e['controller']}`: " + compare(zero_e, best_e) + ".")
     best = ranking.best(entries, "classical")
     learned = [e for e in entries if e.get("kind") == "learned" and e.get("rank") is not None]
     if best is not None:
@@ -127,7 +130,21 @@ def rank_text(e: dict) -> str:
 
 
 def compare(a: dict, b: dict) -> str:
-    """``a`` against ``b``: paired when both have control errors, else overlap of the intervals."""
+    """``a`` against ``b``: on the ranked score (paired mean difference of capped errors, :mod:`.score`)
+    when both have it, with the paired control-error test beside it; else on control errors, else
+    overlap of the intervals."""
+    if a.get("scenario_scores") is not None and b.get("scenario_scores") is not None:
+        from . import score  # noqa: PLC0415
+
+        d = score.difference(a["scenario_scores"], b["scenario_scores"])
+        side = score.clearly(d)
+        head = {1: f"`{a['controller']}` is clearly worse", -1: f"`{a['controller']}` is clearly better",
+                0: "no difference can be claimed"}[side]
+        text = (f"{head} on the ranked score (mean paired difference {pct(d['mean'])}, 95 % CI {_ci(d['ci95'])}, "
+                f"n = {d['n']})")
+        if a.get("control_errors") is not None and b.get("control_errors") is not None:
+            text += f"; beside it, {_diff_text(paired.difference(a['control_errors'], b['control_errors']))} in |control error|"
+        return text
     if a.get("control_errors") is not None and b.get("control_errors") is not None:
         d = paired.difference(a["control_errors"], b["control_errors"])
         side = paired.clearly(d)

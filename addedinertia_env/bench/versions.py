@@ -8,9 +8,10 @@ never puts an old error beside a new one:
 * ``v0`` (rows without ``score_version``, written before 2026-11-27): with radiation memory
   on, the truth was A66 at the natural swing frequency, 1.7-2.0 % above A66(0) on the
   shipped hulls; in memory-free water it was the hull's lambda66.
-* :data:`SCORE_VERSION` ``paired-median-v1``: the truth is lambda66 = A66(0), the
-  zero-frequency added inertia, in every water (``docs/RUN_RECORD.md``); the
-  ranked score is the median paired control error against the oracle (:mod:`.paired`).
+* :data:`SCORE_VERSION` (``capped-mean-v1``, defined in :mod:`.score`): the truth is
+  lambda66 = A66(0), the zero-frequency added inertia, in every water
+  (``docs/RUN_RECORD.md``); the ranked score is the mean of capped |error| with a failure at
+  the cap (:mod:`.score`).
 
 A suite whose truth changed takes a new name too (``memory-v1``: the memory presets, truth
 A66(0)); memory-free suites kept their names, their truth being the same number.
@@ -27,8 +28,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from .score import SCORE_VERSION  # this code's score (bench/score.py): truth lambda66 = A66(0)
+
 FIELD = "score_version"  # the rows' field
-SCORE_VERSION = "paired-median-v1"  # this code's score: truth lambda66 = A66(0), paired median vs the oracle
 LEGACY = "v0"  # rows without the field: written before the truth was A66(0) with memory on
 RANKABLE = (SCORE_VERSION, LEGACY)  # a board of either alone is ranked as it always was
 

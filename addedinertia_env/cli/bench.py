@@ -177,9 +177,12 @@ def run_leaderboard(args) -> int:
     from ..bench.report import build  # noqa: PLC0415
     from ..jsonable import plain  # noqa: PLC0415
 
+    from ..bench.score import ScoreVersionError, check_versions  # noqa: PLC0415
+
     try:
         rows = load_rows(args.files)
-    except RowsError as e:
+        check_versions(rows, where=", ".join(map(str, args.files)))  # one score version per board
+    except (RowsError, ScoreVersionError) as e:
         raise BadInput(str(e)) from None
     out = Path(args.out) if args.out else None
     if args.format == "scores":
@@ -244,7 +247,7 @@ def run_tune(args) -> int:
                f"--candidates {args.candidates} --scenarios {args.scenarios} --seed {args.seed}")
     for t in result["trials"]:
         info(f"  score {100 * t['score']:.3f} %  energy {t['median_energy_J']:.2f} J  {t['params']}")
-    info(f"best: {result['params']} (median |control error| {100 * result['score']:.3f} % on the tuning split)")
+    info(f"best: {result['params']} (ranked score {100 * result['score']:.3f} % on the tuning split)")
     if not args.dry_run:
         info(f"wrote {write_tuned(args.controller, result, command, path=suite.tuned_path)}")
     if args.json:

@@ -44,4 +44,10 @@ class OracleController:
         hull_torque = J * acc + p.spring.c * (s.phi - forces.true_neutral(p)) \
             - float(forces.hull_extra_torque(s.phi, s.w, s.water_rate, p)) - s.radiation_torque
         i = -hull_torque / self.rig.k_t  # reaction of the motor torque on the hull
+        if forces.has_drive_torque(p):  # it knows the drive: the reaction of cogging and gear friction too
+            for _ in range(2):  # the mesh friction grows with |i|: two fixed-point passes
+                i = -(hull_torque + float(forces.drive_torque(s.psi, s.omega, i, self.rig.k_t, p))) / self.rig.k_t
+        lag = forces.driver_lag(p) if forces.has_driver_lag(p) else 0.0
+        if lag:  # and its current loop: the command whose first-order response is i after this sample
+            i = (i - s.i * lag) / (1.0 - lag)
         return np.array([np.clip(i / p.motor.i_max, -1, 1)], dtype=np.float32), state

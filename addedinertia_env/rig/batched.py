@@ -219,6 +219,7 @@ class BatchedRig:
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))  # c phi_n, N m
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)  # motor.terminal_voltage's, per sample
         self._constants = self._constant_table(p)
+        self._drive_flaws = forces.has_drive_torque(p) or forces.has_driver_lag(p)  # step-by-step path (kept per batch)
         table = np.stack([substep_matrix(h, kind, *self._map_args(p)) for kind in range(4)])
         # (n, kind, out, in) in float64, then cast: one environment's maps contiguous (one
         # environment, index 0, when the physics is shared).
@@ -244,7 +245,8 @@ class BatchedRig:
         """Whether the only extra torques are the damping and the rotor friction (no hull-torque effect,
         no radiation or water memory): then a whole sample runs in :func:`~.kernels.rig_sample`."""
         p = self.params
-        return not (active_params(p.effects, "hull_torque") or forces.has_radiation_memory(p) or forces.has_water_memory(p))
+        return not (active_params(p.effects, "hull_torque") or forces.has_radiation_memory(p) or forces.has_water_memory(p)
+                    or self._drive_flaws)
 
     @staticmethod
     def _map_args(p: BatchedParams, idx=None):
@@ -280,6 +282,7 @@ class BatchedRig:
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)
         self._constants = self._constant_table(p)
+        self._drive_flaws = forces.has_drive_torque(p) or forces.has_driver_lag(p)
         self.sensors.set_envs(idx, batch_keys(list(seeds), len(idx)))
 
     # --- the state, by name -----------------------------------------------------------
@@ -402,6 +405,7 @@ class BatchedRig:
         h = self.physics_dt
         memory = forces.has_radiation_memory(p)
         water = forces.has_water_memory(p)
+        drive = forces.has_drive_torque(p)
         for _ in range(p.physics_substeps):
             # the held torques (forces.py, on arrays), then the linear step (kernels.linear_substep)
             w_mid = forces.centred_rate(X[W], self._w_prev)
@@ -413,6 +417,8 @@ class BatchedRig:
                     x_new = np.where(paused, self.radiation_x, x_new)
                 self.radiation_x[...] = x_new
             f2 = forces.flywheel_friction_torque(X[OMEGA], p)
+            if drive:  # the drive's own torque (cogging, gear friction), the current held over the step
+                f2 = f2 + forces.drive_torque(X[PSI], X[OMEGA], np.where(driven, X[I], 0.0), self._k_t_env, p)
             if water:
                 dw = h * forces.water_rate_derivative(X[W], self.water_rate, p)
                 if paused is not None:
@@ -432,7 +438,7 @@ class BatchedRig:
         m = self.params.motor
         X = self._X
         kw = dict(R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max, i_max=m.i_max, sample_dt=self.dt,
-                  decay=self._drive_decay)
+                  decay=self._drive_decay, lag=forces.driver_lag(self.params) if forces.has_driver_lag(self.params) else 0.0)
         if np.isscalar(code) and paused is None:
             X[U] = terminal_voltage(_Command(mode=MODES[code], value=value), X[I], X[OMEGA], **kw)
             return

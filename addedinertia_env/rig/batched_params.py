@@ -31,7 +31,7 @@ import numpy as np
 from .effects import registry
 from .params import RigParams
 
-_GROUPS = ("hull", "spring", "motor", "sensors")
+_GROUPS = ("hull", "spring", "motor", "sensors", "drive")
 # Parameters that must be equal across a batch (they set the common clock).
 _COMMON = ("sample_rate",)
 

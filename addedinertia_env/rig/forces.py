@@ -30,7 +30,8 @@ from .friction import DRY_FRICTION_RATE_SCALE
 from .params import RigParams
 from .radiation import step_maps, truth_block
 
-__all__ = ["DRY_FRICTION_RATE_SCALE", "channel_delay", "flywheel_friction_torque", "has_channel_delay",
+__all__ = ["DRY_FRICTION_RATE_SCALE", "channel_delay", "cogging_energy", "drive_torque", "driver_lag", "gear_ratio",
+           "has_drive_torque", "has_driver_lag", "flywheel_friction_torque", "has_channel_delay",
            "has_radiation_memory", "has_water_memory", "hull_armature", "hull_extra_torque", "radiation_energy",
            "radiation_memory_step", "radiation_state_size", "true_lambda66", "truth", "hydrodynamic_torque", "kinetic_energy", "potential_energy",
            "torque_constant_ratio", "true_neutral", "true_torque_constant", "water_rate_after_rest", "water_rate_derivative"]
@@ -60,9 +61,66 @@ def torque_constant_ratio(p: RigParams):
     return ratio if ratio is not None else 1.0
 
 
+def gear_ratio(p: RigParams):
+    """Motor turns per flywheel turn, - (1 without a drive block: direct drive)."""
+    drive = getattr(p, "drive", None)
+    return 1.0 if drive is None else drive.gear_ratio
+
+
 def true_torque_constant(p: RigParams) -> float:
-    """The motor's real torque constant, N m/A (data sheet x hidden ratios)."""
-    return p.motor.k_t * torque_constant_ratio(p)
+    """The motor's real torque per ampere at the flywheel, N m/A (data sheet x hidden ratios x gear ratio;
+    also the back-EMF per flywheel rad/s)."""
+    return p.motor.k_t * gear_ratio(p) * torque_constant_ratio(p)
+
+
+def has_drive_torque(p: RigParams) -> bool:
+    """Whether the drive puts a torque of its own on the flywheel (mesh friction, gear drag, cogging;
+    :mod:`.drive`): the engines then add :func:`drive_torque` to the rotor friction."""
+    d = getattr(p, "drive", None)
+    if d is None:
+        return False
+    return bool(np.any(np.asarray(d.gear_efficiency) < 1.0) or np.any(np.asarray(d.gear_drag) > 0)
+                or np.any(np.asarray(d.cogging_torque) > 0))
+
+
+def has_driver_lag(p: RigParams) -> bool:
+    """Whether the current driver has a bandwidth of its own (``drive.driver_time_constant`` > 0)."""
+    d = getattr(p, "drive", None)
+    return d is not None and bool(np.any(np.asarray(d.driver_time_constant) > 0))
+
+
+def driver_lag(p: RigParams):
+    """The current loop's decay over one sample, ``exp(-sample_dt / tau)``, - (0: the dead-beat loop)."""
+    tau = np.asarray(p.drive.driver_time_constant, dtype=float)
+    dt = 1.0 / float(getattr(p, "sample_rate", None) or p.sensors.sample_rate)
+    with np.errstate(divide="ignore"):
+        lag = np.where(tau > 0, np.exp(-dt / np.where(tau > 0, tau, 1.0)), 0.0)
+    return float(lag) if lag.ndim == 0 else lag
+
+
+def drive_torque(psi, omega, i, k_t, p: RigParams):
+    """The drive's own torque on the flywheel (relative to the hull), N m (:mod:`.drive`).
+
+    ``psi`` rad and ``omega`` rad/s: the flywheel relative to the hull; ``i`` A, the current
+    held over the step; ``k_t`` N m/A at the flywheel (:func:`true_torque_constant`).
+    Cogging ``N T_c sin(n N psi + phase)`` (``N`` the gear ratio, ``T_c`` at the motor shaft:
+    conservative, its potential ``T_c cos(n N psi + phase) / n``); the gearbox's mesh friction
+    ``(1 - efficiency) |k_t i|`` and no-load drag against the relative motion, smoothed as the
+    rotor's dry friction (:func:`flywheel_friction_torque`).
+    """
+    d = p.drive
+    n = d.gear_ratio
+    cog = n * d.cogging_torque * np.sin(d.cogging_periods * n * psi + d.cogging_phase)
+    loss = (1.0 - d.gear_efficiency) * np.abs(k_t * i) + d.gear_drag
+    return cog - loss * np.tanh(omega / (10 * DRY_FRICTION_RATE_SCALE))
+
+
+def cogging_energy(psi, p: RigParams):
+    """The cogging potential at flywheel angle ``psi`` (rad), J: ``T_c cos(n N psi + phase) / n`` (0 without cogging)."""
+    d = getattr(p, "drive", None)
+    if d is None or not np.any(np.asarray(d.cogging_torque) > 0):
+        return 0.0 * psi
+    return d.cogging_torque * np.cos(d.cogging_periods * d.gear_ratio * psi + d.cogging_phase) / d.cogging_periods
 
 
 def channel_delay(p: RigParams):
@@ -203,6 +261,9 @@ def truth(p: RigParams, k_t: float) -> dict:
     h = p.hull
     out = {"lambda66": h.lambda66, "effects": p.effects.to_dict(), "damping": {"b1": h.b1, "b2": h.b2},
            "k_t": k_t, "phi_neutral": true_neutral(p)}
+    drive = getattr(p, "drive", None)
+    if drive is not None and not drive.ideal:
+        out["drive"] = drive.to_dict()
     model = getattr(p, "hydrodynamics", None)
     if model is not None:
         out.update(truth_block(h.J_hull, h.lambda66, p.spring.c, model))

@@ -151,7 +151,8 @@ class KnownRig:
     c_torsion: float
     """N m/rad, torsion rod stiffness from static calibration."""
     k_t: float
-    """N m/A, motor torque constant (= back-EMF constant in SI)."""
+    """N m/A, torque per ampere at the flywheel (= back-EMF constant per flywheel rad/s, SI): the motor's
+    data-sheet constant times :attr:`gear_ratio` (the block's ``k_t`` is the motor's own)."""
     R: float
     """ohm, winding resistance."""
     sample_rate: float
@@ -180,6 +181,8 @@ class KnownRig:
     (:attr:`current_sampling_used` is then the default, ``instant``)."""
     current_gain_uncertainty: float | None = None
     """Relative uncertainty of the current sensor's gain; ``None``: not stated."""
+    motor_k_t: float | None = field(default=None, compare=False)
+    """N m/A, the motor's own data-sheet constant as the block states it (``None``: ``k_t / gear_ratio``)."""
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
     """Other keys of the block (a bench's ``board``, ``lab``, a lab's own notes), kept on round trip."""
 
@@ -188,6 +191,9 @@ class KnownRig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise KnownRigError(f"KnownRig.{name} = {value!r}: expected a finite number > 0 (SI units)")
+        if self.gear_ratio < 1:
+            raise KnownRigError(f"KnownRig.gear_ratio = {self.gear_ratio!r}: expected a finite number >= 1 (motor "
+                                "turns per flywheel turn)")
 
     # --- derived -------------------------------------------------------------------
     @property
@@ -224,13 +230,16 @@ class KnownRig:
             return None if value is None else float(value)
 
         mode = block.get("current_sampling")
+        gear = float(block.get("gear_ratio") or 1.0)
+        k_t = float(block["k_t"])  # the motor's own; at the flywheel it is k_t * gear_ratio
         return cls(J_hull=float(block["J_hull"]), J_flywheel=float(block["J_flywheel"]),
                    c_torsion=float(block["c_torsion"]), phi_neutral=float(block.get("phi_neutral", 0.0)),
-                   k_t=float(block["k_t"]), R=float(block["R"]), L=opt("L"), i_max=opt("i_max"),
+                   k_t=k_t * gear, motor_k_t=k_t if "gear_ratio" in block else None,
+                   R=float(block["R"]), L=opt("L"), i_max=opt("i_max"),
                    u_max=opt("u_max"), friction_viscous=float(fric.get("viscous", 0.0)),
                    friction_coulomb=float(fric.get("coulomb", 0.0)), phi_counts=int(counts.get("phi", 0) or 0),
                    psi_counts=int(counts.get("psi", 0) or 0), sample_rate=float(block["sample_rate"]),
-                   gear_ratio=float(block.get("gear_ratio") or 1.0),
+                   gear_ratio=gear,
                    current_sampling=None if mode is None else str(mode),
                    current_gain_uncertainty=opt("current_gain_uncertainty"),
                    extra={k: v for k, v in block.items() if k not in BLOCK_KEYS})
@@ -239,24 +248,28 @@ class KnownRig:
     def from_params(cls, params: Any) -> "KnownRig":
         """From a simulated rig's :class:`~addedinertia_env.rig.params.RigParams` (no truth)."""
         m, s = params.motor, params.sensors
+        gear = float(params.drive.gear_ratio)
         return cls(J_hull=params.hull.J_hull, J_flywheel=m.J_flywheel, c_torsion=params.spring.c,
-                   phi_neutral=params.spring.phi_neutral, k_t=m.k_t, R=m.R, L=m.L, i_max=m.i_max, u_max=m.u_max,
+                   phi_neutral=params.spring.phi_neutral, k_t=m.k_t * gear,
+                   motor_k_t=m.k_t if gear != 1.0 else None, R=m.R, L=m.L, i_max=m.i_max, u_max=m.u_max,
                    friction_viscous=m.friction_viscous, friction_coulomb=m.friction_coulomb,
                    phi_counts=s.phi_counts, psi_counts=s.psi_counts, sample_rate=s.sample_rate,
-                   gear_ratio=float(getattr(m, "gear_ratio", 1.0)))
+                   gear_ratio=gear)
 
     # --- writing -------------------------------------------------------------------
     def to_block(self) -> dict[str, Any]:
         """The run record's ``rig`` block (spec key names; unstated optional keys left out)."""
+        geared = self.gear_ratio != 1.0 or self.motor_k_t is not None  # the motor's own constant and the ratio
+        k_t = (self.motor_k_t if self.motor_k_t is not None else self.k_t / self.gear_ratio) if geared else self.k_t
         block: dict[str, Any] = {"J_hull": self.J_hull, "J_flywheel": self.J_flywheel, "c_torsion": self.c_torsion,
-                                 "phi_neutral": self.phi_neutral, "k_t": self.k_t, "R": self.R}
+                                 "phi_neutral": self.phi_neutral, "k_t": k_t, "R": self.R}
         for key in ("L", "i_max", "u_max"):
             if getattr(self, key) is not None:
                 block[key] = getattr(self, key)
         block["motor_friction"] = {"viscous": self.friction_viscous, "coulomb": self.friction_coulomb}
         block["encoder_counts"] = {"phi": self.phi_counts, "psi": self.psi_counts}
         block["sample_rate"] = self.sample_rate
-        if self.gear_ratio != 1.0:
+        if geared:
             block["gear_ratio"] = self.gear_ratio
         for key in ("current_sampling", "current_gain_uncertainty"):
             if getattr(self, key) is not None:

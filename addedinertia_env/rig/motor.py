@@ -23,11 +23,20 @@ import numpy as np
 from .signals import MODES, MotorCommand
 
 
-def terminal_voltage(cmd: MotorCommand, i0, omega, *, R, L, k_e, u_max, i_max, sample_dt, decay=None):
+def terminal_voltage(cmd: MotorCommand, i0, omega, *, R, L, k_e, u_max, i_max, sample_dt, decay=None, lag=0.0):
     """Voltage the drive holds over the next sample, V (works on arrays). ``decay``: the current's
-    decay over a sample, ``exp(-sample_dt R / L)``, when the caller keeps it (else computed here)."""
+    decay over a sample, ``exp(-sample_dt R / L)``, when the caller keeps it (else computed here).
+
+    ``lag`` (-): a current driver with its own bandwidth (``exp(-sample_dt / tau)``,
+    :func:`~.forces.driver_lag`; 0: dead-beat) aims each sample at
+    ``target + (i0 - target) lag`` instead of the (clipped) command ``target``: a first-order
+    loop with time constant ``tau``."""
     a = np.exp(-sample_dt * R / L) if decay is None else decay
-    return drive_voltage(MODES.index(cmd.mode), cmd.value, i0, omega, R, k_e, u_max, i_max, a)
+    value = cmd.value
+    if cmd.mode == "current" and np.any(np.asarray(lag) != 0):
+        target = np.minimum(np.maximum(value, -i_max), i_max)
+        value = target + (i0 - target) * lag
+    return drive_voltage(MODES.index(cmd.mode), value, i0, omega, R, k_e, u_max, i_max, a)
 
 
 def drive_voltage(mode, value, i0, omega, R, k_e, u_max, i_max, decay):

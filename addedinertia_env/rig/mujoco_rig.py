@@ -115,6 +115,7 @@ class MujocoRig(SimulatedRigBase):
         self._motor = self.model.actuator(MOTOR).id
         self._brake = self.model.equality(BRAKE).id
         self.k_t = forces.true_torque_constant(params)
+        self._driver_lag = forces.driver_lag(params)
         self.sensors = Sensors(params, seed)
         self.reset()
 
@@ -161,7 +162,8 @@ class MujocoRig(SimulatedRigBase):
         passive = cmd.mode == "passive"
         memory = forces.has_radiation_memory(p)
         u = terminal_voltage(cmd, self.i, omega, R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max,
-                             i_max=m.i_max, sample_dt=p.sensors.dt)
+                             i_max=m.i_max, sample_dt=p.sensors.dt, lag=self._driver_lag)
+        drive = forces.has_drive_torque(p)
         for _ in range(p.physics_substeps):
             phi, w = d.qpos[self._hull_qpos], d.qvel[self._hull_dof]
             psi0, omega = d.qpos[self._fly_qpos], d.qvel[self._fly_dof]
@@ -169,6 +171,8 @@ class MujocoRig(SimulatedRigBase):
             self._w_prev = float(w)
             q_hull = float(forces.hull_extra_torque(phi, w_mid, self.water_rate, p))
             q_fly = float(forces.flywheel_friction_torque(omega, p))
+            if drive:  # the drive's own torque (cogging, gear friction), with the current held over the step
+                q_fly += float(forces.drive_torque(psi0, omega, 0.0 if passive else self.i, self.k_t, p))
             q_rad = 0.0
             if memory:
                 self.radiation_x, mu = forces.radiation_memory_step(self.radiation_x, w_mid, p)

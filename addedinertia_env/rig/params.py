@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from .drive import DriveParams
 from .effects import Effects
 from .known import KnownRig
 from .radiation import CumminsModel
@@ -125,9 +126,13 @@ class RigParams:
     # Radiation memory (rig/radiation.py): None = constant added inertia lambda66 (the default);
     # a CumminsModel = Cummins' convolution, lambda66 then being A66(0). Not a hidden effect.
     hydrodynamics: CumminsModel | None = None
+    # The drive's flaws (rig/drive.py: gearbox, cogging, driver bandwidth); the default is the ideal drive.
+    drive: DriveParams = field(default_factory=DriveParams)
 
     def __post_init__(self) -> None:
         _positive(self, "brake_torque", "physics_substeps")
+        if not isinstance(self.drive, DriveParams):
+            raise ValueError(f"RigParams.drive = {self.drive!r}: expected a DriveParams (rig/drive.py)")
         if self.physics_substeps > MAX_PHYSICS_SUBSTEPS:
             raise ValueError(f"RigParams.physics_substeps = {self.physics_substeps!r}: expected at most "
                              f"{MAX_PHYSICS_SUBSTEPS} integrator steps per sample")

@@ -18,6 +18,7 @@ from ..config_io import CONFIG_DIR, RIG_DIR, ConfigError, check_keys, read_yaml
 
 from ..hull.geometry import shape_from_mapping
 from . import hydro, radiation
+from .drive import drive_from_block
 from .effects import Effects
 from .params import HullParams, MotorParams, RigParams, SensorParams, SpringParams
 
@@ -46,7 +47,7 @@ def rig_path(name: str) -> Path:
 
 REQUIRED_BLOCKS = ("hull", "spring", "motor")  # what a rig file must state; sensors and the rest have defaults
 TOP_KEYS = ("name", "hull", "spring", "motor", "sensors", "brake_torque", "physics_substeps", "effects", "experiment",
-            "hydrodynamics", "extends")
+            "hydrodynamics", "extends", "drive")
 HYDRO_KEYS = ("model", "source", "cache")
 
 
@@ -139,6 +140,14 @@ def rig_from_mapping(data: dict[str, Any], effects: Effects | None = None,
     for key in ("brake_torque", "physics_substeps"):
         if key in data:
             kwargs[key] = data[key]
+    if data.get("drive") is not None:  # the drive's flaws, each value with its unit (rig/drive.py)
+        motor_block = data.get("motor") or {}
+        drive, supply = drive_from_block(data["drive"], f"{where}: drive", R=motor.R, i_max=motor.i_max)
+        if supply is not None:
+            if "u_max" in motor_block:
+                raise ConfigError(f"{where}: both motor.u_max and drive.supply give the supply voltage; expected one")
+            motor = dataclasses.replace(motor, u_max=supply)
+        kwargs["drive"] = drive
     try:
         return RigParams(hull=hull, spring=spring, motor=motor, sensors=sens, effects=eff, **kwargs)
     except (TypeError, ValueError) as e:
