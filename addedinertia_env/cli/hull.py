@@ -198,13 +198,14 @@ def _netcdf(args) -> dict:
     from ..hull.bem import CapytaineMissing  # noqa: PLC0415
     from ..hull.mesh_checks import MeshError  # noqa: PLC0415
     from ..hull.netcdf import export  # noqa: PLC0415
+    from ..hull.presets import preset_hull  # noqa: PLC0415
 
     if args.deep or args.solve or args.write_cache:
         raise BadInput("--netcdf solves the floating hull and writes only the NetCDF file: drop --deep/--solve/--write-cache")
     if Path(args.hull).suffix.lower() not in ("", ".yaml", ".yml") and not Path(args.hull).is_file():
         raise BadInput(f"{args.hull}: no such mesh file; expected a rig preset name or a mesh file Capytaine reads")
     try:
-        out = export(args.hull, args.netcdf, panels=args.panels[1] if args.panels else None)
+        out = export(args.hull, args.netcdf, panels=args.panels[1] if args.panels else None, preset_hull=preset_hull)
     except CapytaineMissing as e:
         raise BadInput(f"{args.hull}: --netcdf: {e}") from None
     except (MeshError, ValueError) as e:

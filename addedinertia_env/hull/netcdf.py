@@ -103,12 +103,14 @@ def write_netcdf(ds, path: str | Path) -> Path:
     return path
 
 
-def export(target: str, path: str | Path, *, panels: int | None = None) -> dict[str, Any]:
+def export(target: str, path: str | Path, *, panels: int | None = None, preset_hull=None) -> dict[str, Any]:
     """Solve the preset or mesh file ``target`` and write its dataset to ``path``; returns a summary.
 
     A preset is meshed at ``panels`` (default: the cache's fine resolution) and solved at
     the cache's frequencies (:data:`.study.DEFAULT_OMEGAS`), with the cache's memory model
-    as attributes where there is one; a mesh file is solved as given. Raises
+    as attributes where there is one; a mesh file is solved as given. ``preset_hull``: the
+    function that gives a preset's hull shape and facts (``hull.presets.preset_hull``, passed by
+    the caller, so hydrodynamics needs nothing of the simulator's presets). Raises
     :class:`.bem.CapytaineMissing` without Capytaine, ``ValueError`` (and
     :class:`.mesh_checks.MeshError`) for a mesh that cannot be used."""
     from . import study as st  # noqa: PLC0415
@@ -118,7 +120,8 @@ def export(target: str, path: str | Path, *, panels: int | None = None) -> dict[
     attrs: dict[str, Any] = {}
     if suffix in ("", ".yaml", ".yml"):
         from .geometry import quarter_mesh  # noqa: PLC0415
-        from .presets import preset_hull  # noqa: PLC0415
+        if preset_hull is None:
+            raise ValueError(f"{target}: a preset needs the caller's preset_hull (hull.presets.preset_hull)")
 
         shape, facts = preset_hull(target)
         n = panels or st.DEFAULT_PANELS[1]
