@@ -6,6 +6,6 @@ evaluation path serves PID, LQR and a trained network. Classical controllers als
 ``reset(context)`` at the start of each reverse stroke (see :mod:`agents.base`).
 """
 
-from .registry import CLASSICAL, make_controller
+from agents.registry import CLASSICAL, make_controller
 
 __all__ = ["CLASSICAL", "make_controller"]

@@ -1,7 +1,7 @@
 """The base class of the classical controllers and the stroke feed-forward they share.
 
 What a controller is given, :class:`ControllerContext`, lives beside the task
-(``addedinertia_env/task.py``) and is re-exported here."""
+(``addedinertia_env/experiment/task.py``) and is re-exported here."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from addedinertia_env.experiment.feedforward import stroke_feedforward_current, stroke_impulse
-from addedinertia_env.task import ControllerContext
+from addedinertia_env.experiment.task import ControllerContext
 
 __all__ = ["Controller", "ControllerContext", "stroke_feedforward_current", "stroke_impulse"]
 

@@ -2,7 +2,7 @@
 geared, supply-limited drive.
 
 Through a gearbox the mesh loses ``(1 - efficiency) |torque|`` plus a drag against the
-flywheel's motion (rig/drive.py), work the current shows but the flywheel never gets, so
+flywheel's motion (sim/drive.py), work the current shows but the flywheel never gets, so
 the energy method's bookkeeping is off by a loss that depends on how fast the flywheel
 turns while the current flows. The plan decides that: with no pre-spin the flywheel turns
 one way through the whole stroke (the loss acts like a torque-scale error), with the full
@@ -26,8 +26,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from .base import ControllerContext, stroke_impulse
-from .feedforward_pd import FeedforwardPD
+from agents.base import ControllerContext, stroke_impulse
+from agents.feedforward_pd import FeedforwardPD
 
 
 class DriveAwarePD(FeedforwardPD):

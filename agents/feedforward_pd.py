@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from .base import Controller, ControllerContext, stroke_feedforward_current, stroke_impulse
-from .observer import HullObserver
-from .tuned import resolve_params
+from agents.base import Controller, ControllerContext, stroke_feedforward_current, stroke_impulse
+from agents.observer import HullObserver
+from agents.tuned import resolve_params
 
 
 class StrokeController(Controller):

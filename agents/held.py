@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from addedinertia_env.task import ControllerContext
+from addedinertia_env.experiment.task import ControllerContext
 
-from .classical import make_plain_controller
-from .residual import policy_rate_context
+from agents.classical import make_plain_controller
+from agents.residual import policy_rate_context
 
 
 class HeldController:

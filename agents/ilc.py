@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from .feedforward_pd import FeedforwardPD
+from agents.feedforward_pd import FeedforwardPD
 
 
 class ILC(FeedforwardPD):

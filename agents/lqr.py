@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from .feedforward_pd import StrokeController
+from agents.feedforward_pd import StrokeController
 
 
 def lqr_gain(c_over_J: float, dt: float, q: np.ndarray, r: float) -> np.ndarray:

@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import expm
 
-from .base import stroke_feedforward_current
-from .feedforward_pd import StrokeController
+from agents.base import stroke_feedforward_current
+from agents.feedforward_pd import StrokeController
 
 
 class MPC(StrokeController):

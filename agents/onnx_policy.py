@@ -34,10 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from addedinertia_env.task import OBSERVATION_FIELDS
+from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 
-from .classical import UnknownController, make_plain_controller
-from .residual import BASE_RATES, policy_rate_context, residual_action
+from agents.classical import UnknownController, make_plain_controller
+from agents.residual import BASE_RATES, policy_rate_context, residual_action
 
 META_PREFIX = "addedinertia."
 MAX_POLICY_BYTES = 200_000_000  # a policy network for this task is well under 1 MB
@@ -133,7 +133,7 @@ class OnnxPolicy:
         shape = inputs[0].shape
         if inputs[0].type != "tensor(float)" or len(shape) != 2 or (isinstance(shape[1], int) and shape[1] != n_obs):
             raise OnnxPolicyError(f"{self.path}: input {inputs[0].name!r} is {inputs[0].type} {shape}; expected "
-                                  f"tensor(float) [batch, {n_obs}] (addedinertia_env.task.OBSERVATION_FIELDS)")
+                                  f"tensor(float) [batch, {n_obs}] (addedinertia_env.experiment.task.OBSERVATION_FIELDS)")
         if not outputs:
             raise OnnxPolicyError(f"{self.path}: no outputs; expected the action (batch, 1)")
         try:
@@ -212,7 +212,7 @@ class OnnxPolicy:
         obs = np.asarray(observation, dtype=np.float32).reshape(-1)
         if obs.size != len(OBSERVATION_FIELDS):
             raise OnnxPolicyError(f"observation of size {obs.size}; expected {len(OBSERVATION_FIELDS)} "
-                                  "(addedinertia_env.task.OBSERVATION_FIELDS)")
+                                  "(addedinertia_env.experiment.task.OBSERVATION_FIELDS)")
         new_action = self._calls % getattr(self, "_repeat", self.action_repeat) == 0
         if new_action:
             self._held = self.network(obs).reshape(-1)[:1].astype(np.float32)

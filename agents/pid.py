@@ -10,7 +10,7 @@ integral term removes the slowly varying part of that lag. Knobs and ranges:
 
 from __future__ import annotations
 
-from .feedforward_pd import StrokeController
+from agents.feedforward_pd import StrokeController
 
 
 class PID(StrokeController):

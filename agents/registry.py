@@ -7,7 +7,7 @@ from typing import Any
 
 from addedinertia_env.experiment.controller import Controller
 
-from .classical import CLASSICAL, UnknownController, controller_class, load_factory, make_plain_controller
+from agents.classical import CLASSICAL, UnknownController, controller_class, load_factory, make_plain_controller
 
 __all__ = ["CLASSICAL", "DEFAULT_CONTROLLER", "REFERENCE_ROWS", "UnknownController", "controller_class",
            "load_factory", "make_controller"]
@@ -26,7 +26,7 @@ def make_controller(name: str, **kwargs: Any) -> Controller:
                                 f"(`addedinertia bench run --suite NAME --controller {name}`); it cannot drive "
                                 "a bench or an experiment")
     if name.startswith("onnx:"):
-        from .onnx_policy import OnnxPolicy  # noqa: PLC0415 - optional heavy import (onnxruntime)
+        from agents.onnx_policy import OnnxPolicy  # noqa: PLC0415 - optional heavy import (onnxruntime)
 
         if kwargs:
             raise TypeError(f"controller {name!r}: an exported policy takes no parameters, got {sorted(kwargs)} "

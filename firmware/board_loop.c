@@ -1,4 +1,4 @@
-/* The bench board's inner loop: see board_loop.h and addedinertia_env/rig/board_loop.py. */
+/* The bench board's inner loop: see board_loop.h and addedinertia_env/loop/board_loop.py. */
 #include "board_loop.h"
 
 #include <math.h>

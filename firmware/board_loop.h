@@ -1,6 +1,6 @@
 /* The bench board's inner loop (protocol version 2): the C reference for firmware.
  *
- * Port of addedinertia_env/rig/board_loop.py, step for step (its module docstring and
+ * Port of addedinertia_env/loop/board_loop.py, step for step (its module docstring and
  * docs/PROTOCOL.md section 9 explain each step); tests/test_board_loop_c.py compiles this
  * file with gcc and holds its outputs equal to the Python loop's on the same inputs.
  * Doubles throughout, as in the Python reference; a firmware on a single-precision FPU

@@ -6,7 +6,7 @@ Modules, from the wire up (docs/PROTOCOL.md, docs/BENCH.md):
   streaming parser;
 * ``messages``: payload layouts of protocol version 1 (HELLO, CAPS, RESET, ARM, DISARM,
   COMMAND, SAMPLE, FAULT, HEARTBEAT, QUERY) and version 2, the two-rate bench (SEGMENT,
-  SAMPLE_BATCH; the board's inner loop is ``addedinertia_env/rig/board_loop.py``);
+  SAMPLE_BATCH; the board's inner loop is ``addedinertia_env/loop/board_loop.py``);
 * ``link``: the host end over pyserial (``/dev/ttyUSB0``, ``socket://``, ``loop://``);
 * ``safety``: the envelope between any controller and the link; ``watchdog``: the host
   watchdog thread;

@@ -39,17 +39,17 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable
 
-from addedinertia_env.rig.board_loop import Segment, elapsed_us, zoh_segment
+from addedinertia_env.loop.board_loop import Segment, elapsed_us, zoh_segment
 from addedinertia_env.rig.known import KnownRig
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.sensors import Reading
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.sensors import Reading
 
-from . import messages as m
-from .framing import ClockUnwrapper, Frame
-from .lab import LabConfig, known_rig
-from .link import Link, LinkError
-from .safety import SafetyEnvelope, SafetyLimits, SafetyTrip
-from .watchdog import Watchdog
+from hw_adapter import messages as m
+from hw_adapter.framing import ClockUnwrapper, Frame
+from hw_adapter.lab import LabConfig, known_rig
+from hw_adapter.link import Link, LinkError
+from hw_adapter.safety import SafetyEnvelope, SafetyLimits, SafetyTrip
+from hw_adapter.watchdog import Watchdog
 
 PASSIVE = MotorCommand("passive", 0.0)
 REALTIME_WATCHDOG_S = 0.020  # s: link silence that trips a free-running (real) bench

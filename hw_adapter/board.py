@@ -8,7 +8,7 @@ host's safety code is tested against a board that behaves like the real one shou
 
 Protocol version 2 (the two-rate bench, docs/PROTOCOL.md section 9): a host whose HELLO
 comes in a version-2 frame gets a version-2 CAPS; armed, the board then runs the inner
-loop of :mod:`addedinertia_env.rig.board_loop` at every tick on the newest valid
+loop of :mod:`addedinertia_env.loop.board_loop` at every tick on the newest valid
 SEGMENT (late ones counted and dropped; when they run out it holds for the grace, then
 goes safe by itself with fault SEGMENTS), and streams its samples in SAMPLE_BATCH frames.
 """
@@ -19,14 +19,14 @@ import math
 import time
 from dataclasses import dataclass
 
-from addedinertia_env.rig.board_loop import DEFAULT_GRACE_US, DEFAULT_RATE_FILTER_HZ, MAX_KNOTS, BoardLoop
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import RigParams
-from addedinertia_env.rig.sensors import Reading
+from addedinertia_env.loop.board_loop import DEFAULT_GRACE_US, DEFAULT_RATE_FILTER_HZ, MAX_KNOTS, BoardLoop
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import RigParams
+from addedinertia_env.sim.sensors import Reading
 
-from . import messages as m
-from .faults import FaultLog, FaultPlan
+from hw_adapter import messages as m
+from hw_adapter.faults import FaultLog, FaultPlan
 
 PASSIVE = MotorCommand("passive", 0.0)
 WIRE_COUNTS = 2**24  # counts per turn on the wire when the simulated encoder is exact (counts = 0)

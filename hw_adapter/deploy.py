@@ -26,15 +26,15 @@ from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import Experiment, ExperimentError
 from addedinertia_env.experiment.runner import drive
 from addedinertia_env.identify import IdentificationError, identify
-from addedinertia_env.record import read_record
-from addedinertia_env.rig.motor import MotorCommand
+from addedinertia_env.records.record import read_record
+from addedinertia_env.sim.motor import MotorCommand
 
-from . import messages as m
-from .bench_rig import BenchRig
-from .lab import LabConfig
-from .link import LinkError
-from .recorder import IncrementalRecord
-from .safety import SafetyTrip
+from hw_adapter import messages as m
+from hw_adapter.bench_rig import BenchRig
+from hw_adapter.lab import LabConfig
+from hw_adapter.link import LinkError
+from hw_adapter.recorder import IncrementalRecord
+from hw_adapter.safety import SafetyTrip
 
 EXIT_OK = 0
 EXIT_IDENTIFY_FAILED = 1  # the run completed but lambda66 could not be identified

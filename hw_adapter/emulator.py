@@ -27,11 +27,11 @@ import threading
 import time
 from pathlib import Path
 
-from addedinertia_env.atomic import atomic_write_text
+from addedinertia_env.foundation.atomic import atomic_write_text
 
-from . import messages as m
-from .board import Board
-from .framing import FrameParser, encode_frame
+from hw_adapter import messages as m
+from hw_adapter.board import Board
+from hw_adapter.framing import FrameParser, encode_frame
 
 HEARTBEAT_S = 0.1  # s, idle heartbeat of a free-running board before the host's HELLO
 IDLE_TIMEOUT_S = 30.0  # s without a valid frame from the host: the connection is dropped (board safe)

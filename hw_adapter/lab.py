@@ -35,14 +35,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from addedinertia_env.config_io import check_keys, read_yaml
+from addedinertia_env.foundation.config_io import check_keys, read_yaml
 
 from addedinertia_env.rig.known import FRICTION_KEYS, RIG_BLOCK, KnownRig, block_problems
-from addedinertia_env.rig.presets import ConfigError, load_preset, rig_from_mapping
+from addedinertia_env.sim.presets import ConfigError, load_preset, rig_from_mapping
 from addedinertia_env.experiment.protocol import plan_from_preset
 
-from .messages import CAP_EMULATOR, Caps
-from .safety import SafetyLimits
+from hw_adapter.messages import CAP_EMULATOR, Caps
+from hw_adapter.safety import SafetyLimits
 
 # The rig block's keys a lab states (calibration, data sheet); the board states the others.
 LAB_RIG_KEYS = tuple(key.name for key in RIG_BLOCK if key.source == "lab")

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import serial
 
-from .framing import ClockUnwrapper, Frame, FrameParser, encode_frame, seq_gap
-from .messages import Message, MessageError, decode
+from hw_adapter.framing import ClockUnwrapper, Frame, FrameParser, encode_frame, seq_gap
+from hw_adapter.messages import Message, MessageError, decode
 
 DEFAULT_BAUDRATE = 2_000_000  # real serial ports; ignored by socket:// and loop://
 MAX_LATE_READS = 64  # non-blocking reads allowed after a recv's deadline (draining what already arrived)

@@ -9,11 +9,11 @@ import sys
 import time
 from pathlib import Path
 
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 
-from .board import Board, BoardLimits
-from .emulator import EmulatorServer
-from .faults import parse_faults
+from hw_adapter.board import Board, BoardLimits
+from hw_adapter.emulator import EmulatorServer
+from hw_adapter.faults import parse_faults
 
 
 def start_emulator(rig: str = "wigley-2m", faults: str = "", fast: bool = True, seed: int = 0,

@@ -27,7 +27,7 @@ at SCHED_FIFO priority P and the emulator (the board) at P + 5, as a bench PC wo
 
 from __future__ import annotations
 
-from addedinertia_env.machine import cpu_model
+from addedinertia_env.foundation.machine import cpu_model
 
 import argparse
 import json
@@ -38,12 +38,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 from agents import make_controller
 
-from .deploy import DeployOptions, deploy
-from .lab import load_lab
-from .loopback import spawn_bench_server
+from hw_adapter.deploy import DeployOptions, deploy
+from hw_adapter.lab import load_lab
+from hw_adapter.loopback import spawn_bench_server
 
 FAULTS = {"drop": "drop=1.0@{at}", "corrupt": "corrupt=1.0@{at}", "latency": "latency=300@{at}",
           "disconnect": "disconnect@{at}", "glitch": "glitch=0.2@{at}", "stuck_brake": "stuck_brake@{at}"}
@@ -133,8 +133,8 @@ def simulated_reference(args) -> dict:
     from addedinertia_env.experiment.runner import run_experiment  # noqa: PLC0415
     from addedinertia_env.experiment.two_rate import drive_two_rate  # noqa: PLC0415
     from addedinertia_env.identify import IdentificationError, identify  # noqa: PLC0415
-    from addedinertia_env.rig.board_loop import TwoRateSimRig  # noqa: PLC0415
-    from addedinertia_env.rig.mujoco_rig import MujocoRig  # noqa: PLC0415
+    from addedinertia_env.loop.board_loop import TwoRateSimRig  # noqa: PLC0415
+    from addedinertia_env.sim.mujoco_rig import MujocoRig  # noqa: PLC0415
 
     params = rig_from_mapping(load_preset(args.rig))
     plan = load_lab(args.rig).plan(hold_s=args.hold)

@@ -14,9 +14,9 @@ import math
 import struct
 from dataclasses import dataclass
 
-from addedinertia_env.rig.board_loop import MAX_KNOTS, Segment
+from addedinertia_env.loop.board_loop import MAX_KNOTS, Segment
 
-from .framing import Frame
+from hw_adapter.framing import Frame
 
 # Message types (u8).
 HELLO = 0x01  # host -> board
@@ -308,7 +308,7 @@ class Fault:
 
 @dataclass(frozen=True)
 class SegmentMsg:
-    """Version 2, host -> board: one :class:`~addedinertia_env.rig.board_loop.Segment` on the wire.
+    """Version 2, host -> board: one :class:`~addedinertia_env.loop.board_loop.Segment` on the wire.
 
     Layout: u16 seg_id, u8 flags (bit 0 brake at t0, bit 1 brake switch valid, bit 2 pd:
     reference knots follow, bit 3 end passive, bit 4 passive), u8 n knots (1..8), u32

@@ -4,7 +4,7 @@ The JSON (``addedinertia-run/1``, ``docs/RUN_RECORD.md``) is written at the
 start with ``experiment.status = "running"`` and rewritten at the end with
 ``"complete"`` or ``"aborted: <reason>"`` (atomically, via ``record.write``'s helper).
 CSV rows are appended as samples arrive and flushed at least every ``flush_s``. A
-record cut short is still readable by :func:`addedinertia_env.record.read_record`; its
+record cut short is still readable by :func:`addedinertia_env.records.record.read_record`; its
 status says it is partial. A process killed outright leaves ``"running"``: partial too.
 """
 
@@ -16,11 +16,11 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from addedinertia_env.atomic import atomic_write_text
-from addedinertia_env.jsonable import plain
-from addedinertia_env.record import FORMAT
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.sensors import Reading
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.foundation.jsonable import plain
+from addedinertia_env.records.record import FORMAT
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.sensors import Reading
 
 COLUMNS = ("t", "phase", "phi", "psi", "u", "i", "i_cmd", "u_cmd", "brake")
 

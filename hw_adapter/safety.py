@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-from addedinertia_env.rig.motor import MotorCommand
+from addedinertia_env.sim.motor import MotorCommand
 
 
 class SafetyTrip(RuntimeError):

@@ -17,8 +17,8 @@ import sys
 
 from addedinertia_env.bench.runner import run_tasks
 from addedinertia_env.bench.suites import EpisodeTask
-from addedinertia_env.rig.drive import DriveParams
-from addedinertia_env.scenarios import make_scenario
+from addedinertia_env.sim.drive import DriveParams
+from addedinertia_env.experiment.scenarios import make_scenario
 
 # One flaw at a time, at a realistic size (docs/DRIVE.md cites the parts).
 FLAWS = {

@@ -22,12 +22,12 @@ import pytest
 
 from addedinertia_env.experiment.oracle import OracleController
 from addedinertia_env.experiment.runner import run_experiment
-from addedinertia_env.record import RunRecord, write_record
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import RigParams, SensorParams
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.records.record import RunRecord, write_record
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import RigParams, SensorParams
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 from addedinertia_env.experiment.protocol import plan_from_preset
-from addedinertia_env.simulate import simulate_run
+from addedinertia_env.apps.simulate import simulate_run
 
 REALISTIC_SEED = 1
 

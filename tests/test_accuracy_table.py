@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.atomic import atomic_write_text
-from addedinertia_env.machine import machine_line
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.foundation.machine import machine_line
 from addedinertia_env.reports import accuracy_table as at
 
 

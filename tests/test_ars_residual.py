@@ -12,7 +12,7 @@ from addedinertia_env.bench.runner import run_episode
 from addedinertia_env.bench.suites import load_suite
 from addedinertia_env.learning.ars_residual import LinearPolicy, base_factory, base_params, export_onnx
 from addedinertia_env.learning.paired_batch import run_batch
-from addedinertia_env.task import OBSERVATION_FIELDS
+from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 
 
 def test_the_trainer_scores_an_episode_as_the_benchmark_does():

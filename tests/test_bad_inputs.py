@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 
 from addedinertia_env.cli import main
-from addedinertia_env.consistency import check_momentum_consistent, momentum_account
+from addedinertia_env.records.consistency import check_momentum_consistent, momentum_account
 from addedinertia_env.identify import IdentificationError, identify
 from addedinertia_env.identify.common import LAMBDA_RATIO_REFUSE, LAMBDA_RATIO_WARN
-from addedinertia_env.record import RecordError, RunRecord, read_record, write_record
-from addedinertia_env.simulate import simulate_run
+from addedinertia_env.records.record import RecordError, RunRecord, read_record, write_record
+from addedinertia_env.apps.simulate import simulate_run
 
 from conftest import preset_rig
 

@@ -1,6 +1,6 @@
 """The batched rig against the MuJoCo rig: same inputs, same trajectories.
 
-Tolerances (stated in rig/batched.py and docs/PERFORMANCE.md):
+Tolerances (stated in sim/batched.py and docs/PERFORMANCE.md):
 * float64, hull free or braked from standstill: 1e-9 rad in phi and psi, 1e-9 rad/s in the
   rates (the engines differ only by rounding, ~1e-14, and by MuJoCo's soft brake, ~1e-9);
 * brake set while the hull moves at w0: phi within |w0| physics_dt; Omega within 0.2 |w0| for
@@ -16,15 +16,14 @@ import math
 import numpy as np
 import pytest
 
-from addedinertia_env.rig import effects as E
-from addedinertia_env.rig.batched import (CURRENT, PASSIVE, VOLTAGE, BatchedRig, reference_substep,
-                                          substep_matrix)
-from addedinertia_env.rig.batched_params import BatchedParams
-from addedinertia_env.rig.batched_single import BatchedSingleRig
+from addedinertia_env.sim import effects as E
+from addedinertia_env.sim.batched import CURRENT, PASSIVE, VOLTAGE, BatchedRig, reference_substep, substep_matrix
+from addedinertia_env.sim.batched_params import BatchedParams
+from addedinertia_env.sim.batched_single import BatchedSingleRig
 from addedinertia_env.rig.interface import Rig
-from addedinertia_env.rig.motor import MODES, MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import HullParams, MotorParams, RigParams
+from addedinertia_env.sim.motor import MODES, MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import HullParams, MotorParams, RigParams
 
 ALL_EFFECTS = E.Effects(bearing_coulomb=E.BearingCoulomb(0.06), fluid_memory=E.FluidMemory(8.0, 0.2),
                         spring_stiffening=E.SpringStiffening(6.0), neutral_offset=E.NeutralOffset(0.01),

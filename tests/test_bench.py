@@ -14,7 +14,7 @@ from addedinertia_env.bench.statistics import median_ci as bootstrap_median_ci
 from addedinertia_env.bench.runner import REQUIRED_FIELDS
 from addedinertia_env.bench.suites import load_suite
 from addedinertia_env.cli import main
-from addedinertia_env.rig.presets import ConfigError
+from addedinertia_env.sim.presets import ConfigError
 from agents.base import Controller
 
 

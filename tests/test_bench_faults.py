@@ -15,7 +15,7 @@ from hw_adapter import messages as m
 from hw_adapter.board import Board
 from hw_adapter.emulator import EmulatorServer
 from hw_adapter.framing import FrameParser, encode_frame
-from addedinertia_env.rig.presets import load_rig
+from addedinertia_env.sim.presets import load_rig
 
 
 @pytest.fixture

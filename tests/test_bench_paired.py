@@ -23,11 +23,11 @@ from addedinertia_env.bench.submission import SubmissionError, declared_entry, p
 from addedinertia_env.bench.suites import load_suite
 from addedinertia_env.bench.verdict import discrimination, verdict
 from addedinertia_env.cli import main
-from addedinertia_env.rig.control_loop import ControlLoop, LoopRig
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import RigParams, SensorParams
-from addedinertia_env.scenarios import make_scenario
+from addedinertia_env.loop.control_loop import ControlLoop, LoopRig
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import RigParams, SensorParams
+from addedinertia_env.experiment.scenarios import make_scenario
 
 
 def _rows(controller, errors, energy=1.0, kind=None):

@@ -7,10 +7,16 @@ import math
 
 import pytest
 
-from addedinertia_env.rig.board_loop import (DEFAULT_GRACE_US, HORIZON_PERIODS, BoardLoop, Segment, elapsed_us,
-                                             zoh_segment)
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.loop.board_loop import (
+    DEFAULT_GRACE_US,
+    HORIZON_PERIODS,
+    BoardLoop,
+    Segment,
+    elapsed_us,
+    zoh_segment,
+)
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 from hw_adapter import messages as m
 from hw_adapter.board import Board
 from hw_adapter.framing import FrameParser, encode_frame

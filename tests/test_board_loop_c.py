@@ -1,5 +1,5 @@
 """The C reference of the board's inner loop (firmware/board_loop.c) against the Python one
-(addedinertia_env/rig/board_loop.py): compiled with gcc, driven with the same random
+(addedinertia_env/loop/board_loop.py): compiled with gcc, driven with the same random
 segments and encoder readings (late ones, gaps that starve it, pd and zoh, brake
 switches, a clock that wraps), every decision must be the same."""
 
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from addedinertia_env.rig.board_loop import MAX_KNOTS, BoardLoop, Segment
+from addedinertia_env.loop.board_loop import MAX_KNOTS, BoardLoop, Segment
 
 FIRMWARE = Path(__file__).resolve().parents[1] / "firmware"
 GCC = shutil.which("gcc") or shutil.which("cc")

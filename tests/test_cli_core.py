@@ -18,8 +18,8 @@ import yaml
 
 from addedinertia_env.cli import main
 from addedinertia_env.identify import identify
-from addedinertia_env.record import read_record
-from addedinertia_env.rig.presets import load_preset, load_rig
+from addedinertia_env.records.record import read_record
+from addedinertia_env.sim.presets import load_preset, load_rig
 
 
 def run_cli(capsys, *argv: str) -> tuple[int, str, str]:

@@ -43,7 +43,7 @@ def _onnx_identity(path: Path, n_in: int, n_out: int) -> Path:
 @pytest.fixture
 def broken(tmp_path, realistic_record_path) -> dict[str, Path]:
     """One broken file of each kind."""
-    from addedinertia_env.task import OBSERVATION_FIELDS
+    from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 
     files = {}
     files["record"] = tmp_path / "bad.csv"

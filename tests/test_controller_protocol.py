@@ -55,8 +55,8 @@ def test_every_shipped_policy_is_a_controller(path):
 
 def test_the_references_and_wrappers_are_controllers():
     from addedinertia_env.experiment.oracle import OracleController
-    from addedinertia_env.rig.mujoco_rig import MujocoRig
-    from addedinertia_env.rig.presets import load_rig
+    from addedinertia_env.sim.mujoco_rig import MujocoRig
+    from addedinertia_env.sim.presets import load_rig
     from agents.held import HeldController
     from agents.zero import ZeroCurrent
 

@@ -7,7 +7,7 @@ import pytest
 
 from addedinertia_env.bench.suites import load_suite
 from addedinertia_env.experiment.runner import run_experiment
-from addedinertia_env.rig.mujoco_rig import MujocoRig
+from addedinertia_env.sim.mujoco_rig import MujocoRig
 from agents import make_controller
 from agents.observer import HullObserver
 from addedinertia_env.bench.tuning import sample_candidates, score

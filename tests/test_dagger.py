@@ -12,7 +12,7 @@ from addedinertia_env.bench.suites import load_suite
 from addedinertia_env.learning.ars_residual import base_factory, base_params
 from addedinertia_env.learning.dagger import MLPStudent, export_onnx, fit, load_student, train
 from addedinertia_env.learning.paired_batch import run_batch
-from addedinertia_env.task import OBSERVATION_FIELDS
+from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 
 N_OBS = len(OBSERVATION_FIELDS)
 

@@ -1,7 +1,7 @@
 """Every DAQ quirk of issue 11 (Build 1-4) on data from the project's own DAQ layer.
 
 One simulated dataset (the standard discovery runs, no hidden effect) is passed through
-:mod:`addedinertia_env.daq` one quirk at a time, written to disk and read back (the
+:mod:`addedinertia_env.records.daq` one quirk at a time, written to disk and read back (the
 reader must take it), and identified blind by the whole-record fit, which must stay
 within 0.1 % of the simulator's lambda66 with a 95 % interval that covers it. Only the
 assertions read ``truth``.
@@ -12,11 +12,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.daq import Quirks, apply_quirks, draw_quirks
+from addedinertia_env.records.daq import Quirks, apply_quirks, draw_quirks
 from addedinertia_env.discover import discover
-from addedinertia_env.discover.dataset import simulate_dataset
+from addedinertia_env.apps.discovery_dataset import simulate_dataset
 from addedinertia_env.identify import identify
-from addedinertia_env.record import motion_phase, read_record, sampling, write_record
+from addedinertia_env.records.record import motion_phase, read_record, sampling, write_record
 
 # Tolerance on lambda66 per quirk: 0.1 %, except where the quirk destroys information. A
 # current sampled at its instants every 4 ms misses what a 1 kHz controller did between

@@ -11,10 +11,10 @@ import pytest
 
 from addedinertia_env.cli import main
 from addedinertia_env.identify import identify
-from addedinertia_env.record import read_record
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.records.record import read_record
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 from addedinertia_env.experiment.protocol import plan_from_preset
-from addedinertia_env.simulate import simulate_run
+from addedinertia_env.apps.simulate import simulate_run
 from agents import make_controller
 from hw_adapter.deploy import EXIT_ABORTED, DeployOptions, deploy
 from hw_adapter.lab import load_lab

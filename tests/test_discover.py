@@ -1,7 +1,7 @@
 """Discovery: an effect hidden in simulated records must be found blind, with a positive gain.
 
-Each dataset is the standard one (addedinertia_env.discover.dataset: twists 0.05 and
-0.10 rad x holds 0.5 and 5 s) with one effect drawn from its realistic range (rig/effects/) by the seed.
+Each dataset is the standard one (addedinertia_env.apps.discovery_dataset: twists 0.05 and
+0.10 rad x holds 0.5 and 5 s) with one effect drawn from its realistic range (sim/effects/) by the seed.
 The diagnosis never sees the truth; only the assertions read the simulator's effect.
 Every effect and `none` runs by default on one seed; more seeds are marked slow. The
 detection table in docs/DISCOVERY.md covers 10 seeds per effect.
@@ -17,9 +17,9 @@ import pytest
 
 from addedinertia_env.cli import main
 from addedinertia_env.discover import DiscoveryInputError, discover
-from addedinertia_env.discover.dataset import hidden_effect, simulate_dataset
-from addedinertia_env.record import RunRecord, write_record
-from addedinertia_env.rig.effects import EFFECT_NAMES
+from addedinertia_env.apps.discovery_dataset import hidden_effect, simulate_dataset
+from addedinertia_env.records.record import RunRecord, write_record
+from addedinertia_env.sim.effects import EFFECT_NAMES
 
 # Every effect and `none` in the default run (seed 10); more seeds in `make test-slow`.
 FAST_CASES = [(e, 10) for e in ("none",) + EFFECT_NAMES]
@@ -84,7 +84,7 @@ def test_unmodelled_disturbance_is_unexplained():
 
 def quirky_dataset(effect: str, seed: int) -> list[RunRecord]:
     """The dataset of (effect, seed) as a DAQ with two quirks drawn from the seed would log it."""
-    from addedinertia_env.daq import apply_quirks, draw_quirks
+    from addedinertia_env.records.daq import apply_quirks, draw_quirks
 
     rng = np.random.default_rng(np.random.SeedSequence([seed, 11]))
     quirks = draw_quirks(rng)
@@ -111,7 +111,7 @@ def test_hidden_effect_found_under_drawn_daq_quirks(effect, seed):
 @pytest.mark.slow
 def test_two_effects_at_once_are_both_named():
     """Dry bearing friction and a stiffening spring together: the model selection names both."""
-    from addedinertia_env.rig.effects import BearingCoulomb, Effects, SpringStiffening
+    from addedinertia_env.sim.effects import BearingCoulomb, Effects, SpringStiffening
 
     hidden = Effects(bearing_coulomb=BearingCoulomb(torque=0.06), spring_stiffening=SpringStiffening(k3=6.0))
     records = simulate_dataset("pair", 31, effects=hidden)
@@ -181,7 +181,7 @@ def test_no_usable_record_is_refused_with_a_clear_message(tmp_path, capsys):
     assert err.out == ""  # nothing half-analysed on stdout
     assert "no usable record" in err.err and "forced-oscillation" in err.err
     assert len(err.err.strip().splitlines()) == 1
-    from addedinertia_env.record import read_record
+    from addedinertia_env.records.record import read_record
     with pytest.raises(DiscoveryInputError):
         discover([read_record(path)])
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from addedinertia_env.discover import discover
-from addedinertia_env.discover.dataset import simulate_pair_dataset
+from addedinertia_env.apps.discovery_dataset import simulate_pair_dataset
 from addedinertia_env.discover.pairs import hidden_pair, parse_pair, vocabulary_pairs
-from addedinertia_env.rig.effects import EFFECT_NAMES, registry
+from addedinertia_env.sim.effects import EFFECT_NAMES, registry
 
 ALL_PAIRS = vocabulary_pairs()
 # The default run: a small sample, drawn once from the vocabulary's pairs with a fixed seed.

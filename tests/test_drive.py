@@ -1,4 +1,4 @@
-"""The drive's flaws (rig/drive.py): every engine runs them alike, each changes the run as its
+"""The drive's flaws (sim/drive.py): every engine runs them alike, each changes the run as its
 physics says, a YAML drive block is checked with its units, and a gearbox shows in the record."""
 
 from __future__ import annotations
@@ -8,15 +8,15 @@ import math
 import numpy as np
 import pytest
 
-from addedinertia_env.config_io import ConfigError
-from addedinertia_env.rig import forces
-from addedinertia_env.rig.batched import BatchedRig
-from addedinertia_env.rig.drive import DriveParams
+from addedinertia_env.foundation.config_io import ConfigError
+from addedinertia_env.sim import forces
+from addedinertia_env.sim.batched import BatchedRig
+from addedinertia_env.sim.drive import DriveParams
 from addedinertia_env.rig.known import KnownRig
-from addedinertia_env.rig.motor import MODES, MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import MotorParams, RigParams
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.sim.motor import MODES, MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import MotorParams, RigParams
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 
 FLAWS = {
     "gearbox": DriveParams(gear_ratio=5.0),
@@ -156,7 +156,7 @@ def test_a_gearbox_shows_as_rig_gear_ratio_and_reads_back():
 
 def test_a_suite_draws_its_drive_with_units_and_keeps_the_flywheel_k_t(tmp_path):
     from addedinertia_env.bench.suites import load_suite
-    from addedinertia_env.scenarios import make_scenario
+    from addedinertia_env.experiment.scenarios import make_scenario
 
     suite = load_suite("drive-v0")
     for seed in suite.seeds("test")[:4]:

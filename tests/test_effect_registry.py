@@ -9,19 +9,19 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from addedinertia_env.discover.dataset import DatasetSpec
+from addedinertia_env.apps.discovery_dataset import DatasetSpec
 from addedinertia_env.discover.diagnose import Thresholds, discover
 from addedinertia_env.discover.model import GrayBoxModel, candidates
 from addedinertia_env.discover.prepare import prepare
-from addedinertia_env.rig import effects as E
-from addedinertia_env.rig.batched import BatchedRig
-from addedinertia_env.rig.effects import registry
-from addedinertia_env.rig.motor import MODES, MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import RigParams
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.sim import effects as E
+from addedinertia_env.sim.batched import BatchedRig
+from addedinertia_env.sim.effects import registry
+from addedinertia_env.sim.motor import MODES, MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import RigParams
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 from addedinertia_env.experiment.protocol import plan_from_preset
-from addedinertia_env.simulate import simulate_run
+from addedinertia_env.apps.simulate import simulate_run
 
 BUILT_IN = E.EFFECT_NAMES
 

@@ -14,10 +14,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addedinertia_env.experiment.energy_budget import GROUPS, budget, preset_rig, seeded_errors, seeded_plan, \
-    simulate_with_truth
+from addedinertia_env.apps.energy_budget import (
+    GROUPS,
+    budget,
+    preset_rig,
+    seeded_errors,
+    seeded_plan,
+    simulate_with_truth,
+)
 from addedinertia_env.identify import identify
-from addedinertia_env.record import read_record
+from addedinertia_env.records.record import read_record
 
 PRESETS = ("wigley-2m", "spheroid-7")
 

@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 from scipy.signal import savgol_coeffs, savgol_filter
 
-from addedinertia_env.daq import Quirks, apply_quirks
+from addedinertia_env.records.daq import Quirks, apply_quirks
 from addedinertia_env.identify import identify
 from addedinertia_env.identify import energy, energy_balance, energy_calibration, energy_pooling
 from addedinertia_env.identify.common import _valid_convolution, savgol
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
 from addedinertia_env.identify.savgol_taps import conv_taps
-from addedinertia_env.rig.friction import ROTOR_FRICTION_RATE_SCALE
+from addedinertia_env.sim.friction import ROTOR_FRICTION_RATE_SCALE
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv
 
 SHORT = dict(hold_s=0.5, fixed={"period_s": 3.0}, action_repeat=10)
@@ -313,7 +313,7 @@ def test_polynomial_fits_equal_numpys_to_rounding():
 def test_angle_columns_equal_the_numpy_expressions():
     from addedinertia_env.identify.balance_kernels import angle_uncertainties, angle_values  # noqa: PLC0415
     from addedinertia_env.identify.energy import BalanceTerms, inertia_from_terms  # noqa: PLC0415
-    from addedinertia_env.scan_kernels import squared_step_sums, true_counts  # noqa: PLC0415
+    from addedinertia_env.records.scan_kernels import squared_step_sums, true_counts  # noqa: PLC0415
 
     rng = np.random.default_rng(29)
     n, samples, k2, k3, J_h = 41, 3000, 1400, 1700, 0.012

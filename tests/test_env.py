@@ -24,8 +24,8 @@ from addedinertia_env.envs import ReverseStrokeEnv
 from addedinertia_env.envs.reverse_stroke import simulated_rig
 from addedinertia_env.experiment.runner import run_experiment
 from addedinertia_env.identify import identify
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.task import OBS_LIMIT, TERM_NAMES, TRACKING_UNIT, RewardWeights
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.experiment.task import OBS_LIMIT, TERM_NAMES, TRACKING_UNIT, RewardWeights
 
 ENV_ID = "AddedInertia/ReverseStroke-v0"
 SHORT = {"hold_s": 0.2, "randomize": False}  # nominal rig, realistic sensors, short hold

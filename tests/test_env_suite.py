@@ -29,7 +29,7 @@ from gymnasium.utils.env_checker import check_env
 import addedinertia_env  # noqa: F401 - registers the ids
 from addedinertia_env.bench.suites import available_suites
 from addedinertia_env.learning.toy import register_toy
-from addedinertia_env.rig.presets import available_rigs
+from addedinertia_env.sim.presets import available_rigs
 
 NAMESPACE = "AddedInertia"
 REVERSE_STROKE = "AddedInertia/ReverseStroke-v0"

@@ -16,7 +16,7 @@ from addedinertia_env.cli import main  # noqa: E402
 from addedinertia_env.learning.export import export_onnx, load_trained, random_observations  # noqa: E402
 from addedinertia_env.learning.toy import toy_config  # noqa: E402
 from addedinertia_env.learning.train import train  # noqa: E402
-from addedinertia_env.task import OBSERVATION_FIELDS  # noqa: E402
+from addedinertia_env.experiment.task import OBSERVATION_FIELDS  # noqa: E402
 from agents.onnx_policy import OnnxPolicy, OnnxPolicyError  # noqa: E402
 
 SHIPPED = Path(__file__).resolve().parents[1] / "agents" / "policies" / "reverse_stroke.onnx"
@@ -105,8 +105,8 @@ def test_shipped_policy_is_small_and_matches_its_card():
 
 def test_shipped_policy_runs_an_experiment_within_the_current_limit():
     from addedinertia_env.experiment.runner import run_experiment
-    from addedinertia_env.rig.mujoco_rig import MujocoRig
-    from addedinertia_env.scenarios import make_scenario
+    from addedinertia_env.sim.mujoco_rig import MujocoRig
+    from addedinertia_env.experiment.scenarios import make_scenario
     from agents import make_controller
 
     scenario = make_scenario(123)

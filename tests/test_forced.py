@@ -7,9 +7,9 @@ import pytest
 
 from addedinertia_env.experiment.forced import ForcedPlan, run_forced
 from addedinertia_env.identify import IdentificationError, identify
-from addedinertia_env.record import RunRecord
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import HullParams, RigParams, SensorParams
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import HullParams, RigParams, SensorParams
 
 PLAN = ForcedPlan(alpha=0.05, ratios=(0.75, 1.3), periods=2)
 

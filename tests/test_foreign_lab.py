@@ -20,7 +20,7 @@ import pytest
 
 from addedinertia_env.discover import discover
 from addedinertia_env.identify import identify
-from addedinertia_env.record import read_record, sampling
+from addedinertia_env.records.record import read_record, sampling
 
 # ../shared beside the repository (as in run-record.md's links), from a checkout or a worktree
 _REPO = Path(__file__).resolve().parents[1]

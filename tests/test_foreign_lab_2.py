@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 
 from addedinertia_env.discover import discover
-from addedinertia_env.record import read_record
-from addedinertia_env.rig.effects import registry
+from addedinertia_env.records.record import read_record
+from addedinertia_env.sim.effects import registry
 
 _REPO = Path(__file__).resolve().parents[1]
 CANDIDATE_ARCHIVES = [base / "shared" / "data" / "foreign-lab-2.tar.xz"

@@ -9,9 +9,9 @@ import pytest
 
 from addedinertia_env.experiment.free_decay import FreeDecayPlan, run_free_decay
 from addedinertia_env.identify import IdentificationError, identify
-from addedinertia_env.record import RunRecord
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import HullParams, MotorParams, RigParams, SensorParams
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import HullParams, MotorParams, RigParams, SensorParams
 
 
 @pytest.fixture(scope="module")

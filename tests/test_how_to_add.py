@@ -16,10 +16,10 @@ from addedinertia_env.experiment.protocol import ExperimentPlan, plan_from_prese
 from addedinertia_env.experiment.runner import run_experiment
 from addedinertia_env.identify import METHODS, identify
 from addedinertia_env.identify.common import Result
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import RigParams
-from addedinertia_env.rig.presets import RIG_DIR, load_preset, rig_from_mapping
-from addedinertia_env.simulate import simulate_run
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import RigParams
+from addedinertia_env.sim.presets import RIG_DIR, load_preset, rig_from_mapping
+from addedinertia_env.apps.simulate import simulate_run
 from agents import make_controller
 from agents.base import Controller
 from agents.classical import CLASSICAL

@@ -1,4 +1,4 @@
-"""Hull hydrodynamics from geometry (addedinertia_env/hull, `addedinertia hull`).
+"""Hull hydrodynamics from geometry (addedinertia_env/hydro, `addedinertia hull`).
 
 The BEM tests need Capytaine (the optional ``[hull]`` extra) and are skipped without it;
 everything else (meshes and their checks, closed forms, the retardation function, course
@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 from addedinertia_env.cli import main
-from addedinertia_env.hull import estimates, retardation, stability
-from addedinertia_env.hull.geometry import SUBMERGENCE, HullShape, full_mesh, quarter_mesh, reversed_faces
-from addedinertia_env.hull.mesh_checks import MeshError, check_mesh
-from addedinertia_env.hull.study import cache_path, read_cache, richardson
-from addedinertia_env.rig import hydro
+from addedinertia_env.hydro import estimates, retardation, stability
+from addedinertia_env.hydro.geometry import SUBMERGENCE, HullShape, full_mesh, quarter_mesh, reversed_faces
+from addedinertia_env.hydro.mesh_checks import MeshError, check_mesh
+from addedinertia_env.hydro.study import cache_path, read_cache, richardson
+from addedinertia_env.hydro import closed_forms as hydro
 
 HAS_CAPYTAINE = importlib.util.find_spec("capytaine") is not None
 needs_capytaine = pytest.mark.skipif(not HAS_CAPYTAINE, reason="Capytaine (optional extra [hull]) not installed")
@@ -172,8 +172,8 @@ def test_an_unstable_hull_has_a_positive_root_and_fails_hurwitz():
 
 @pytest.mark.parametrize("preset", ["wigley-2m", "spheroid-7"])
 def test_cached_study_is_physical_and_converged(preset):
-    from addedinertia_env.hull.presets import preset_hull
-    from addedinertia_env.hull.study import summary
+    from addedinertia_env.sim.hull_presets import preset_hull
+    from addedinertia_env.hydro.study import summary
 
     shape, facts = preset_hull(preset)
     data = read_cache(cache_path(preset), shape)
@@ -248,7 +248,7 @@ def test_hull_cli_stability_from_a_record(capsys, realistic_record_path):
 # --- BEM against closed forms (Capytaine) ------------------------------------------------
 
 def _deep_spheroid_error(ratio: float, panels: int) -> float:
-    from addedinertia_env.hull.bem import solve_yaw
+    from addedinertia_env.hydro.bem import solve_yaw
 
     s = HullShape("spheroid", 2.0, 2.0 / ratio)
     r = solve_yaw(quarter_mesh(s, panels, "deep"), [], floating=False)
@@ -273,7 +273,7 @@ def test_bem_deep_spheroid_fine_within_a_quarter_percent_of_lamb(ratio):
 @needs_capytaine
 def test_bem_rigid_lid_halves_the_double_body():
     # zero frequency at the waterline = half the deeply submerged double body (physics.md s6)
-    from addedinertia_env.hull.bem import solve_yaw
+    from addedinertia_env.hydro.bem import solve_yaw
 
     s = HullShape("spheroid", 2.0, 2.0 / 7.0)
     floating = solve_yaw(quarter_mesh(s, 400, "floating"), [1.57], floating=True)
@@ -287,10 +287,10 @@ def test_bem_prior_replaces_the_stroke_estimate_in_the_controller_context():
     import dataclasses
 
     from addedinertia_env.experiment.protocol import Experiment
-    from addedinertia_env.hull.presets import bem_lambda66
-    from addedinertia_env.rig.mujoco_rig import MujocoRig
-    from addedinertia_env.rig.params import SensorParams
-    from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+    from addedinertia_env.sim.hull_presets import bem_lambda66
+    from addedinertia_env.sim.mujoco_rig import MujocoRig
+    from addedinertia_env.sim.params import SensorParams
+    from addedinertia_env.sim.presets import load_preset, rig_from_mapping
     from addedinertia_env.experiment.protocol import plan_from_preset
 
     data = load_preset("wigley-2m")
@@ -312,7 +312,7 @@ def test_bem_prior_replaces_the_stroke_estimate_in_the_controller_context():
 
 @needs_capytaine
 def test_user_mesh_round_trip_and_lid_refused(capsys, tmp_path):
-    from addedinertia_env.hull.geometry import gdf_text
+    from addedinertia_env.hydro.geometry import gdf_text
 
     q = quarter_mesh(WIGLEY, 100, "floating")
     good = tmp_path / "wigley.gdf"
@@ -335,7 +335,7 @@ def test_user_mesh_round_trip_and_lid_refused(capsys, tmp_path):
 # --- radiation memory as a state-space system -----------------------------------------
 
 def test_state_space_fit_recovers_a_known_rational_kernel():
-    from addedinertia_env.hull.radiation_ss import fit_radiation_ss
+    from addedinertia_env.hydro.radiation_ss import fit_radiation_ss
 
     # Kh(s) = 40 s / (s^2 + 3 s + 50): a damped resonance at ~7 rad/s, Kh(0) = 0
     w = np.linspace(0.2, 30.0, 150)
@@ -353,7 +353,7 @@ def test_state_space_fit_recovers_a_known_rational_kernel():
 
 
 def test_state_space_fit_of_the_cached_wigley_is_small_and_stable():
-    from addedinertia_env.hull.radiation_ss import fit_radiation_ss
+    from addedinertia_env.hydro.radiation_ss import fit_radiation_ss
 
     fine = read_cache(cache_path("wigley-2m"))["resolutions"]["fine"]
     ss = fit_radiation_ss(fine["omega"], fine["A66"], fine["B66"], fine["infinite_frequency"]["A66"], tolerance=0.05)

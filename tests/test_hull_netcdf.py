@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from addedinertia_env.cli import main
-from addedinertia_env.hull.study import cache_path, read_cache
+from addedinertia_env.hydro.study import cache_path, read_cache
 
 HAS_CAPYTAINE = importlib.util.find_spec("capytaine") is not None
 needs_capytaine = pytest.mark.skipif(not HAS_CAPYTAINE, reason="Capytaine (optional extra [hull]) not installed")

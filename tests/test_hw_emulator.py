@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from addedinertia_env.cli import main
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.presets import load_rig
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.presets import load_rig
 from hw_adapter import messages as m
 from hw_adapter.bench_rig import BenchRig
 from hw_adapter.board import Board, BoardLimits

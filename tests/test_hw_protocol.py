@@ -9,7 +9,7 @@ import zlib
 
 import pytest
 
-from addedinertia_env.rig.motor import MotorCommand
+from addedinertia_env.sim.motor import MotorCommand
 from hw_adapter import messages as m
 from hw_adapter.faults import FaultSpecError, parse_faults
 from hw_adapter.framing import (HEADER, MAX_FRAME, MAX_PAYLOAD, MAX_PAYLOAD_V2, ClockUnwrapper, FrameError, FrameParser, encode_frame,

@@ -1,4 +1,4 @@
-"""The compiled loops of rig/kernels.py against the numpy code they replaced (written out here)."""
+"""The compiled loops of sim/kernels.py against the numpy code they replaced (written out here)."""
 
 from __future__ import annotations
 
@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from addedinertia_env.rig import effects as E
-from addedinertia_env.rig.batched import N_OUT, STATE, substep_matrix
-from addedinertia_env.rig.batched_params import BatchedParams
-from addedinertia_env.rig.kernels import encoder_reading, linear_substep, noise_uniforms
-from addedinertia_env.rig.noise import batch_keys, normal_pairs, uniform_pairs
-from addedinertia_env.rig.params import RigParams, SensorParams
-from addedinertia_env.rig.sensors import SensorModel
+from addedinertia_env.sim import effects as E
+from addedinertia_env.sim.batched import N_OUT, STATE, substep_matrix
+from addedinertia_env.sim.batched_params import BatchedParams
+from addedinertia_env.sim.kernels import encoder_reading, linear_substep, noise_uniforms
+from addedinertia_env.sim.noise import batch_keys, normal_pairs, uniform_pairs
+from addedinertia_env.sim.params import RigParams, SensorParams
+from addedinertia_env.sim.sensors import SensorModel
 
 
 def test_noise_hash_equals_numpy_bit_for_bit():
@@ -120,8 +120,8 @@ def test_linear_substep_equals_the_map_per_environment():
 def test_whole_sample_kernel_equals_the_step_by_step_path(monkeypatch):
     """BatchedRig.step in one rig_sample call (a batch without hull-torque effects) equals the
     numpy forces + linear_substep + sensor_readings path, mixed modes, brakes, pauses and delays."""
-    from addedinertia_env.rig.batched import BatchedRig
-    from addedinertia_env.rig.params import HullParams, MotorParams
+    from addedinertia_env.sim.batched import BatchedRig
+    from addedinertia_env.sim.params import HullParams, MotorParams
 
     rigs = [RigParams(), RigParams(hull=HullParams(J_hull=3.0, lambda66=4.0, b1=0.5, b2=10.0),
                                    motor=MotorParams(J_flywheel=0.05, k_t=0.2),

@@ -5,11 +5,11 @@ import math
 
 import pytest
 
-from addedinertia_env.record import read_record, write_record
+from addedinertia_env.records.record import read_record, write_record
 from addedinertia_env.rig.known import KnownRig, KnownRigError
-from addedinertia_env.rig.params import RigParams
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
-from addedinertia_env.simulate import simulate_run
+from addedinertia_env.sim.params import RigParams
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
+from addedinertia_env.apps.simulate import simulate_run
 from hw_adapter.lab import known_rig, load_lab
 from hw_adapter.messages import Caps
 

@@ -15,24 +15,24 @@ PACKAGES = ("addedinertia_env", "agents", "hw_adapter")
 # Lowest first. Keep docs/ARCHITECTURE.md's table in step with this one.
 LAYERS: dict[str, int] = {
     # 0 foundation: files, machine, configuration, JSON
-    "addedinertia_env": 0, "addedinertia_env.atomic": 0, "addedinertia_env.machine": 0,
-    "addedinertia_env.config_io": 0, "addedinertia_env.jsonable": 0,
+    "addedinertia_env": 0, "addedinertia_env.foundation.atomic": 0, "addedinertia_env.foundation.machine": 0,
+    "addedinertia_env.foundation.config_io": 0, "addedinertia_env.foundation.jsonable": 0,
     # 1 physics: the simulated truth, the rig protocol, presets, hull geometry
-    "addedinertia_env.rig": 1, "addedinertia_env.hull": 1,
+    "addedinertia_env.sim": 1, "addedinertia_env.hydro": 1,
     # 2 data: run records and what reads them without a model
-    "addedinertia_env.record": 2, "addedinertia_env.run_record": 2, "addedinertia_env.plausibility": 2, "addedinertia_env.daq": 2,
-    "addedinertia_env.record_error": 2,
-    "addedinertia_env.consistency": 2,
-    "addedinertia_env.plots": 2,
+    "addedinertia_env.records.record": 2, "addedinertia_env.records.run_record": 2, "addedinertia_env.records.plausibility": 2, "addedinertia_env.records.daq": 2,
+    "addedinertia_env.records.record_error": 2,
+    "addedinertia_env.records.consistency": 2,
+    "addedinertia_env.records.plots": 2,
     # 3 the experiment and the task (observation, reward, controller context, metrics, scenarios)
-    "addedinertia_env.experiment": 3, "addedinertia_env.task": 3, "addedinertia_env.metrics": 3,
-    "addedinertia_env.scenarios": 3,
+    "addedinertia_env.experiment": 3, "addedinertia_env.experiment.task": 3, "addedinertia_env.experiment.metrics": 3,
+    "addedinertia_env.experiment.scenarios": 3,
     # 4 estimators, diagnosis and controllers
     "addedinertia_env.identify": 4, "addedinertia_env.discover": 4, "addedinertia_env.decay": 4, "agents": 4,
     # 5 applications: simulation runs, environments, training, benchmark, bench hardware
-    "addedinertia_env.simulate": 5, "addedinertia_env.discover.dataset": 5, "addedinertia_env.envs": 5, "addedinertia_env.vector": 5,
-    "addedinertia_env.learning": 5, "addedinertia_env.bench": 5, "addedinertia_env.sweeps": 5, "addedinertia_env.scoring": 5,
-    "addedinertia_env.perf": 5, "addedinertia_env.experiment.energy_budget": 5, "hw_adapter": 5,
+    "addedinertia_env.apps.simulate": 5, "addedinertia_env.apps.discovery_dataset": 5, "addedinertia_env.envs": 5, "addedinertia_env.vector": 5,
+    "addedinertia_env.learning": 5, "addedinertia_env.bench": 5, "addedinertia_env.apps.sweeps": 5, "addedinertia_env.evaluation.scoring": 5,
+    "addedinertia_env.reports.perf": 5, "addedinertia_env.apps.energy_budget": 5, "hw_adapter": 5,
     # 6 the command line
     "addedinertia_env.cli": 6,
     # 7 report generators (docs/*.md): may use the CLI's public helpers
@@ -177,8 +177,8 @@ def test_no_import_cycle():
 
 def test_a_new_upward_import_is_caught(tmp_path):
     """The check can fail: a rig module that imported the task would be reported."""
-    assert layer_of("addedinertia_env.rig.forces") < layer_of("addedinertia_env.task")
-    assert layer_of("addedinertia_env.discover.dataset") == LAYERS["addedinertia_env.simulate"]
+    assert layer_of("addedinertia_env.sim.forces") < layer_of("addedinertia_env.experiment.task")
+    assert layer_of("addedinertia_env.apps.discovery_dataset") == LAYERS["addedinertia_env.apps.simulate"]
     assert layer_of("agents.base") < layer_of("addedinertia_env.bench.tuning")
 
 

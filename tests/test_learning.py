@@ -17,7 +17,7 @@ from addedinertia_env.cli import main  # noqa: E402
 from addedinertia_env.learning.config import ALGOS, DEFAULT_ENV_ID, load_config  # noqa: E402
 from addedinertia_env.learning.toy import TOY_ENV_ID, toy_config  # noqa: E402
 from addedinertia_env.learning.train import train  # noqa: E402
-from addedinertia_env.rig.presets import ConfigError  # noqa: E402
+from addedinertia_env.sim.presets import ConfigError  # noqa: E402
 
 
 def _params(model_dir):
@@ -53,7 +53,7 @@ def test_config_refuses_unknown_keys_by_name(tmp_path):
 
 
 def test_the_100hz_residual_config_loads_with_its_base_at_the_policy_rate():
-    from addedinertia_env.rig.presets import CONFIG_DIR
+    from addedinertia_env.sim.presets import CONFIG_DIR
 
     cfg = load_config("ppo", CONFIG_DIR / "algos" / "ppo_residual_100hz.yaml")
     assert cfg.residual["enabled"] and cfg.residual["base_rate"] == "policy"
@@ -119,7 +119,7 @@ def test_residual_wrapper_with_zero_correction_is_the_base_controller():
 
 def test_residual_base_at_the_policy_rate_with_zero_correction_is_the_two_rate_board():
     """base_rate "policy", zero correction: the training wrapper drives the rig exactly as the
-    two-rate board (rig/board_loop.py, zoh) does under lqr at 100 Hz, sample for sample: the
+    two-rate board (loop/board_loop.py, zoh) does under lqr at 100 Hz, sample for sample: the
     base decides once per 10 samples with a 10 ms context, and the drive holds it."""
     from addedinertia_env.envs.reverse_stroke import simulated_rig
     from addedinertia_env.experiment.runner import run_experiment

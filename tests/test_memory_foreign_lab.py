@@ -16,7 +16,7 @@ import pytest
 
 from addedinertia_env.discover import radiation_memory
 from addedinertia_env.identify import identify
-from addedinertia_env.record import read_record
+from addedinertia_env.records.record import read_record
 
 _REPO = Path(__file__).resolve().parents[1]
 ARCHIVES = [base / "shared" / "data" / "foreign-lab-2.tar.xz" for base in (_REPO.parent, _REPO.parent.parent, Path("/work"))]

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from addedinertia_env.identify.memory import identify_memory
-from addedinertia_env.run_record import RunRecord
+from addedinertia_env.records.run_record import RunRecord
 
 J_H, J_F, C, B1, B2 = 5.8, 0.1, 43.4, 0.2, 40.0
 COUNTS = 131072
@@ -141,7 +141,7 @@ def test_energy_correction_removes_the_memory_bias_on_one_cummins_episode(tmp_pa
     # corrected method A66(0) (the truth block's lambda66, read here to score only)
     from addedinertia_env.cli import main
     from addedinertia_env.identify import identify
-    from addedinertia_env.record import read_record
+    from addedinertia_env.records.record import read_record
 
     for kind in ("reverse-symmetric", "free-decay"):  # what a lab hands over for a hull: both kinds
         assert main(["simulate", "--rig", "wigley-2m", "--hydrodynamics", "cummins", "--controller", "lqr",

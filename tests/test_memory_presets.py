@@ -13,11 +13,11 @@ import yaml
 
 import addedinertia_env  # noqa: F401 - registers the ids
 from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv
-from addedinertia_env.rig.batched_single import BatchedSingleRig
-from addedinertia_env.rig.forces import true_lambda66
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.presets import RIG_DIR, ConfigError, load_preset, load_rig
+from addedinertia_env.sim.batched_single import BatchedSingleRig
+from addedinertia_env.sim.forces import true_lambda66
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.presets import RIG_DIR, ConfigError, load_preset, load_rig
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv
 
 ENV_ID = "AddedInertia/ReverseStroke-v0"
@@ -173,8 +173,8 @@ def test_hull_stability_from_a_memory_record_takes_identifys_a66_zero(tmp_path, 
     from addedinertia_env.cli import main
     from addedinertia_env.experiment.protocol import plan_from_preset
     from addedinertia_env.identify import identify
-    from addedinertia_env.record import write_record
-    from addedinertia_env.simulate import simulate_run
+    from addedinertia_env.records.record import write_record
+    from addedinertia_env.apps.simulate import simulate_run
 
     rec = simulate_run(load_rig("wigley-2m-memory"), "lqr", plan_from_preset(load_preset("wigley-2m-memory")),
                        seed=1, run_id="memory-hull")

@@ -13,14 +13,21 @@ from addedinertia_env.bench.suites import load_suite
 from addedinertia_env.envs import ReverseStrokeEnv
 from addedinertia_env.experiment.protocol import Experiment, ExperimentPlan
 from addedinertia_env.experiment.runner import controller_context, run_experiment
-from addedinertia_env.metrics import (SATURATION_FRACTION, current_at_limit, episode_metrics, samples_at_limit,
-                                      stroke_reference, tracking_errors, voltage_at_limit)
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import RigParams
-from addedinertia_env.rig.sensors import Reading
-from addedinertia_env.scenarios import build_rig
-from addedinertia_env.task import ReverseStrokeTask
+from addedinertia_env.experiment.metrics import (
+    SATURATION_FRACTION,
+    current_at_limit,
+    episode_metrics,
+    samples_at_limit,
+    stroke_reference,
+    tracking_errors,
+    voltage_at_limit,
+)
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import RigParams
+from addedinertia_env.sim.sensors import Reading
+from addedinertia_env.experiment.scenarios import build_rig
+from addedinertia_env.experiment.task import ReverseStrokeTask
 from agents import make_controller
 
 

@@ -27,8 +27,8 @@ def _episode_meta(ds, k: int) -> dict:
 
 
 def test_run_records_round_trip_and_score_replayed(datasets, realistic_record_path, capsys):
-    from addedinertia_env.record import read_record
-    from addedinertia_env.scoring import RANKED, score_episode
+    from addedinertia_env.records.record import read_record
+    from addedinertia_env.evaluation.scoring import RANKED, score_episode
 
     assert main(["dataset", "export", str(realistic_record_path), "--minari", "ai/records-v0"]) == 0
     ds = minari.load_dataset("ai/records-v0")

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from addedinertia_env.cli import main
-from addedinertia_env.perf import measure_batched, render_markdown
+from addedinertia_env.reports.perf import measure_batched, render_markdown
 
 
 def test_perf_json_has_the_contract_fields(capsys, tmp_path):

@@ -15,11 +15,18 @@ import numpy as np
 import pytest
 from scipy.integrate import cumulative_trapezoid, solve_ivp
 
-from addedinertia_env.rig.effects import (BearingCoulomb, Effects, FluidMemory, NeutralOffset, SensorDelay,
-                                          SpringStiffening, TorqueConstant)
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import RigParams, SensorParams
+from addedinertia_env.sim.effects import (
+    BearingCoulomb,
+    Effects,
+    FluidMemory,
+    NeutralOffset,
+    SensorDelay,
+    SpringStiffening,
+    TorqueConstant,
+)
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import RigParams, SensorParams
 
 PASSIVE = MotorCommand("passive")
 FIELDS = ("t", "phi", "w", "psi", "omega", "i", "u", "water_rate", "energy", "motor_work", "dissipated_hull",

@@ -1,4 +1,4 @@
-"""Records their own rig could not have produced are refused (addedinertia_env/plausibility.py);
+"""Records their own rig could not have produced are refused (addedinertia_env/records/plausibility.py);
 records that are only unusual in form are not; methods never return an impossible value."""
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import pytest
 from addedinertia_env.cli import main
 from addedinertia_env.identify import IdentificationError, Result, identify
 from addedinertia_env.identify.common import check_physical
-from addedinertia_env.plausibility import check_plausible
-from addedinertia_env.record import RecordError, RunRecord, read_record, write_record
+from addedinertia_env.records.plausibility import check_plausible
+from addedinertia_env.records.record import RecordError, RunRecord, read_record, write_record
 
 # ../shared beside the project root (as CI lays it out), else this workplace's copy.
 FOREIGN = next((p for p in (Path(__file__).resolve().parents[2] / "shared" / "data" / "foreign-lab.tar.xz",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from addedinertia_env.experiment.filters import endpoint_slope_weights
-from addedinertia_env.metrics import current_at_limit
+from addedinertia_env.experiment.metrics import current_at_limit
 from addedinertia_env.vector.pool_kernels import (ENDED_NOW, EVENTS, OVER, RELEASE, STOP, TO_REVERSE,
                                                   slot_bookkeeping, slot_rates)
 

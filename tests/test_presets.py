@@ -12,10 +12,17 @@ import yaml
 from scipy.integrate import quad
 
 from addedinertia_env.experiment.protocol import ExperimentPlan, plan_from_preset
-from addedinertia_env.rig import hydro
-from addedinertia_env.rig.params import RigParams, SensorParams
-from addedinertia_env.rig.presets import (SENSOR_QUALITY, ConfigError, available_rigs, load_preset, load_rig,
-                                          rig_from_mapping, sensors_for_quality)
+from addedinertia_env.hydro import closed_forms as hydro
+from addedinertia_env.sim.params import RigParams, SensorParams
+from addedinertia_env.sim.presets import (
+    SENSOR_QUALITY,
+    ConfigError,
+    available_rigs,
+    load_preset,
+    load_rig,
+    rig_from_mapping,
+    sensors_for_quality,
+)
 
 # Every preset shipped in configs/rigs/ (found, not listed: a new preset is tested too).
 PRESETS = tuple(sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "configs" / "rigs").glob("*.yaml")))

@@ -17,8 +17,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from addedinertia_env.cli import main
-from addedinertia_env.record import RunRecord, write_record
-from addedinertia_env.simulate import simulate_run
+from addedinertia_env.records.record import RunRecord, write_record
+from addedinertia_env.apps.simulate import simulate_run
 
 from conftest import preset_rig
 

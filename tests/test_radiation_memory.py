@@ -17,14 +17,14 @@ import shutil
 import numpy as np
 import pytest
 
-from addedinertia_env.config_io import ConfigError
-from addedinertia_env.rig import forces
-from addedinertia_env.rig.batched import BatchedRig
-from addedinertia_env.rig.batched_single import BatchedSingleRig
-from addedinertia_env.rig.motor import MotorCommand
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.params import SensorParams
-from addedinertia_env.rig.presets import RIG_DIR, load_rig
+from addedinertia_env.foundation.config_io import ConfigError
+from addedinertia_env.sim import forces
+from addedinertia_env.sim.batched import BatchedRig
+from addedinertia_env.sim.batched_single import BatchedSingleRig
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.params import SensorParams
+from addedinertia_env.sim.presets import RIG_DIR, load_rig
 
 PRESETS = ("wigley-2m", "spheroid-7")
 PASSIVE = MotorCommand("passive")
@@ -77,7 +77,7 @@ def test_cached_fit_is_passive_and_exact_where_the_rig_swings(preset):
 
 
 def test_fit_recovers_a_known_passive_kernel():
-    from addedinertia_env.hull.memory_fit import fit_memory_model
+    from addedinertia_env.hydro.memory_fit import fit_memory_model
 
     # a two-pair passive kernel with known A66(w) (Re >= 0: each pair is k s / (s^2 + 2 z s + m)):
     # the fit must recover it at order 4, passive, exact at zero and at the swing frequency
@@ -221,7 +221,7 @@ def test_report_renders_every_reference_and_verdict():
 
 def test_simulate_command_writes_the_memory_truth(tmp_path, capsys):
     from addedinertia_env.cli import main
-    from addedinertia_env.record import read_record
+    from addedinertia_env.records.record import read_record
 
     assert main(["simulate", "--rig", "spheroid-7", "--hydrodynamics", "cummins", "--out", str(tmp_path),
                  "--kind", "free-decay", "--alpha", "0.05"]) == 0
@@ -261,7 +261,7 @@ def test_batch_with_memory_scales_per_environment_and_pauses():
 
 
 def test_two_rate_board_sim_carries_the_memory():
-    from addedinertia_env.rig.board_loop import TwoRateSimRig
+    from addedinertia_env.loop.board_loop import TwoRateSimRig
 
     p = memory_rig()
     board = TwoRateSimRig(MujocoRig(p, seed=0), host_rate_hz=100.0)

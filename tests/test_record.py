@@ -17,11 +17,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addedinertia_env import record as record_module
+from addedinertia_env.records import record as record_module
 from addedinertia_env.cli import main
-from addedinertia_env.record import (FORMAT, POSITIVE_RIG_KEYS, REQUIRED_COLUMNS, REQUIRED_RIG_KEYS, RecordError,
-                                     RunRecord, read_record, write_record)
-from addedinertia_env.rig.params import RigParams
+from addedinertia_env.records.record import (
+    FORMAT,
+    POSITIVE_RIG_KEYS,
+    REQUIRED_COLUMNS,
+    REQUIRED_RIG_KEYS,
+    RecordError,
+    RunRecord,
+    read_record,
+    write_record,
+)
+from addedinertia_env.sim.params import RigParams
 
 N_ROWS = 40
 PHASE_ROWS = ["idle"] * 5 + ["free"] * 15 + ["hold"] * 5 + ["reverse"] * 12 + ["idle"] * 3

@@ -7,9 +7,9 @@ import numpy as np
 from numpy.polynomial import chebyshev as C
 
 from addedinertia_env.experiment.reference import fit_stroke, series
-from addedinertia_env.metrics import electric_energy, samples_at_limit, saturated_fraction
-from addedinertia_env.record import RunRecord
-from addedinertia_env.record_kernels import phase_mask
+from addedinertia_env.experiment.metrics import electric_energy, samples_at_limit, saturated_fraction
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.records.record_kernels import phase_mask
 
 NAMES = ("idle", "free", "hold", "reverse")
 

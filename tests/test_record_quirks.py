@@ -12,9 +12,19 @@ import json
 import numpy as np
 import pytest
 
-from addedinertia_env.record import (FORMAT, RecordError, RunRecord, braked, current_sampling, motion_phase,
-                                     read_record, rig_inductance, sampling, write_record)
-from addedinertia_env.rig.params import RigParams
+from addedinertia_env.records.record import (
+    FORMAT,
+    RecordError,
+    RunRecord,
+    braked,
+    current_sampling,
+    motion_phase,
+    read_record,
+    rig_inductance,
+    sampling,
+    write_record,
+)
+from addedinertia_env.sim.params import RigParams
 
 
 def _record(rate: float = 1000.0, n: int = 400, t: np.ndarray | None = None, brake_tail: bool = True) -> RunRecord:

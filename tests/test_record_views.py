@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addedinertia_env import plausibility
+from addedinertia_env.records import plausibility
 from addedinertia_env.identify import identify
-from addedinertia_env.record import RecordError, measure_sampling, read_record, sampling, write_record
+from addedinertia_env.records.record import RecordError, measure_sampling, read_record, sampling, write_record
 from addedinertia_env.rig.known import RIG_BLOCK, KnownRig, block_problems
-from addedinertia_env.rig.presets import ConfigError
+from addedinertia_env.sim.presets import ConfigError
 from hw_adapter.lab import LAB_RIG_KEYS, known_rig, lab_from_mapping
 from hw_adapter.messages import Caps
 

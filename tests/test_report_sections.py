@@ -40,7 +40,7 @@ def test_a_figure_is_written_atomically_and_closed(tmp_path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from addedinertia_env.atomic import save_figure
+    from addedinertia_env.foundation.atomic import save_figure
 
     fig, ax = plt.subplots()
     ax.plot([0, 1], [0, 1])

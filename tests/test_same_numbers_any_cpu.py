@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addedinertia_env.record import write_record
+from addedinertia_env.records.record import write_record
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv
 
 _REPO = Path(__file__).resolve().parents[1]
@@ -34,7 +34,7 @@ WORKER = r"""
 import json, sys
 import threadpoolctl
 from addedinertia_env.identify import identify
-from addedinertia_env.record import read_record
+from addedinertia_env.records.record import read_record
 out = {"arch": sorted({str(i.get("architecture")) for i in threadpoolctl.threadpool_info()
                        if i.get("internal_api") == "openblas"}), "results": {}}
 for path in sys.argv[2:]:

@@ -1,4 +1,4 @@
-"""The compiled scans (addedinertia_env/scan_kernels.py) against the numpy expressions they replaced,
+"""The compiled scans (addedinertia_env/records/scan_kernels.py) against the numpy expressions they replaced,
 bit for bit, on random series with the awkward values (nan, inf, signed zeros, ties, quantised steps)."""
 
 from __future__ import annotations
@@ -6,10 +6,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.scan_kernels import (abs_max, abs_rates, bitwise_constant, block_starts, first_beyond, first_step_beyond,
-                                           gap_counts, median_abs_deviation_sorted, negative_step_ratios,
-                                           reaction_work, relaxed_interval_means, second_differences,
-                                           squared_step_sums, true_counts, value_change_starts)
+from addedinertia_env.records.scan_kernels import (
+    abs_max,
+    abs_rates,
+    bitwise_constant,
+    block_starts,
+    first_beyond,
+    first_step_beyond,
+    gap_counts,
+    median_abs_deviation_sorted,
+    negative_step_ratios,
+    reaction_work,
+    relaxed_interval_means,
+    second_differences,
+    squared_step_sums,
+    true_counts,
+    value_change_starts,
+)
 
 
 def _series(rng, n, awkward=True):

@@ -92,7 +92,7 @@ def test_memory_suite_rows_carry_the_version_and_the_a66_zero_truth(tmp_path, ca
                  "--out", str(out), "--no-progress"]) == 0
     row = json.loads(out.read_text().splitlines()[0])
     sc = suite.scenarios("test")[0]
-    from addedinertia_env.rig.radiation import truth_block
+    from addedinertia_env.hydro.radiation import truth_block
 
     block = truth_block(sc.rig.hull.J_hull, sc.rig.hull.lambda66, sc.rig.spring.c, sc.rig.hydrodynamics)
     assert row[FIELD] == SCORE_VERSION and row["suite"] == "memory-v1"

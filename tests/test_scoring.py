@@ -1,7 +1,7 @@
-"""One scoring of an episode (addedinertia_env/scoring.py, issue 29 item 3).
+"""One scoring of an episode (addedinertia_env/evaluation/scoring.py, issue 29 item 3).
 
 The environment's reward, the vector env, the benchmark, the trainers and the demo must all
-score an episode through :func:`addedinertia_env.scoring.score_episode`. The scan below fails
+score an episode through :func:`addedinertia_env.evaluation.scoring.score_episode`. The scan below fails
 if one of them calls ``identify()`` or divides by a true lambda66 itself; the functional tests
 hold each caller's numbers equal to an independent computation on the same records
 (``identify()`` here, the record's truth block read by key here).
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import addedinertia_env  # noqa: F401 - registers the id
-from addedinertia_env import scoring
+from addedinertia_env.evaluation import scoring
 from addedinertia_env.identify import identify
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -81,8 +81,8 @@ def _independent(records, correction: bool):
 
 def test_the_two_scores_are_named_and_each_is_its_identification():
     from addedinertia_env.experiment.protocol import plan_from_preset
-    from addedinertia_env.rig.presets import load_preset, rig_from_mapping
-    from addedinertia_env.simulate import simulate_run
+    from addedinertia_env.sim.presets import load_preset, rig_from_mapping
+    from addedinertia_env.apps.simulate import simulate_run
 
     data = load_preset("wigley-2m")
     rec = simulate_run(rig_from_mapping(data), "lqr", plan_from_preset(data), seed=1)
@@ -100,8 +100,8 @@ def test_the_two_scores_are_named_and_each_is_its_identification():
 
 def test_the_truth_is_the_records_truth_block_and_none_on_a_bench():
     from addedinertia_env.experiment.protocol import plan_from_preset
-    from addedinertia_env.rig.presets import load_preset, rig_from_mapping
-    from addedinertia_env.simulate import simulate_run
+    from addedinertia_env.sim.presets import load_preset, rig_from_mapping
+    from addedinertia_env.apps.simulate import simulate_run
 
     data = load_preset("wigley-2m")
     rec = simulate_run(rig_from_mapping(data), "lqr", plan_from_preset(data), seed=2)
@@ -123,7 +123,7 @@ def test_env_reward_vector_env_bench_row_and_trainer_score_through_the_one_score
     from addedinertia_env.bench.suites import load_suite
     from addedinertia_env.envs import ReverseStrokeEnv
     from addedinertia_env.learning import paired_batch
-    from addedinertia_env.task import RewardWeights, ReverseStrokeTask
+    from addedinertia_env.experiment.task import RewardWeights, ReverseStrokeTask
     from agents import make_controller
 
     # the single env: its last info and its accuracy term

@@ -1,4 +1,4 @@
-"""The compiled series kernels (addedinertia_env/series_kernels.py) against independent references:
+"""The compiled series kernels (addedinertia_env/identify/series_kernels.py) against independent references:
 numpy's own routines, written out here the way the identification computed them before."""
 
 from __future__ import annotations
@@ -6,9 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addedinertia_env.series_kernels import (count_crossings, fit_windows, gradient, is_ascending, lag_ranking,
-                                             polynomial_roots_near_zero, scaled_deviation, twice_integrated)
-from addedinertia_env.series_stats import median, median_step, quantile
+from addedinertia_env.identify.series_kernels import (
+    count_crossings,
+    fit_windows,
+    gradient,
+    is_ascending,
+    lag_ranking,
+    polynomial_roots_near_zero,
+    scaled_deviation,
+    twice_integrated,
+)
+from addedinertia_env.records.series_stats import median, median_step, quantile
 
 
 def _twice_by_cumsum(x, half_dt):
@@ -193,7 +201,7 @@ def test_count_crossings_equal_the_numpy_expressions():
 
 
 def test_crossing_search_equals_the_running_maximum_search():
-    from addedinertia_env.series_kernels import first_at_or_past  # noqa: PLC0415
+    from addedinertia_env.identify.series_kernels import first_at_or_past  # noqa: PLC0415
 
     rng = np.random.default_rng(13)
     for case in range(200):
@@ -215,7 +223,7 @@ def test_crossing_search_equals_the_running_maximum_search():
 
 
 def test_accumulated_kernels_equal_bincount():
-    from addedinertia_env.series_kernels import accumulated_kernels  # noqa: PLC0415
+    from addedinertia_env.identify.series_kernels import accumulated_kernels  # noqa: PLC0415
 
     rng = np.random.default_rng(17)
     lengths = rng.integers(1, 40, size=30)
@@ -230,7 +238,7 @@ def test_accumulated_kernels_equal_bincount():
 
 
 def test_accumulated_windows_equal_accumulated_kernels():
-    from addedinertia_env.series_kernels import accumulated_kernels, accumulated_windows  # noqa: PLC0415
+    from addedinertia_env.identify.series_kernels import accumulated_kernels, accumulated_windows  # noqa: PLC0415
 
     rng = np.random.default_rng(18)
     sizes = rng.integers(0, 40, size=30)
@@ -252,7 +260,7 @@ def test_accumulated_windows_equal_accumulated_kernels():
 
 
 def test_place_rows_equals_fancy_assignment():
-    from addedinertia_env.series_kernels import place_rows  # noqa: PLC0415
+    from addedinertia_env.identify.series_kernels import place_rows  # noqa: PLC0415
 
     rng = np.random.default_rng(20)
     rows = rng.normal(size=(6, 9))
@@ -265,7 +273,7 @@ def test_place_rows_equals_fancy_assignment():
 
 @pytest.mark.parametrize("even", [True, False])
 def test_calibration_target_equals_the_numpy_expressions(even):
-    from addedinertia_env.series_kernels import calibration_target  # noqa: PLC0415
+    from addedinertia_env.identify.series_kernels import calibration_target  # noqa: PLC0415
 
     rng = np.random.default_rng(19)
     m = 1500

@@ -7,7 +7,7 @@ import os
 
 import pytest
 
-from addedinertia_env.sweeps import SweepError, run_tasks
+from addedinertia_env.apps.sweeps import SweepError, run_tasks
 
 
 def square_and_pid(x: float) -> tuple[float, int]:
@@ -22,8 +22,8 @@ def fail_on_three(x: int) -> int:
 
 def short_simulation(seed: int) -> float:
     """A little physics per item: the batched rig's free swing, hull angle after 0.2 s."""
-    from addedinertia_env.rig.batched import PASSIVE, BatchedRig
-    from addedinertia_env.rig.params import RigParams
+    from addedinertia_env.sim.batched import PASSIVE, BatchedRig
+    from addedinertia_env.sim.params import RigParams
 
     rig = BatchedRig(RigParams(), n_envs=2, seed=seed)
     rig.reset(phi0=-0.05 * (1 + seed), brake=False)

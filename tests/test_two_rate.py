@@ -12,9 +12,9 @@ from addedinertia_env.cli import main
 from addedinertia_env.experiment.protocol import Experiment
 from addedinertia_env.experiment.two_rate import drive_two_rate
 from addedinertia_env.identify import identify
-from addedinertia_env.rig.board_loop import TwoRateSimRig
-from addedinertia_env.rig.mujoco_rig import MujocoRig
-from addedinertia_env.rig.presets import load_preset, rig_from_mapping
+from addedinertia_env.loop.board_loop import TwoRateSimRig
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 from agents import make_controller
 from hw_adapter.deploy import EXIT_BAD_INPUT, DeployOptions, deploy
 from hw_adapter.lab import load_lab

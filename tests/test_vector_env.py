@@ -21,7 +21,7 @@ import pytest
 
 import addedinertia_env  # noqa: F401 - registers the ids
 from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv
-from addedinertia_env.rig.batched_single import BatchedSingleRig
+from addedinertia_env.sim.batched_single import BatchedSingleRig
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv, estimate_lambda66
 
 ENV_ID = "AddedInertia/ReverseStroke-v0"
@@ -189,7 +189,7 @@ def test_bad_options_and_actions_are_refused():
 def _suite_single_env(**kw) -> ReverseStrokeEnv:
     """A single env on hard-v0's training scenarios, its rig the batched one-env view behind the
     scenario's control loop (as scenarios.build_rig wraps the MuJoCo rig)."""
-    from addedinertia_env.rig.control_loop import LoopRig
+    from addedinertia_env.loop.control_loop import LoopRig
 
     def factory(scenario):
         return LoopRig(batched_single(scenario), scenario.loop)

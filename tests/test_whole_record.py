@@ -10,7 +10,7 @@ import pytest
 
 from addedinertia_env.cli import main
 from addedinertia_env.identify import IdentificationError, identify
-from addedinertia_env.record import write_record
+from addedinertia_env.records.record import write_record
 
 from test_discover import dataset  # same module object under pytest: the dataset cache is shared
 
@@ -55,8 +55,8 @@ def test_unmodelled_effect_biases_nominal_and_extended_model_recovers():
 def test_wrong_kind_refused():
     rec = dataset("none", 3)[0]
     bad = type(rec)(samples=rec.samples, meta={**rec.meta, "experiment": {**rec.experiment, "kind": "free-decay"}})
-    from addedinertia_env.identify.whole_record import identify_whole_record
-    from addedinertia_env.record import RecordError
+    from addedinertia_env.discover.whole_record import identify_whole_record
+    from addedinertia_env.records.record import RecordError
 
     forced = type(rec)(samples=rec.samples,
                        meta={**rec.meta, "experiment": {**rec.experiment, "kind": "forced-oscillation"}})

@@ -4,6 +4,6 @@ An episode is an independent task ``(suite, scenario, controller) -> row`` (one 
 line), so episodes can run in any order, in processes here or on a cluster.
 """
 
-from .suites import Suite, load_suite
+from addedinertia_env.bench.suites import Suite, load_suite
 
 __all__ = ["Suite", "load_suite"]

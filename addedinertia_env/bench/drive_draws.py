@@ -1,4 +1,4 @@
-"""A suite's ``drive`` block: the drive's flaws drawn per scenario (rig/drive.py), with units.
+"""A suite's ``drive`` block: the drive's flaws drawn per scenario (sim/drive.py), with units.
 
 Each key is one of :data:`~..rig.drive.UNITS` and its value a quantity with its unit
 (``"90 %"``) or a range ``["80 %", "92 %"]`` drawn uniformly per scenario seed, from the
@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from ..config_io import ConfigError
-from ..rig.drive import UNITS, DriveParams, parse_quantity
+from addedinertia_env.foundation.config_io import ConfigError
+from addedinertia_env.sim.drive import UNITS, DriveParams, parse_quantity
 
 STREAM = 103  # spawn key of the drive's random stream (scenario_draws uses 100..102)
 

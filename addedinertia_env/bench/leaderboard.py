@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from .runner import REQUIRED_FIELDS
-from .statistics import median_ci
-from .versions import ScoreVersionError, check_versions
+from addedinertia_env.bench.runner import REQUIRED_FIELDS
+from addedinertia_env.bench.statistics import median_ci
+from addedinertia_env.bench.versions import ScoreVersionError, check_versions
 
 
 class RowsError(ValueError):
@@ -93,7 +93,7 @@ def scores(rows: list[dict]) -> tuple[str, dict[str, dict[tuple, list[float]]]]:
     """The ranked statistic's per-episode values, ``(what they are, {controller: {scenario: [value per
     run]}})``: the control error ``|e - e_oracle|`` (:mod:`.paired`) with oracle rows, else ``|rel_error|``;
     ``inf`` for a failure. :func:`.statistics.score_matrix` turns them into rliable's matrices."""
-    from . import paired  # noqa: PLC0415
+    from addedinertia_env.bench import paired  # noqa: PLC0415
 
     by: dict[str, list[dict]] = {}
     for r in rows:
@@ -128,10 +128,10 @@ def _median_or_nan(values: list) -> float:
 
 def summarise(rows: list[dict], n_boot: int = 2000, seed: int = 0) -> list[dict[str, Any]]:
     """One entry per controller, ranked (module doc of :mod:`.ranking`)."""
-    from . import paired  # noqa: PLC0415
-    from .ranking import rank  # noqa: PLC0415
+    from addedinertia_env.bench import paired  # noqa: PLC0415
+    from addedinertia_env.bench.ranking import rank  # noqa: PLC0415
 
-    from . import score  # noqa: PLC0415
+    from addedinertia_env.bench import score  # noqa: PLC0415
 
     score.check_versions(rows)
     by: dict[str, list[dict]] = {}

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .statistics import median, median_ci, paired_median_difference
+from addedinertia_env.bench.statistics import median, median_ci, paired_median_difference
 
 ORACLE = "oracle"
 

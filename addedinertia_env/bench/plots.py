@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import save_figure
-from .leaderboard import abs_errors
+from addedinertia_env.foundation.atomic import save_figure
+from addedinertia_env.bench.leaderboard import abs_errors
 
 
 def _axes():

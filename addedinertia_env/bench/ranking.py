@@ -27,8 +27,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from . import paired
-from . import score as capped
+from addedinertia_env.bench import paired
+from addedinertia_env.bench import score as capped
 
 
 def score(e: dict[str, Any]) -> float:

@@ -13,9 +13,9 @@ import json
 import math
 from pathlib import Path
 
-from . import ranking
-from .plots import pareto_front
-from .verdict import pct, rank_text, training_cost, verdict
+from addedinertia_env.bench import ranking
+from addedinertia_env.bench.plots import pareto_front
+from addedinertia_env.bench.verdict import pct, rank_text, training_cost, verdict
 
 COLUMNS = ("rank", "controller", "kind", "score: mean min(|error|, cap)", "95 % CI of score",
            "median |control error| vs oracle", "95 % CI (paired)",
@@ -66,7 +66,7 @@ def pairwise_table(entries: list[dict]) -> str:
     """Paired tests between every two rows (Markdown): the median of ``|c_row| - |c_column|``
     over their common scenarios; ``*`` when its 95 % bootstrap interval excludes zero (the row
     is clearly worse: positive, or clearly better: negative). Empty without oracle rows."""
-    from . import paired  # noqa: PLC0415
+    from addedinertia_env.bench import paired  # noqa: PLC0415
 
     rows = [e for e in entries if e.get("control_errors") is not None and e["controller"] != paired.ORACLE]
     if len(rows) < 2:
@@ -90,7 +90,7 @@ def score_pairwise_table(entries: list[dict]) -> str:
     """Paired tests between every two rows on the ranked score (Markdown): the mean of
     ``s_row - s_column`` over their common scenarios (:func:`.score.difference`); ``*`` when its
     95 % bootstrap interval excludes zero. Empty with fewer than two entries that have scores."""
-    from . import score  # noqa: PLC0415
+    from addedinertia_env.bench import score  # noqa: PLC0415
 
     rows = [e for e in entries if e.get("scenario_scores")]
     if len(rows) < 2:

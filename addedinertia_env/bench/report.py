@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from ..machine import machine_line
-from .leaderboard import abs_errors, summarise
-from .render import render_html, render_markdown
-from .verdict import MIN_EPISODES
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.bench.leaderboard import abs_errors, summarise
+from addedinertia_env.bench.render import render_html, render_markdown
+from addedinertia_env.bench.verdict import MIN_EPISODES
 
 
 def preamble(rows: list[dict], command: str) -> str:
@@ -24,7 +24,7 @@ def preamble(rows: list[dict], command: str) -> str:
     suites = sorted({f"{r['suite']}/{r.get('split', '?')}" for r in rows})
     run_commands = sorted({str(r["command"]) for r in rows if r.get("command")})
     commits = sorted({str(r.get("commit", "unknown")) for r in rows})
-    from .versions import check_versions  # noqa: PLC0415
+    from addedinertia_env.bench.versions import check_versions  # noqa: PLC0415
 
     version = check_versions({"rows": rows})
     paired = any(r["controller"] == "oracle" for r in rows)
@@ -37,7 +37,7 @@ def preamble(rows: list[dict], command: str) -> str:
              "(`identify(records, 'energy', asymmetry_correction=False)`); `corrected` = the default identification "
              "(dissipation mismatch corrected with a damping law fitted to the free stroke). A failed run or "
              "identification counts as an infinite error."]
-    from .score import CAP, SCORE_VERSION  # noqa: PLC0415
+    from addedinertia_env.bench.score import CAP, SCORE_VERSION  # noqa: PLC0415
 
     lines.append(f"Ranked score ({SCORE_VERSION}, bench/score.py): the mean over the scenarios of min(|e|, "
                  f"{100 * CAP:.0f} %), a failed run or identification counting {100 * CAP:.0f} %, with a 95 % "
@@ -65,8 +65,8 @@ def preamble(rows: list[dict], command: str) -> str:
 
 def _coverage(rows: list[dict]) -> str:
     """A sentence when the rows cover only part of their suite's split (``--seeds N``)."""
-    from ..rig.presets import ConfigError  # noqa: PLC0415
-    from .suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.sim.presets import ConfigError  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
     parts = []
     for suite, split in sorted({(str(r["suite"]), str(r.get("split", "?"))) for r in rows}):
@@ -85,7 +85,7 @@ def _coverage(rows: list[dict]) -> str:
 
 def _suite_notes(rows: list[dict]) -> str:
     """Where each suite is defined, with its one-line description."""
-    from .suites import SUITE_DIR, load_suite  # noqa: PLC0415
+    from addedinertia_env.bench.suites import SUITE_DIR, load_suite  # noqa: PLC0415
 
     notes = []
     for name in sorted({str(r["suite"]) for r in rows}):
@@ -112,7 +112,7 @@ def breakdown(rows: list[dict], order: list[str], key: str) -> str:
 
 def figures_for(rows: list[dict], entries: list[dict], out: Path) -> dict[str, Path]:
     """The Pareto figure and the per-episode figures, in ``out``'s folder ``figures/``."""
-    from .plots import plot_error_vs_energy, plot_pareto, plot_per_scenario  # noqa: PLC0415
+    from addedinertia_env.bench.plots import plot_error_vs_energy, plot_pareto, plot_per_scenario  # noqa: PLC0415
 
     fig_dir = out.parent / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -131,9 +131,15 @@ def aggregate_section(rows: list[dict], entries: list[dict], out: Path | None) -
     """rliable's aggregate statistics over the runs x scenarios score matrix (Markdown): the IQM with its
     stratified-bootstrap interval and the probability of improvement over the best classical entry per
     controller, and the performance profiles figure (beside ``out``, when given)."""
-    from .leaderboard import scores  # noqa: PLC0415
-    from .ranking import best  # noqa: PLC0415
-    from .statistics import RLIABLE_REPS, improvement_over, iqm_with_ci, plot_performance_profiles, score_matrix  # noqa: PLC0415
+    from addedinertia_env.bench.leaderboard import scores  # noqa: PLC0415
+    from addedinertia_env.bench.ranking import best  # noqa: PLC0415
+    from addedinertia_env.bench.statistics import (
+        RLIABLE_REPS,
+        improvement_over,
+        iqm_with_ci,
+        plot_performance_profiles,
+        score_matrix,
+    )  # noqa: PLC0415
 
     what, per = scores(rows)
     scenarios, matrices = score_matrix(per)

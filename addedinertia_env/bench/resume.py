@@ -18,8 +18,8 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
-from ..atomic import atomic_write_text
-from ..jsonable import plain
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.foundation.jsonable import plain
 
 KEY_FIELDS = ("controller", "suite", "split")
 
@@ -85,7 +85,7 @@ def prepare_output(path: str | Path, key: dict[str, Any], force: bool = False) -
         desc = "; ".join(f"controller {c}, suite {s}, split {p}" for c, s, p in others[:3])
         raise RowsFileError(f"{path}: holds rows of another run ({desc}); refusing to mix or overwrite them. "
                             "Use another --out, or --force to replace the file")
-    from .versions import SCORE_VERSION, row_version  # noqa: PLC0415
+    from addedinertia_env.bench.versions import SCORE_VERSION, row_version  # noqa: PLC0415
 
     older = sorted({row_version(r) for r in rows} - {SCORE_VERSION})
     if older:  # a row of another score version is another truth or score: never resumed beside this run's

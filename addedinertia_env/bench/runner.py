@@ -4,7 +4,7 @@ A row holds at least: controller, suite, scenario, seed, lambda66_true, lambda66
 rel_error ((estimate - truth) / truth, a fraction: 0.01 is 1 %), energy_J, tracking_rms_rad,
 saturated_frac, wall_s, version (and commit), and the score's version ``score_version``
 (:mod:`.versions`: truth lambda66 = A66(0)).
-Every number of the episode comes from the one scoring, :func:`addedinertia_env.scoring.score_episode`
+Every number of the episode comes from the one scoring, :func:`addedinertia_env.evaluation.scoring.score_episode`
 (``lambda66_true``: the records' truth block, scoring only). A run or identification that
 fails gives a row with ``rel_error: null`` and the reason in ``failure``.
 
@@ -35,15 +35,15 @@ import numpy as np
 
 from agents import make_controller
 
-from .. import __version__
-from ..experiment.controller import Controller
-from ..experiment.runner import run_experiment
-from ..scenarios import build_rig
-from ..scoring import AS_WRITTEN, CORRECTED, score_episode
-from .suites import EpisodeTask
-from .versions import row_fields as score_version_fields
-from .score import row_fields as score_fields
-from .wear import episode_wear
+from addedinertia_env import __version__
+from addedinertia_env.experiment.controller import Controller
+from addedinertia_env.experiment.runner import run_experiment
+from addedinertia_env.experiment.scenarios import build_rig
+from addedinertia_env.evaluation.scoring import AS_WRITTEN, CORRECTED, score_episode
+from addedinertia_env.bench.suites import EpisodeTask
+from addedinertia_env.bench.versions import row_fields as score_version_fields
+from addedinertia_env.bench.score import row_fields as score_fields
+from addedinertia_env.bench.wear import episode_wear
 
 # The ranked score: the patent's energy method as written (no model-based correction of the
 # strokes' dissipation mismatch), so that what the controller fails to retrace shows. The
@@ -83,7 +83,7 @@ def episode_controller(name: str, kwargs: dict[str, Any], rig: Any) -> Controlle
     """The controller of an episode: a reference (``oracle`` needs the simulated ``rig``) or a
     registry name (agents/registry.py)."""
     if name == "oracle":
-        from ..experiment.oracle import OracleController  # noqa: PLC0415
+        from addedinertia_env.experiment.oracle import OracleController  # noqa: PLC0415
 
         return OracleController(rig)
     if name == "zero":
@@ -106,7 +106,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
     """One benchmark row (see module doc)."""
     t0 = time.perf_counter()
     sc = task.scenario
-    from ..rig.forces import true_lambda66  # noqa: PLC0415
+    from addedinertia_env.sim.forces import true_lambda66  # noqa: PLC0415
 
     truth = true_lambda66(sc.rig)  # describes the scenario; the score's own (the records' truth block) replaces it
     row: dict[str, Any] = {
@@ -141,7 +141,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
             rec = run_experiment(rig, controller, sc.plan, run_id=f"{sc.name}/cycle-{k}")
             if n >= learning:
                 records.append(rec)
-        # the one scoring (addedinertia_env/scoring.py): ranked as written, the corrected score beside it
+        # the one scoring (addedinertia_env/evaluation/scoring.py): ranked as written, the corrected score beside it
         ranked = score_episode(records, AS_WRITTEN)
         row.update(episode_wear(records, sc.rig.motor.i_max))  # current sign changes, chatter (bench/wear.py)
         row.update(lambda66_true=ranked.lambda66_true, energy_J=ranked.energy_J, saturated_frac=ranked.saturated_frac,

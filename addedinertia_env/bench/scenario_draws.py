@@ -7,7 +7,7 @@ Suite keys (all optional; a value is a number, or ``[low, high]`` drawn uniforml
     effects:                 # hidden effects (run-record.md vocabulary), each with probability p
       bearing_coulomb: {p: 1.0, torque: [0.05, 0.12]}      # N m
       torque_constant: {p: 1.0, ratio: [0.85, 1.15]}       # true k_t / data-sheet k_t
-    loop:                    # addedinertia_env/rig/control_loop.py
+    loop:                    # addedinertia_env/loop/control_loop.py
       obs_delay_s: [0.004, 0.010]    # s
       command_period_s: 0.01         # s (100 Hz set-points, zero-order hold)
       current_step_A: 0.1            # A
@@ -24,12 +24,12 @@ from typing import Any
 
 import numpy as np
 
-from ..rig.control_loop import ControlLoop
-from ..rig.effects import EFFECT_NAMES, Effects
-from ..rig.params import MotorParams
-from ..rig.presets import ConfigError
-from ..scenarios import Scenario
-from .drive_draws import apply_drive, validate_drive
+from addedinertia_env.loop.control_loop import ControlLoop
+from addedinertia_env.sim.effects import EFFECT_NAMES, Effects
+from addedinertia_env.sim.params import MotorParams
+from addedinertia_env.sim.presets import ConfigError
+from addedinertia_env.experiment.scenarios import Scenario
+from addedinertia_env.bench.drive_draws import apply_drive, validate_drive
 
 LOOP_KEYS = tuple(f.name for f in dataclasses.fields(ControlLoop))
 MOTOR_KEYS = tuple(f.name for f in dataclasses.fields(MotorParams))

@@ -120,7 +120,7 @@ def write_scores(path: str | Path, scenarios: list, matrices: dict[str, np.ndarr
     """Write the score matrices as ``path`` (``.npz``: one ``runs x scenarios`` float array per controller,
     rliable's ``score_dict`` by ``dict(np.load(path))``) and ``path`` + ``.json`` (the scenarios in column
     order, what the score is, that lower is better and that ``inf`` is a failure). Atomic writes."""
-    from ..atomic import atomic_target, atomic_write_text  # noqa: PLC0415
+    from addedinertia_env.foundation.atomic import atomic_target, atomic_write_text  # noqa: PLC0415
 
     path = Path(path)
     with atomic_target(path, suffix=".npz") as tmp:
@@ -217,7 +217,7 @@ def plot_performance_profiles(matrices: dict[str, np.ndarray], path: str | Path,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
-    from ..atomic import save_figure  # noqa: PLC0415
+    from addedinertia_env.foundation.atomic import save_figure  # noqa: PLC0415
 
     finite = np.concatenate([v[np.isfinite(v)] for v in matrices.values()] + [np.array([1e-6, 1.0])])
     lo = max(float(np.min(finite[finite > 0])) if np.any(finite > 0) else 1e-6, 1e-7)

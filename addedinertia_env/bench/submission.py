@@ -95,7 +95,7 @@ def read_card(path: Path) -> dict[str, Any]:
 def declared_entry(controller: str, kind: str | None = None, train_cost: str | None = None) -> dict[str, Any]:
     """Row fields a submission declares (``entry_kind``, training cost, ``card``); empty for
     the registry's controllers, exported policies and the references, unless given here."""
-    from ..bench.runner import REFERENCES  # noqa: PLC0415
+    from addedinertia_env.bench.runner import REFERENCES  # noqa: PLC0415
 
     if controller in REFERENCES and (kind or train_cost):
         raise SubmissionError(f"--controller {controller}: a reference row takes no --entry-kind or --train-cost")

@@ -30,11 +30,11 @@ from typing import Any
 
 from agents.tuned import load_tuned
 
-from ..config_io import check_keys, read_yaml
+from addedinertia_env.foundation.config_io import check_keys, read_yaml
 
-from ..rig.presets import CONFIG_DIR, ConfigError, config_path
-from ..scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
-from .scenario_draws import apply_extras, validate_extras
+from addedinertia_env.sim.presets import CONFIG_DIR, ConfigError, config_path
+from addedinertia_env.experiment.scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
+from addedinertia_env.bench.scenario_draws import apply_extras, validate_extras
 
 SUITE_DIR = CONFIG_DIR / "suites"
 SUITE_KEYS = {"name", "description", "presets", "ranges", "fixed", "splits", "effects", "loop", "motor", "cycles",
@@ -176,7 +176,7 @@ def load_suite(name: str) -> Suite:
     for (a0, n0), (a1, _) in zip(ranges_list, ranges_list[1:]):
         if a0 + n0 > a1:
             raise ConfigError(f"{path}: split seed ranges overlap; the test seeds must never be used for tuning")
-    from ..rig.presets import rig_path  # noqa: PLC0415
+    from addedinertia_env.sim.presets import rig_path  # noqa: PLC0415
 
     for p in presets:
         rig_path(p)

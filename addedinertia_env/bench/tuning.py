@@ -28,10 +28,10 @@ import yaml
 from agents.registry import CLASSICAL, controller_class
 from agents.tuned import TUNED_PATH, load_tuned, resolve_params  # noqa: F401 - the gains this module writes
 
-from ..atomic import atomic_write_text
-from .runner import run_tasks
-from .score import SCORE_VERSION, episode_score
-from .suites import load_suite
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.bench.runner import run_tasks
+from addedinertia_env.bench.score import SCORE_VERSION, episode_score
+from addedinertia_env.bench.suites import load_suite
 
 
 def sample_candidates(knobs: dict[str, tuple[float, float, str]], n: int, seed: int) -> list[dict[str, float]]:

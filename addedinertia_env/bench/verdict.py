@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from . import paired, ranking
+from addedinertia_env.bench import paired, ranking
 
 SMALL_HEADROOM = 0.001  # relative lambda66: a tenth of the target; headroom below it is called small
 MIN_EPISODES = 10  # a bootstrap interval on fewer episodes is flagged
@@ -134,7 +134,7 @@ def compare(a: dict, b: dict) -> str:
     when both have it, with the paired control-error test beside it; else on control errors, else
     overlap of the intervals."""
     if a.get("scenario_scores") is not None and b.get("scenario_scores") is not None:
-        from . import score  # noqa: PLC0415
+        from addedinertia_env.bench import score  # noqa: PLC0415
 
         d = score.difference(a["scenario_scores"], b["scenario_scores"])
         side = score.clearly(d)

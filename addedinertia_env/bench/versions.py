@@ -28,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from .score import SCORE_VERSION  # this code's score (bench/score.py): truth lambda66 = A66(0)
+from addedinertia_env.bench.score import SCORE_VERSION  # this code's score (bench/score.py): truth lambda66 = A66(0)
 
 FIELD = "score_version"  # the rows' field
 LEGACY = "v0"  # rows without the field: written before the truth was A66(0) with memory on

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ..metrics import controlled
+from addedinertia_env.experiment.metrics import controlled
 
 SIGN_BAND_FRACTION = 0.02  # of i_max: the hysteresis band of a sign change
 

@@ -15,7 +15,7 @@ import importlib
 import pkgutil
 import sys
 
-from .common import bad_input_types, fail, report_bug
+from addedinertia_env.cli.common import bad_input_types, fail, report_bug
 
 
 class OneLineErrorParser(argparse.ArgumentParser):
@@ -36,7 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = OneLineErrorParser(
         prog="addedinertia",
         description="Identify the added moment of inertia lambda66 of a hull on a reverse-symmetric yaw rig.")
-    from .. import __version__  # noqa: PLC0415
+    from addedinertia_env import __version__  # noqa: PLC0415
 
     parser.add_argument("--version", action="version", version=f"addedinertia {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

@@ -16,7 +16,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from .common import BadInput, emit_json, info, positive_int
+from addedinertia_env.cli.common import BadInput, emit_json, info, positive_int
 
 
 def register(sub) -> None:
@@ -76,7 +76,7 @@ def _check_controller(name: str) -> None:
     """Refuse an unknown controller before any episode runs (exit status 2)."""
     from agents.registry import CLASSICAL, UnknownController, load_factory  # noqa: PLC0415
 
-    from ..bench.runner import REFERENCES  # noqa: PLC0415
+    from addedinertia_env.bench.runner import REFERENCES  # noqa: PLC0415
 
     if name in REFERENCES or name in CLASSICAL:
         return
@@ -96,13 +96,13 @@ def _check_controller(name: str) -> None:
 
 def run_bench(args) -> int:
     """Run ``addedinertia bench run`` with the parsed ``args``; one JSON line per episode is appended to ``--out`` (a run resumes the rows already there and retries the failed ones); returns 0, or 1 when episodes failed (how many and the first reason on stderr; with ``--allow-failures`` only when all failed); bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..bench.resume import RowAppender, drop_failed, failure_reason, is_failed, prepare_output  # noqa: PLC0415
-    from ..bench.runner import run_tasks  # noqa: PLC0415
-    from ..bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.bench.resume import RowAppender, drop_failed, failure_reason, is_failed, prepare_output  # noqa: PLC0415
+    from addedinertia_env.bench.runner import run_tasks  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
     suite = load_suite(args.suite)
     _check_controller(args.controller)
-    from ..bench.submission import SubmissionError, declared_entry  # noqa: PLC0415
+    from addedinertia_env.bench.submission import SubmissionError, declared_entry  # noqa: PLC0415
 
     try:
         entry = declared_entry(args.controller, args.entry_kind, args.train_cost)
@@ -115,7 +115,7 @@ def run_bench(args) -> int:
     safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", args.controller)
     out = Path(args.out or f"out/bench/{suite.name}-{safe}.jsonl")
     key = {"controller": args.controller, "suite": suite.name, "split": args.split}
-    from ..atomic import remove_stale_temps  # noqa: PLC0415
+    from addedinertia_env.foundation.atomic import remove_stale_temps  # noqa: PLC0415
 
     for stale in remove_stale_temps(out.parent):
         info(f"bench: removed {stale}, a temporary file of a killed earlier run")
@@ -173,11 +173,11 @@ def invoked_command(args) -> str:
 
 def run_leaderboard(args) -> int:
     """Run ``addedinertia bench leaderboard`` with the parsed ``args``; writes (or prints) the ranking as Markdown, HTML or JSON; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..bench.leaderboard import RowsError, load_rows, public  # noqa: PLC0415
-    from ..bench.report import build  # noqa: PLC0415
-    from ..jsonable import plain  # noqa: PLC0415
+    from addedinertia_env.bench.leaderboard import RowsError, load_rows, public  # noqa: PLC0415
+    from addedinertia_env.bench.report import build  # noqa: PLC0415
+    from addedinertia_env.foundation.jsonable import plain  # noqa: PLC0415
 
-    from ..bench.score import ScoreVersionError, check_versions  # noqa: PLC0415
+    from addedinertia_env.bench.score import ScoreVersionError, check_versions  # noqa: PLC0415
 
     try:
         rows = load_rows(args.files)
@@ -186,8 +186,8 @@ def run_leaderboard(args) -> int:
         raise BadInput(str(e)) from None
     out = Path(args.out) if args.out else None
     if args.format == "scores":
-        from ..bench.leaderboard import scores  # noqa: PLC0415
-        from ..bench.statistics import score_matrix, write_scores  # noqa: PLC0415
+        from addedinertia_env.bench.leaderboard import scores  # noqa: PLC0415
+        from addedinertia_env.bench.statistics import score_matrix, write_scores  # noqa: PLC0415
 
         if out is None:
             raise BadInput("bench leaderboard --format scores: expected --out FILE.npz (a binary matrix file)")
@@ -200,12 +200,12 @@ def run_leaderboard(args) -> int:
         info(f"wrote {path} ({len(matrices)} controllers x {len(scenarios)} scenarios) and {side}")
         return 0
     if args.format == "json":
-        from ..bench.leaderboard import summarise  # noqa: PLC0415
-        from ..bench.verdict import discrimination, verdict  # noqa: PLC0415
+        from addedinertia_env.bench.leaderboard import summarise  # noqa: PLC0415
+        from addedinertia_env.bench.verdict import discrimination, verdict  # noqa: PLC0415
 
         entries = summarise(rows)
         disc = discrimination(entries)
-        from ..bench.versions import check_versions  # noqa: PLC0415
+        from addedinertia_env.bench.versions import check_versions  # noqa: PLC0415
 
         obj = plain({"title": args.title, "entries": public(entries), "files": args.files,
                               "score_version": check_versions({"rows": rows}),
@@ -215,7 +215,7 @@ def run_leaderboard(args) -> int:
         if out is not None:
             import json  # noqa: PLC0415
 
-            from ..atomic import atomic_write_text  # noqa: PLC0415
+            from addedinertia_env.foundation.atomic import atomic_write_text  # noqa: PLC0415
 
             atomic_write_text(out, json.dumps(obj, indent=1, allow_nan=False, default=str) + "\n")
         emit_json(obj)
@@ -224,7 +224,7 @@ def run_leaderboard(args) -> int:
     if out is None:
         sys.stdout.write(text)
     else:
-        from ..atomic import atomic_write_text  # noqa: PLC0415
+        from addedinertia_env.foundation.atomic import atomic_write_text  # noqa: PLC0415
 
         atomic_write_text(out, text)
         info(f"wrote {out}" + (f" and its figures in {out.parent / 'figures'}" if args.format == "md" else ""))
@@ -233,9 +233,9 @@ def run_leaderboard(args) -> int:
 
 def run_tune(args) -> int:
     """Run ``addedinertia bench tune`` with the parsed ``args``; tunes the controller on the suite's tuning split and writes its tuned file (not with ``--dry-run``); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..bench.tuning import tune, write_tuned  # noqa: PLC0415
+    from addedinertia_env.bench.tuning import tune, write_tuned  # noqa: PLC0415
 
-    from ..bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
     suite = load_suite(args.suite)
     try:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import time
 
-from .common import emit_json, info
+from addedinertia_env.cli.common import emit_json, info
 
 EXIT_FAULTS = 3
 EXIT_NO_BENCH = 4
@@ -67,7 +67,7 @@ def run(args) -> int:
     from hw_adapter import messages as m  # noqa: PLC0415
     from hw_adapter.link import Link, LinkError  # noqa: PLC0415
 
-    from .deploy import _check_url  # noqa: PLC0415
+    from addedinertia_env.cli.deploy import _check_url  # noqa: PLC0415
 
     _check_url(args.bench)
     out: dict = {"bench": args.bench, "cleared": False}

@@ -11,8 +11,8 @@ import json
 import signal
 import sys
 
-from ..rig.presets import load_preset, rig_from_mapping
-from .common import BadInput, info
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
+from addedinertia_env.cli.common import BadInput, info
 
 
 def register(sub) -> None:

@@ -9,11 +9,11 @@ import sys
 from typing import Any
 
 
-from ..experiment.protocol import ExperimentError
-from ..identify.common import IdentificationError
-from ..jsonable import plain
-from ..record import RecordError
-from ..rig.presets import ConfigError
+from addedinertia_env.experiment.protocol import ExperimentError
+from addedinertia_env.identify.common import IdentificationError
+from addedinertia_env.foundation.jsonable import plain
+from addedinertia_env.records.record import RecordError
+from addedinertia_env.sim.presets import ConfigError
 
 
 class BadInput(ValueError):
@@ -63,7 +63,7 @@ def report_bug(error: BaseException, argv: list[str] | None) -> int:
     import traceback  # noqa: PLC0415
     from pathlib import Path  # noqa: PLC0415
 
-    from .. import __version__  # noqa: PLC0415
+    from addedinertia_env import __version__  # noqa: PLC0415
 
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     text = (f"addedinertia {__version__}, argv {argv if argv is not None else sys.argv[1:]}\n"

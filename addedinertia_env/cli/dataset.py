@@ -9,7 +9,7 @@ metadata. Needs the optional ``[data]`` extra (Minari, h5py).
 
 from __future__ import annotations
 
-from .common import BadInput, emit_json, info, non_negative_int, positive_int
+from addedinertia_env.cli.common import BadInput, emit_json, info, non_negative_int, positive_int
 
 
 def register(sub) -> None:
@@ -38,7 +38,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run ``addedinertia dataset export``; writes the dataset and prints where; returns 0; bad input raises."""
-    from ..learning import minari_export as mx  # noqa: PLC0415
+    from addedinertia_env.learning import minari_export as mx  # noqa: PLC0415
 
     try:
         mx._minari()
@@ -53,7 +53,7 @@ def run(args) -> int:
         env = None
         if args.simulate:
             if args.suite is not None:
-                from ..bench.suites import available_suites  # noqa: PLC0415
+                from addedinertia_env.bench.suites import available_suites  # noqa: PLC0415
 
                 if args.suite not in available_suites():
                     raise BadInput(f"--suite {args.suite!r}: expected one of {', '.join(available_suites())}")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .common import BadInput, emit_json, info
+from addedinertia_env.cli.common import BadInput, emit_json, info
 
 # The textbook's measured decay, shipped as package data (its README cites the source).
 TEXTBOOK_IN_REPO = "addedinertia_env/data/textbook/textbook_roll_decay.csv"
@@ -33,7 +33,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run ``addedinertia decay`` with the parsed ``args``; prints the damping laws ranked by BIC (with ``--json``, one object on stdout); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..decay import DecayInputError, analyse, plot  # noqa: PLC0415
+    from addedinertia_env.decay import DecayInputError, analyse, plot  # noqa: PLC0415
 
     if args.textbook == (args.amplitudes is not None):
         raise BadInput("decay: give either an AMPLITUDES.csv file or --textbook (the shipped measured record), "

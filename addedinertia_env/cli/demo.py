@@ -7,14 +7,14 @@ from agents.registry import DEFAULT_CONTROLLER
 import time
 from pathlib import Path
 
-from ..identify import IdentificationError
-from ..plots import plot_run
-from ..record import write_record
-from ..rig.presets import load_preset, rig_from_mapping
-from ..scoring import CORRECTED, estimate, score_episode
-from ..experiment.protocol import plan_from_preset
-from ..simulate import simulate_run
-from .common import emit_json, info, non_negative_int
+from addedinertia_env.identify import IdentificationError
+from addedinertia_env.records.plots import plot_run
+from addedinertia_env.records.record import write_record
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
+from addedinertia_env.evaluation.scoring import CORRECTED, estimate, score_episode
+from addedinertia_env.experiment.protocol import plan_from_preset
+from addedinertia_env.apps.simulate import simulate_run
+from addedinertia_env.cli.common import emit_json, info, non_negative_int
 
 
 def register(sub) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .common import BadInput, emit_json, info, non_negative_float
+from addedinertia_env.cli.common import BadInput, emit_json, info, non_negative_float
 
 
 def register(sub) -> None:

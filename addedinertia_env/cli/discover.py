@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..record import read_record
-from .common import BadInput, emit_json, info
+from addedinertia_env.records.record import read_record
+from addedinertia_env.cli.common import BadInput, emit_json, info
 
 
 def register(sub) -> None:
@@ -22,7 +22,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run ``addedinertia discover`` with the parsed ``args``; prints what the nominal model misses and its likely causes (and writes ``--report``); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..discover import DiscoveryInputError, discover  # noqa: PLC0415
+    from addedinertia_env.discover import DiscoveryInputError, discover  # noqa: PLC0415
 
     records = [read_record(path) for path in args.records]
     try:
@@ -31,7 +31,7 @@ def run(args) -> int:
         raise BadInput(str(e)) from None
     out = diag.to_json()
     if args.report:
-        from ..discover.report import write_report  # noqa: PLC0415
+        from addedinertia_env.discover.report import write_report  # noqa: PLC0415
 
         path = write_report(diag, args.report)
         out["report"] = str(path)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import emit_json, info, positive_int
+from addedinertia_env.cli.common import emit_json, info, positive_int
 
 
 def register(sub) -> None:
@@ -23,8 +23,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run ``addedinertia export`` with the parsed ``args``; writes the ONNX file with its card and prints parity and latency; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..learning.export import export_onnx  # noqa: PLC0415 - torch is heavy
-    from .common import BadInput  # noqa: PLC0415
+    from addedinertia_env.learning.export import export_onnx  # noqa: PLC0415 - torch is heavy
+    from addedinertia_env.cli.common import BadInput  # noqa: PLC0415
 
     card = export_onnx(args.model, args.onnx, n_parity=args.parity_samples)
     lat = card["latency_us"]

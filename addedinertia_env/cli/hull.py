@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .common import BadInput, emit_json, info, positive_int
+from addedinertia_env.cli.common import BadInput, emit_json, info, positive_int
 
 MEMORY_KEYS = ("memory", "A66_swing", "A66_swing_ci95", "A66_inf", "A66_inf_ci95")  # identify()'s, passed on
 SOLVE_HELP = "recompute with the BEM even when a cache exists (needs Capytaine: pip install 'addedinertia[hull]')"
@@ -58,8 +58,8 @@ def register(sub) -> None:
 
 def _study_for(args) -> tuple[dict, dict]:
     """(study, facts) for the target: cached or solved."""
-    from ..hull import study as st  # noqa: PLC0415
-    from ..hull.bem import CapytaineMissing  # noqa: PLC0415
+    from addedinertia_env.hydro import study as st  # noqa: PLC0415
+    from addedinertia_env.hydro.bem import CapytaineMissing  # noqa: PLC0415
 
     target = args.hull
     suffix = Path(target).suffix.lower()
@@ -68,7 +68,7 @@ def _study_for(args) -> tuple[dict, dict]:
         raise BadInput(f"{target}: no such mesh file; expected a rig preset name or a mesh file Capytaine reads")
     if is_mesh:
         return _study_mesh(args), {"preset": None, "swing_omega": args.swing_omega or 1.57}
-    from ..hull.presets import preset_hull  # noqa: PLC0415
+    from addedinertia_env.sim.hull_presets import preset_hull  # noqa: PLC0415
 
     shape, facts = preset_hull(target)
     if args.swing_omega is not None:
@@ -101,9 +101,9 @@ def _study_for(args) -> tuple[dict, dict]:
 
 
 def _study_mesh(args) -> dict:
-    from ..hull import study as st  # noqa: PLC0415
-    from ..hull.bem import CapytaineMissing, load_user_mesh, solve_yaw  # noqa: PLC0415
-    from ..hull.mesh_checks import MeshError  # noqa: PLC0415
+    from addedinertia_env.hydro import study as st  # noqa: PLC0415
+    from addedinertia_env.hydro.bem import CapytaineMissing, load_user_mesh, solve_yaw  # noqa: PLC0415
+    from addedinertia_env.hydro.mesh_checks import MeshError  # noqa: PLC0415
 
     if args.write_cache or args.panels:
         raise BadInput(f"{args.hull}: --write-cache and --panels apply to presets; a mesh is solved as given")
@@ -125,7 +125,7 @@ def _study_mesh(args) -> dict:
 
 def run(args) -> int:
     """Run ``addedinertia hull`` with the parsed ``args``; prints the radiation study of the hull (added inertia A66 in kg m^2 and damping over frequency, convergence) from its cache or solved now, or with ``--export-mesh`` writes the mesh only; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..hull import study as st  # noqa: PLC0415
+    from addedinertia_env.hydro import study as st  # noqa: PLC0415
 
     if args.export_mesh:  # write the mesh and stop: nothing is solved
         written = _export(args)
@@ -153,7 +153,7 @@ def run(args) -> int:
         out["preset"] = {"name": facts["preset"], "lambda66": facts["lambda66"],
                          "lambda66_source": facts["lambda66_source"], "swing_period": facts["swing_period"]}
     if args.plot:
-        from ..hull.figures import plot_study  # noqa: PLC0415
+        from addedinertia_env.hydro.figures import plot_study  # noqa: PLC0415
 
         out["plot"] = str(plot_study(data, args.plot, swing_omega=facts.get("swing_omega")))
         info(f"figure written to {out['plot']}")
@@ -168,9 +168,9 @@ def run(args) -> int:
 
 def _fit_memory(args) -> dict:
     """Fit the simulator's memory model to a preset's cached sweep and store it in the cache."""
-    from ..hull import study as st  # noqa: PLC0415
-    from ..hull.memory_fit import memory_model_from_cache  # noqa: PLC0415
-    from ..hull.presets import preset_hull  # noqa: PLC0415
+    from addedinertia_env.hydro import study as st  # noqa: PLC0415
+    from addedinertia_env.hydro.memory_fit import memory_model_from_cache  # noqa: PLC0415
+    from addedinertia_env.sim.hull_presets import preset_hull  # noqa: PLC0415
 
     if args.solve or args.deep or args.panels:
         raise BadInput("--fit-memory fits the cached floating-hull sweep: drop --solve/--deep/--panels "
@@ -195,10 +195,10 @@ def _fit_memory(args) -> dict:
 
 
 def _netcdf(args) -> dict:
-    from ..hull.bem import CapytaineMissing  # noqa: PLC0415
-    from ..hull.mesh_checks import MeshError  # noqa: PLC0415
-    from ..hull.netcdf import export  # noqa: PLC0415
-    from ..hull.presets import preset_hull  # noqa: PLC0415
+    from addedinertia_env.hydro.bem import CapytaineMissing  # noqa: PLC0415
+    from addedinertia_env.hydro.mesh_checks import MeshError  # noqa: PLC0415
+    from addedinertia_env.hydro.netcdf import export  # noqa: PLC0415
+    from addedinertia_env.sim.hull_presets import preset_hull  # noqa: PLC0415
 
     if args.deep or args.solve or args.write_cache:
         raise BadInput("--netcdf solves the floating hull and writes only the NetCDF file: drop --deep/--solve/--write-cache")
@@ -216,10 +216,10 @@ def _netcdf(args) -> dict:
 
 
 def _export(args) -> dict:
-    from ..atomic import atomic_write_text  # noqa: PLC0415
-    from ..hull import study as st  # noqa: PLC0415
-    from ..hull.geometry import gdf_text, quarter_mesh  # noqa: PLC0415
-    from ..hull.presets import preset_hull  # noqa: PLC0415
+    from addedinertia_env.foundation.atomic import atomic_write_text  # noqa: PLC0415
+    from addedinertia_env.hydro import study as st  # noqa: PLC0415
+    from addedinertia_env.hydro.geometry import gdf_text, quarter_mesh  # noqa: PLC0415
+    from addedinertia_env.sim.hull_presets import preset_hull  # noqa: PLC0415
 
     shape, facts = preset_hull(args.hull)
     n = args.panels[1] if args.panels else st.DEFAULT_PANELS[1]
@@ -231,7 +231,7 @@ def _export(args) -> dict:
 
 
 def _mesh_summary(data: dict) -> dict:
-    from ..hull import study as st  # noqa: PLC0415
+    from addedinertia_env.hydro import study as st  # noqa: PLC0415
 
     r = data["resolutions"]["fine"]
     w = data["swing_omega"]
@@ -247,8 +247,8 @@ def _mesh_summary(data: dict) -> dict:
 
 
 def _stability(args, data: dict, out: dict) -> dict:
-    from ..hull.geometry import HullShape  # noqa: PLC0415
-    from ..hull.stability import GRAVITY, Ship, stability  # noqa: PLC0415
+    from addedinertia_env.hydro.geometry import HullShape  # noqa: PLC0415
+    from addedinertia_env.hydro.stability import GRAVITY, Ship, stability  # noqa: PLC0415
 
     if data.get("hull") is None:
         raise BadInput("--stability needs the hull's L, B, T and block coefficient: use a preset with hull.geometry")
@@ -261,8 +261,8 @@ def _stability(args, data: dict, out: dict) -> dict:
     rng = tuple(args.lambda66_range) if args.lambda66_range else (0.95 * added["lambda66"], 1.05 * added["lambda66"])
     measured = None
     if args.from_record:
-        from ..identify import METHODS, identify  # noqa: PLC0415
-        from ..record import read_record  # noqa: PLC0415
+        from addedinertia_env.identify import METHODS, identify  # noqa: PLC0415
+        from addedinertia_env.records.record import read_record  # noqa: PLC0415
 
         if args.method not in METHODS:
             raise BadInput(f"--method {args.method!r}: expected one of {', '.join(METHODS)}")

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from ..identify import METHODS, identify
-from ..record import read_record, sampling
-from .common import emit_json, info
+from addedinertia_env.identify import METHODS, identify
+from addedinertia_env.records.record import read_record, sampling
+from addedinertia_env.cli.common import emit_json, info
 
 
 def register(sub) -> None:

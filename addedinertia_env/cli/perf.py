@@ -5,8 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..atomic import atomic_write_text
-from .common import BadInput, emit_json, info, positive_int
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.cli.common import BadInput, emit_json, info, positive_int
 
 
 def register(sub) -> None:
@@ -35,7 +35,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run ``addedinertia perf`` with the parsed ``args``; measures steps per second of the single and the batched rig and prints the table (``--out``: writes it); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..perf import plot_time_vs_n, render_markdown, run_perf  # noqa: PLC0415
+    from addedinertia_env.reports.perf import plot_time_vs_n, render_markdown, run_perf  # noqa: PLC0415
 
     if not (0 < args.seconds <= 60):
         raise BadInput(f"--seconds {args.seconds!r}: expected a time in (0, 60] s")
@@ -47,7 +47,7 @@ def run(args) -> int:
     if not (0 < args.vector_seconds <= 600):
         raise BadInput(f"--vector-seconds {args.vector_seconds!r}: expected a time in (0, 600] s")
     result = run_perf(tuple(sizes), seconds=args.seconds, repeats=args.repeats, progress=info)
-    from ..vector.measure import measure_vector_task  # noqa: PLC0415
+    from addedinertia_env.vector.measure import measure_vector_task  # noqa: PLC0415
 
     if args.vector_warmup < 0:
         raise BadInput(f"--vector-warmup {args.vector_warmup}: expected 0 or more agent steps")

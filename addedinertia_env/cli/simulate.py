@@ -6,11 +6,11 @@ from agents.registry import DEFAULT_CONTROLLER
 
 from pathlib import Path
 
-from ..rig.effects import effect_names
-from ..rig.presets import SENSOR_QUALITY, load_preset, rig_from_mapping, sensors_for_quality
-from ..experiment.protocol import plan_from_preset
-from ..simulate import OTHER_KINDS, OutputInUse, effects_from_name, simulate_to_dir
-from .common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
+from addedinertia_env.sim.effects import effect_names
+from addedinertia_env.sim.presets import SENSOR_QUALITY, load_preset, rig_from_mapping, sensors_for_quality
+from addedinertia_env.experiment.protocol import plan_from_preset
+from addedinertia_env.apps.simulate import OTHER_KINDS, OutputInUse, effects_from_name, simulate_to_dir
+from addedinertia_env.cli.common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
 
 
 MAX_CYCLES = 1000  # records per call
@@ -57,7 +57,7 @@ def run(args) -> int:
                            "onnx:PATH or module:factory")
         if ":" in args.controller:
             make_controller(args.controller)  # a policy or factory is loaded and checked before anything runs
-    from ..atomic import remove_stale_temps  # noqa: PLC0415
+    from addedinertia_env.foundation.atomic import remove_stale_temps  # noqa: PLC0415
 
     for stale in remove_stale_temps(args.out):
         info(f"removed {stale}, a temporary file of a killed earlier run")

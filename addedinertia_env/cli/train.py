@@ -5,7 +5,7 @@ from __future__ import annotations
 import shlex
 import sys
 
-from .common import emit_json, info, positive_int
+from addedinertia_env.cli.common import emit_json, info, positive_int
 
 
 def register(sub) -> None:
@@ -34,8 +34,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run ``addedinertia train`` with the parsed ``args``; trains and writes the model (``model.zip``) and its card under ``--out``; returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from ..learning.config import DEFAULT_ENV_ID, load_config  # noqa: PLC0415 - torch is heavy
-    from ..learning.train import train  # noqa: PLC0415
+    from addedinertia_env.learning.config import DEFAULT_ENV_ID, load_config  # noqa: PLC0415 - torch is heavy
+    from addedinertia_env.learning.train import train  # noqa: PLC0415
 
     cfg = load_config(args.algo, args.config, env_id=args.env or DEFAULT_ENV_ID)
     if args.timesteps is not None:

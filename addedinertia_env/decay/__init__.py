@@ -40,11 +40,17 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .amplitudes import (MIN_AMPLITUDES, READING_RESOLUTION_DEG, READING_SIGMA_DEG, Amplitudes, DecayInputError,
-                         read_amplitudes)
-from .figure import plot
-from .laws import LAWS, UNITS, LawFit, envelope, fit_law, fit_laws, law_nu, nested_f_test
-from .textbook import nu_blagoveshchensky, nu_logarithmic, textbook_processing
+from addedinertia_env.decay.amplitudes import (
+    MIN_AMPLITUDES,
+    READING_RESOLUTION_DEG,
+    READING_SIGMA_DEG,
+    Amplitudes,
+    DecayInputError,
+    read_amplitudes,
+)
+from addedinertia_env.decay.figure import plot
+from addedinertia_env.decay.laws import LAWS, UNITS, LawFit, envelope, fit_law, fit_laws, law_nu, nested_f_test
+from addedinertia_env.decay.textbook import nu_blagoveshchensky, nu_logarithmic, textbook_processing
 
 __all__ = ["MIN_AMPLITUDES", "READING_RESOLUTION_DEG", "READING_SIGMA_DEG", "Amplitudes", "DecayInputError",
            "read_amplitudes", "plot", "LAWS", "UNITS", "LawFit", "envelope", "fit_law", "fit_laws", "law_nu",

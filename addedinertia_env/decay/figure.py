@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import save_figure
-from .amplitudes import READING_RESOLUTION_DEG, read_amplitudes
-from .laws import envelope, law_nu
+from addedinertia_env.foundation.atomic import save_figure
+from addedinertia_env.decay.amplitudes import READING_RESOLUTION_DEG, read_amplitudes
+from addedinertia_env.decay.laws import envelope, law_nu
 
 def plot(result: dict, path: str | Path) -> Path:
     """Amplitudes with the fitted envelopes, and nu against amplitude (textbook vs laws)."""

@@ -9,7 +9,7 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
 
-from .amplitudes import READING_SIGMA_DEG, Amplitudes
+from addedinertia_env.decay.amplitudes import READING_SIGMA_DEG, Amplitudes
 
 LAWS = {
     "linear": ("a",),

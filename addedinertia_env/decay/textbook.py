@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .amplitudes import Amplitudes, DecayInputError, read_text
+from addedinertia_env.decay.amplitudes import Amplitudes, DecayInputError, read_text
 
 
 def nu_blagoveshchensky(dtheta, theta_mean):

@@ -5,7 +5,7 @@ of all runs by output error, extends it by each candidate effect of the vocabula
 run-record.md, and names the cause (``docs/DISCOVERY.md``).
 """
 
-from .diagnose import Diagnosis, Thresholds, discover
-from .prepare import DiscoveryInputError
+from addedinertia_env.discover.diagnose import Diagnosis, Thresholds, discover
+from addedinertia_env.discover.prepare import DiscoveryInputError
 
 __all__ = ["Diagnosis", "DiscoveryInputError", "Thresholds", "discover"]

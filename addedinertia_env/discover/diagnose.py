@@ -28,13 +28,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..record import RunRecord
-from ..rig.effects import registry
-from . import residuals as resid
-from .fit import Fit, fit_model
-from .model import GrayBoxModel
-from .prepare import Prepared, prepare, with_release_lag
-from .selection import Selection, Step, heldout_rms, label, leave_one_out, select, singles
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.sim.effects import registry
+from addedinertia_env.discover import residuals as resid
+from addedinertia_env.discover.fit import Fit, fit_model
+from addedinertia_env.discover.model import GrayBoxModel
+from addedinertia_env.discover.prepare import Prepared, prepare, with_release_lag
+from addedinertia_env.discover.selection import Selection, Step, heldout_rms, label, leave_one_out, select, singles
 
 __all__ = ["Candidate", "Diagnosis", "Thresholds", "best_release_lag", "choose_release_lag", "discover",
            "heldout_rms"]
@@ -163,7 +163,7 @@ class Diagnosis:
         return self.selection.heldout.get(())
 
     def _heldout_final(self) -> float | None:
-        from .selection import canonical  # noqa: PLC0415
+        from addedinertia_env.discover.selection import canonical  # noqa: PLC0415
 
         return self.selection.heldout.get(canonical(self.causes))
 
@@ -179,7 +179,7 @@ class Diagnosis:
 
     def effects_gain(self) -> list[dict]:
         """lambda66 and residuals of the nominal model, of each named effect alone and of the final combination."""
-        from .selection import canonical  # noqa: PLC0415
+        from addedinertia_env.discover.selection import canonical  # noqa: PLC0415
 
         rows = [("nominal", ())] + [(e, (e,)) for e in self.causes]
         if len(self.causes) > 1:
@@ -259,7 +259,7 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
         cause = "unexplained" if _structured(sel.nominal, th) else "none"
     memory = None
     if radiation:  # the water's inertia depends on frequency: outside the gray-box model (discover/radiation_memory.py)
-        from . import radiation_memory  # noqa: PLC0415
+        from addedinertia_env.discover import radiation_memory  # noqa: PLC0415
 
         memory = radiation_memory.candidate(records)
         cause, causes = radiation_memory.merge(cause, causes, memory)

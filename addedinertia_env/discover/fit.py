@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from .model import GrayBoxModel
+from addedinertia_env.discover.model import GrayBoxModel
 
 
 @dataclass

@@ -5,10 +5,10 @@ Hull (physics.md section 2, first row of the mass matrix minus the second)::
     (J_h + lambda66) phi'' = -c (phi - phi_n) + Q_hull(phi, phi', r_w) - (k_t i + Q_fly(Omega))
 
 with the *measured* motor current ``i`` as input (offset removed) and ``Q_hull`` from
-:func:`addedinertia_env.rig.forces.hull_extra_torque`, the same function the simulator
+:func:`addedinertia_env.sim.forces.hull_extra_torque`, the same function the simulator
 uses (one source of truth): linear + quadratic damping, and when a candidate asks for
 it dry friction, fluid memory (water state ``r_w``), spring stiffening. The spring's
-linear part uses :func:`~addedinertia_env.rig.forces.true_neutral`, so a neutral offset is
+linear part uses :func:`~addedinertia_env.sim.forces.true_neutral`, so a neutral offset is
 a parameter like any other. The brake fixes ``phi`` during the hold, while the water
 state decays as ``exp(-hold / tau)``.
 
@@ -39,10 +39,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..rig import forces
-from ..rig.integrator import rk4_step
-from ..rig.effects import registry
-from .prepare import Prepared, flywheel_prediction, interval_current
+from addedinertia_env.sim import forces
+from addedinertia_env.sim.integrator import rk4_step
+from addedinertia_env.sim.effects import registry
+from addedinertia_env.discover.prepare import Prepared, flywheel_prediction, interval_current
 
 NOMINAL_PARAMS = registry.NOMINAL_PARAM_NAMES
 

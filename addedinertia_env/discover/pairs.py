@@ -1,6 +1,6 @@
 """Two hidden effects at once: every pair of the vocabulary, drawn at realistic sizes from a seed.
 
-The pairs come from the effect registry (``rig/effects/``), so a word added there joins
+The pairs come from the effect registry (``sim/effects/``), so a word added there joins
 the pair tests and the pair table without a change here. Each effect of a pair is drawn
 from its own realistic range (its file's ``draw`` or ``Param.realistic``) with a stream
 of its own, so the same seed gives an effect the same size in every pair it is in.
@@ -12,7 +12,7 @@ from __future__ import annotations
 import itertools
 import numpy as np
 
-from ..rig.effects import Effects, registry
+from addedinertia_env.sim.effects import Effects, registry
 
 
 def vocabulary_pairs() -> list[tuple[str, str]]:

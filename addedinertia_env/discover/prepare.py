@@ -3,7 +3,7 @@
 Every record the spec allows is taken as the DAQ logged it (issue 11):
 
 * **segments by what the record says**: ``phase`` and ``brake`` together
-  (:func:`addedinertia_env.record.motion_phase`): a braked sample is never motion. A
+  (:func:`addedinertia_env.records.record.motion_phase`): a braked sample is never motion. A
   reverse-symmetric run gives a **free stroke** (release to the brake) and a **reverse
   stroke** (release after the hold to the next braked sample, an unbraked passive tail
   included); with no braked sample between them the two are one continuous **stroke**.
@@ -19,7 +19,7 @@ Every record the spec allows is taken as the DAQ logged it (issue 11):
   (physics.md section 2), which separates a current delay from a torque-constant error;
 * the **current as the DAQ logged it**: offset removed (the motor is open-circuit on the
   free stroke, so the true current is zero there); whether a sample is the value at its
-  instant or held over an interval (``rig.current_sampling``, :data:`~addedinertia_env.record.CURRENT_SAMPLING`)
+  instant or held over an interval (``rig.current_sampling``, :data:`~addedinertia_env.records.record.CURRENT_SAMPLING`)
   is read from the rig block, or, when absent, estimated from the flywheel channel and
   reported;
 * noise floors measured from the record itself.
@@ -35,8 +35,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..record import CURRENT_SAMPLING, RunRecord, current_sampling, motion_phase, sampling
-from ..rig import forces
+from addedinertia_env.records.record import CURRENT_SAMPLING, RunRecord, current_sampling, motion_phase, sampling
+from addedinertia_env.sim import forces
 
 STEP_S = 0.02  # s, target length of one integrator step (the input is integrated exactly within it)
 FLYWHEEL_CHUNK_S = 0.5  # s, flywheel residuals are shot from a fresh state every chunk
@@ -396,7 +396,7 @@ def interval_current(t: np.ndarray, current: np.ndarray, mode: str, delay: float
                      ) -> tuple[np.ndarray, np.ndarray]:
     """The current at the start and at the end of every sample interval, A (two arrays of ``len(t) - 1``).
 
-    ``mode`` (see :data:`~addedinertia_env.record.CURRENT_SAMPLING`): ``instant`` - linear
+    ``mode`` (see :data:`~addedinertia_env.records.record.CURRENT_SAMPLING`): ``instant`` - linear
     between samples; ``held-previous`` - sample ``k + 1`` held over interval ``k``;
     ``held-next`` - sample ``k`` held over interval ``k``. ``delay`` (s): the channel lags
     the encoders, so the true current at ``t`` is the logged one at ``t + delay``.

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..record import RunRecord
+from addedinertia_env.records.record import RunRecord
 
 NAME = "radiation_memory"
 MAX_RSS_RATIO = 0.05  # as identify.memory.MEMORY_RSS_RATIO
@@ -35,7 +35,7 @@ MIN_POLE = 1.0  # rad/s: the free surface's kernel dies within about 2 s (physic
 
 def candidate(records: list[RunRecord], memory=None) -> dict[str, Any]:
     """The ``radiation_memory`` evidence from ``records`` (``memory``: an identification already made)."""
-    from ..identify.memory import identify_memory  # noqa: PLC0415
+    from addedinertia_env.identify.memory import identify_memory  # noqa: PLC0415
 
     mem = memory if memory is not None else identify_memory([r.without_truth() for r in records])
     out: dict[str, Any] = {"cause": NAME, "named": False, "status": mem.status, "rss_memory_free": mem.rss_none}

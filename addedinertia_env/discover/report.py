@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_write_text, save_figure
-from ..jsonable import plain
-from . import residuals as resid
-from .diagnose import Diagnosis
-from .fit import Fit
+from addedinertia_env.foundation.atomic import atomic_write_text, save_figure
+from addedinertia_env.foundation.jsonable import plain
+from addedinertia_env.discover import residuals as resid
+from addedinertia_env.discover.diagnose import Diagnosis
+from addedinertia_env.discover.fit import Fit
 
 
 def _segment_times(fit: Fit):

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from .fit import Fit
+from addedinertia_env.discover.fit import Fit
 
 MAX_LAG = 20
 

@@ -1,7 +1,7 @@
 """Forward model selection over combinations of effects, judged on held-out runs.
 
 The extended model grows from the nominal one by one effect of the vocabulary at a time
-(every registered effect is a candidate, so a word added to ``rig/effects/`` joins
+(every registered effect is a candidate, so a word added to ``sim/effects/`` joins
 without a change here):
 
 1. **screen**: for every effect not yet in the model, the score (Lagrange-multiplier)
@@ -35,10 +35,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..rig.effects import registry
-from .fit import Fit, bic, effective_n, fit_model
-from .model import GrayBoxModel, candidates
-from .prepare import Prepared
+from addedinertia_env.sim.effects import registry
+from addedinertia_env.discover.fit import Fit, bic, effective_n, fit_model
+from addedinertia_env.discover.model import GrayBoxModel, candidates
+from addedinertia_env.discover.prepare import Prepared
 
 
 # Solver budgets (function evaluations, each with its Jacobian): a candidate of a round
@@ -245,7 +245,7 @@ def select(data: Prepared, th, heldout: bool = True, progress=None, max_effects:
         steps.sort(key=lambda s: -s.predicted_drop)
         # an effect is fitted only if the score test promises a visible gain: a quarter of the
         # held-out gain asked for (the test is exact for a size-linear effect, and under-predicts
-        # a nonlinear one by less than that on the candidates of rig/effects/)
+        # a nonlinear one by less than that on the candidates of sim/effects/)
         need = th.min_heldout_gain / 4.0
         for s in steps[th.top_k_fit:]:
             s.reason = f"not among the {th.top_k_fit} largest predicted drops (score test)"

@@ -1,6 +1,6 @@
 """Gymnasium environments (registered by ``import addedinertia_env``)."""
 
-from .config import EnvConfig
-from .reverse_stroke import ReverseStrokeEnv
+from addedinertia_env.envs.config import EnvConfig
+from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv
 
 __all__ = ["EnvConfig", "ReverseStrokeEnv"]

@@ -22,7 +22,7 @@ import numpy as np
 
 from agents import make_controller
 
-from .reverse_stroke import ReverseStrokeEnv
+from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv
 
 Policy = Callable[[ReverseStrokeEnv, np.ndarray], np.ndarray]
 

@@ -10,7 +10,7 @@ is timed too. Numbers are medians over ``--trials`` runs.
 
 from __future__ import annotations
 
-from ..machine import machine_info
+from addedinertia_env.foundation.machine import machine_info
 
 import argparse
 import json
@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from ..experiment.protocol import Experiment
-from ..rig.motor import MotorCommand
-from .reverse_stroke import ReverseStrokeEnv, simulated_rig
+from addedinertia_env.experiment.protocol import Experiment
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv, simulated_rig
 
 SCENARIO = {"randomize": False, "hold_s": 0.5, "scenario_seed": 0}
 

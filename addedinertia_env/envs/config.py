@@ -14,9 +14,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..rig.presets import SENSOR_QUALITY, ConfigError, available_rigs, rig_path
-from ..scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
-from ..task import CONTROL_MODES, RewardWeights
+from addedinertia_env.sim.presets import SENSOR_QUALITY, ConfigError, available_rigs, rig_path
+from addedinertia_env.experiment.scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
+from addedinertia_env.experiment.task import CONTROL_MODES, RewardWeights
 
 MAX_HOLD_S = 10.0  # s, longest hold the environment accepts (keeps episodes under the step limit)
 MAX_ACTION_REPEAT = 1000  # samples per action: one second at 1 kHz

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..record import RunRecord
+from addedinertia_env.records.record import RunRecord
 
 GL_HELP = ("MuJoCo could not open an OpenGL context for render_mode='rgb_array'. Set MUJOCO_GL before "
            "Python imports mujoco: MUJOCO_GL=egl (with EGL_PLATFORM=surfaceless on a machine without a GPU) "
@@ -90,13 +90,13 @@ class RigRenderer:
 
 
 def plot_frame(record: RunRecord, title: str = "", dpi: int = 80) -> np.ndarray:
-    """The run so far (:func:`addedinertia_env.plots.run_figure`) as an RGB uint8 array."""
+    """The run so far (:func:`addedinertia_env.records.plots.run_figure`) as an RGB uint8 array."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
-    from ..plots import run_figure  # noqa: PLC0415
+    from addedinertia_env.records.plots import run_figure  # noqa: PLC0415
 
     fig = run_figure(record, title=title)
     try:
@@ -110,7 +110,7 @@ def plot_frame(record: RunRecord, title: str = "", dpi: int = 80) -> np.ndarray:
 class PlotRenderer:
     """The ``plot`` render mode: one matplotlib figure per environment, kept between frames.
 
-    The figure is :func:`addedinertia_env.plots.run_figure`'s (three panels over time, the
+    The figure is :func:`addedinertia_env.records.plots.run_figure`'s (three panels over time, the
     phases shaded). Its axes, ticks and labels are drawn once and kept as a bitmap (blitting);
     a frame restores that bitmap and draws only the curves, the phase shading and the title.
     The axis limits grow in steps (the time axis by half again, a value axis by a quarter of
@@ -131,7 +131,7 @@ class PlotRenderer:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt  # noqa: PLC0415
 
-        from ..plots import PHASE_COLOURS  # noqa: PLC0415
+        from addedinertia_env.records.plots import PHASE_COLOURS  # noqa: PLC0415
 
         self.fig, self.axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True, dpi=self.dpi)
         self.lines = []

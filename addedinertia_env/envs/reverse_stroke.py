@@ -11,16 +11,16 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..experiment.protocol import Experiment
-from ..experiment.runner import controller_context as _runner_context
-from ..record import RunRecord
-from ..rig.interface import Rig
-from ..rig.mujoco_rig import MujocoRig
-from ..scenarios import Scenario, build_rig, load_ranges
-from ..scoring import REWARD, score_episode, truth_lambda66
-from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
-from .config import EnvConfig
-from .render import PlotRenderer, RigRenderer
+from addedinertia_env.experiment.protocol import Experiment
+from addedinertia_env.experiment.runner import controller_context as _runner_context
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.rig.interface import Rig
+from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.experiment.scenarios import Scenario, build_rig, load_ranges
+from addedinertia_env.evaluation.scoring import REWARD, score_episode, truth_lambda66
+from addedinertia_env.experiment.task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
+from addedinertia_env.envs.config import EnvConfig
+from addedinertia_env.envs.render import PlotRenderer, RigRenderer
 
 RENDER_MODES = ("rgb_array", "plot")
 NOMINAL_SAMPLE_RATE = 1000.0  # Hz, for render_fps only (the presets' sample rate)
@@ -50,9 +50,9 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         ``reset`` runs everything up to the hold (the agent has nothing to do there);
         the agent acts from the start of the hold (it may pre-spin the flywheel while
         the brake takes the reaction) to the end of the reverse stroke. The physics
-        (:class:`~addedinertia_env.rig.mujoco_rig.MujocoRig`), the experiment
+        (:class:`~addedinertia_env.sim.mujoco_rig.MujocoRig`), the experiment
         (:class:`~addedinertia_env.experiment.protocol.Experiment`) and the task
-        (:class:`~addedinertia_env.task.ReverseStrokeTask`) are separate objects; this
+        (:class:`~addedinertia_env.experiment.task.ReverseStrokeTask`) are separate objects; this
         class only adds action repeat, seeding, scoring and rendering. ``rig_factory``
         swaps the rig (a batched view, the bench through ``hw_adapter``).
 
@@ -65,9 +65,9 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
 
     Observation Space
         ``Box(-10, 10, (22,), float32)``: the fields of
-        :data:`addedinertia_env.task.OBSERVATION_FIELDS`, each divided by its fixed
+        :data:`addedinertia_env.experiment.task.OBSERVATION_FIELDS`, each divided by its fixed
         scale and clipped to +-10. Decode by name with
-        :class:`~addedinertia_env.task.ObservationLayout` (``env.unwrapped.layout``).
+        :class:`~addedinertia_env.experiment.task.ObservationLayout` (``env.unwrapped.layout``).
         They come from sensors (hull and motor encoders, current sensor), the
         sensor-derived reference and the rig's known (calibrated) constants; never from
         the simulator's true state.
@@ -120,7 +120,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         Truncation only by the registered step limit (20,000 agent steps), which a
         valid configuration never reaches. The last ``info`` carries ``lambda66_est``,
         ``lambda66_true`` (the record's truth block, A66(0); nan on a bench), scored by
-        :func:`addedinertia_env.scoring.score_episode` (the corrected score),
+        :func:`addedinertia_env.evaluation.scoring.score_episode` (the corrected score),
         ``rel_error`` (``(lambda66_est - lambda66_true) / lambda66_true``, a fraction: 0.01 is 1 %;
         nan when the estimate failed), ``ci95``, ``failed`` (the estimate could not be formed),
         ``energy_J``, ``tracking_rms_rad``, ``saturated_frac``.
@@ -172,7 +172,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         self.rig_factory = rig_factory or simulated_rig
         self.suite, self.suite_split = None, suite_split
         if suite is not None:  # scenarios of a benchmark suite (configs/suites/), e.g. hard-v0
-            from ..bench.suites import load_suite  # noqa: PLC0415
+            from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
             self.suite = load_suite(suite)
             if suite_split == "test":
@@ -204,7 +204,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         """Hz, how often the agent acts: the rig's sample rate / ``action_repeat`` (None
         before the first reset). A two-rate bench runs the policy at this host rate with
         the board in mode :attr:`board_mode` (``deploy --host-rate-hz``); the board loop
-        (``rig/board_loop.py``) holds the action exactly as this environment does."""
+        (``loop/board_loop.py``) holds the action exactly as this environment does."""
         if self.rig is None:
             return None
         return 1.0 / (self.rig.dt * self.config.action_repeat)
@@ -319,7 +319,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def lambda66_true(self) -> float:
         """The episode's true lambda66 (kg m^2): its record's ``truth`` block, as the score reads it
-        (:func:`addedinertia_env.scoring.truth_lambda66`); nan on a bench or before ``reset()``."""
+        (:func:`addedinertia_env.evaluation.scoring.truth_lambda66`); nan on a bench or before ``reset()``."""
         if self.experiment is None:
             return math.nan
         return truth_lambda66([self.record()])
@@ -327,7 +327,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
     # --- internals --------------------------------------------------------------------
     def _score(self) -> dict[str, Any]:
         """The benchmark numbers of the finished episode: the one scoring
-        (:func:`addedinertia_env.scoring.score_episode`, the corrected score)."""
+        (:func:`addedinertia_env.evaluation.scoring.score_episode`, the corrected score)."""
         return score_episode([self.record()], REWARD).info()
 
     def _title(self) -> str:

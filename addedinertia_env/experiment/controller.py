@@ -5,7 +5,7 @@ baselines, the benchmark and the bench all run it) and the two-rate host
 (:mod:`.two_rate`) call exactly two methods:
 
 * ``reset(context)`` once the free stroke is recorded, with a
-  :class:`~addedinertia_env.task.ControllerContext` (known rig constants, the mirrored
+  :class:`~addedinertia_env.experiment.task.ControllerContext` (known rig constants, the mirrored
   reference, the inertia prior, the control period);
 * ``predict(observation, state=None, episode_start=None, deterministic=True) -> (action, state)``
   at every control period: the task's flat float32 observation in, a float32 array of one
@@ -26,7 +26,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from ..task import ControllerContext
+from addedinertia_env.experiment.task import ControllerContext
 
 # What a controller may declare beside the two methods: attribute -> meaning (unit).
 DECLARATIONS: dict[str, str] = {

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from ..task import ControllerContext
+    from addedinertia_env.experiment.task import ControllerContext
 
 
 def stroke_feedforward_current(ctx: ControllerContext, phi_ref_rel: float, accel_ref: float, J: float) -> float:

@@ -26,12 +26,12 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from ..record import RunRecord
-from ..rig.interface import Rig
-from ..rig.motor import MotorCommand
-from .filters import RateEstimator
-from .sample_log import PASSIVE, SampleLog
-from .protocol import ExperimentError
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.rig.interface import Rig
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.experiment.filters import RateEstimator
+from addedinertia_env.experiment.sample_log import PASSIVE, SampleLog
+from addedinertia_env.experiment.protocol import ExperimentError
 
 
 @dataclass(frozen=True)

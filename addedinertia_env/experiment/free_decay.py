@@ -20,10 +20,10 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 
-from ..record import RunRecord
-from ..rig.interface import Rig
-from .protocol import ExperimentError
-from .sample_log import PASSIVE, SampleLog
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.rig.interface import Rig
+from addedinertia_env.experiment.protocol import ExperimentError
+from addedinertia_env.experiment.sample_log import PASSIVE, SampleLog
 
 
 

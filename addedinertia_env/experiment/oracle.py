@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rig import forces
-from ..rig.mujoco_rig import MujocoRig
+from addedinertia_env.sim import forces
+from addedinertia_env.sim.mujoco_rig import MujocoRig
 
 
 class OracleController:

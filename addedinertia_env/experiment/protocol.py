@@ -25,14 +25,14 @@ from typing import Any
 
 import numpy as np
 
-from ..config_io import ConfigError, check_keys
-from ..record import RunRecord
-from ..rig.interface import Rig
-from ..rig.motor import MotorCommand
-from ..rig.sensors import Reading
-from .filters import RateEstimator
-from .reference import MirroredReference, StrokeLaw, fit_stroke
-from .sample_log import PASSIVE, SampleLog
+from addedinertia_env.foundation.config_io import ConfigError, check_keys
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.rig.interface import Rig
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.sensors import Reading
+from addedinertia_env.experiment.filters import RateEstimator
+from addedinertia_env.experiment.reference import MirroredReference, StrokeLaw, fit_stroke
+from addedinertia_env.experiment.sample_log import PASSIVE, SampleLog
 
 
 
@@ -48,7 +48,7 @@ class ExperimentPlan:
     stop_window_s: float = 0.05  # s, quadratic fit window that predicts the stop
     max_free_s: float = 30.0  # s, give up if the hull never stops
     #: kg m^2: when given, the controller's inertia prior is ``J_hull + lambda66_prior`` (e.g. the
-    #: BEM's A66 at the swing frequency, addedinertia_env.hull) instead of the free stroke's
+    #: BEM's A66 at the swing frequency, addedinertia_env.hydro) instead of the free stroke's
     #: stop estimate ``-c (phi2 - phi_n) / f''(t2)``
     lambda66_prior: float | None = None
 

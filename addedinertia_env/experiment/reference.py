@@ -16,7 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import chebyshev as C
 
-from .stroke_kernels import chebyshev_rows, chebyshev_series, last_rate_zero, mapped_series, rates_on_grid, squared_residuals
+from addedinertia_env.experiment.stroke_kernels import (
+    chebyshev_rows,
+    chebyshev_series,
+    last_rate_zero,
+    mapped_series,
+    rates_on_grid,
+    squared_residuals,
+)
 
 DEFAULT_DEGREE = 11
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..record import RunRecord
-from ..rig.interface import Rig
-from ..task import ControllerContext, ReverseStrokeTask
-from .controller import Controller
-from .protocol import Experiment, ExperimentPlan
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.rig.interface import Rig
+from addedinertia_env.experiment.task import ControllerContext, ReverseStrokeTask
+from addedinertia_env.experiment.controller import Controller
+from addedinertia_env.experiment.protocol import Experiment, ExperimentPlan
 
 
 def controller_context(exp: Experiment):
@@ -22,7 +22,7 @@ def controller_context(exp: Experiment):
 
 def command_every(rig: Any) -> int:
     """Rig samples per controller call: 1, or the drive's set-point period of a
-    :class:`~addedinertia_env.rig.control_loop.LoopRig` (a 100 Hz drive on a 1 kHz rig: 10)."""
+    :class:`~addedinertia_env.loop.control_loop.LoopRig` (a 100 Hz drive on a 1 kHz rig: 10)."""
     return max(1, int(getattr(rig, "command_every", 1)))
 
 
@@ -34,12 +34,12 @@ def run_experiment(rig: Rig, controller: Controller, plan: ExperimentPlan | None
     ``controller``: a :class:`~.controller.Controller` (``reset(context)``, called once the free
     stroke has been recorded, then ``predict(obs) -> (action, state)``).
     ``policy_rate_hz``: the controller acts at this rate through the two-rate board's
-    inner loop (``rig/board_loop.py``, mode ``board_mode``, default ``zoh``), as on a
+    inner loop (``loop/board_loop.py``, mode ``board_mode``, default ``zoh``), as on a
     two-rate bench (``deploy --host-rate-hz``); None: at every sample.
     """
     if policy_rate_hz is not None:
-        from ..rig.board_loop import TwoRateSimRig  # noqa: PLC0415
-        from .two_rate import drive_two_rate  # noqa: PLC0415
+        from addedinertia_env.loop.board_loop import TwoRateSimRig  # noqa: PLC0415
+        from addedinertia_env.experiment.two_rate import drive_two_rate  # noqa: PLC0415
 
         exp = Experiment(TwoRateSimRig(rig, policy_rate_hz), plan)
         exp.start()

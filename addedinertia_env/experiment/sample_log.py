@@ -6,10 +6,10 @@ from typing import Any
 
 import numpy as np
 
-from ..record import FORMAT, RunRecord
-from ..rig.interface import Rig
-from ..rig.motor import MotorCommand
-from ..rig.sensors import Reading
+from addedinertia_env.records.record import FORMAT, RunRecord
+from addedinertia_env.rig.interface import Rig
+from addedinertia_env.sim.motor import MotorCommand
+from addedinertia_env.sim.sensors import Reading
 
 LOG_COLUMNS = ("t", "phase", "phi", "psi", "u", "i", "i_cmd", "u_cmd", "brake")
 PASSIVE = MotorCommand("passive", 0.0)

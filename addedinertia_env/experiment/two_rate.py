@@ -1,8 +1,8 @@
 """The controlled part of an experiment at the policy's rate: the host half of the two-rate bench.
 
-The board runs its inner loop (:mod:`addedinertia_env.rig.board_loop`) every sample; the
+The board runs its inner loop (:mod:`addedinertia_env.loop.board_loop`) every sample; the
 host acts once per host period (``1 / host_rate_hz``) and sends a *segment*. The same
-loop runs against the simulator (:class:`~addedinertia_env.rig.board_loop.TwoRateSimRig`)
+loop runs against the simulator (:class:`~addedinertia_env.loop.board_loop.TwoRateSimRig`)
 and against a bench (``hw_adapter.bench_rig.BenchRig`` with ``host_rate_hz``), so a
 policy trained or a controller benchmarked in simulation sees the board it will drive.
 
@@ -26,11 +26,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ..rig.board_loop import BOARD_MODES, HORIZON_PERIODS, Segment, zoh_segment
-from ..task import ControllerContext, ReverseStrokeTask
-from .feedforward import stroke_feedforward_current
-from .controller import Controller
-from .protocol import Experiment
+from addedinertia_env.loop.board_loop import BOARD_MODES, HORIZON_PERIODS, Segment, zoh_segment
+from addedinertia_env.experiment.task import ControllerContext, ReverseStrokeTask
+from addedinertia_env.experiment.feedforward import stroke_feedforward_current
+from addedinertia_env.experiment.controller import Controller
+from addedinertia_env.experiment.protocol import Experiment
 
 KNOTS = 7  # knots per pd segment (6 pieces over HORIZON_PERIODS = 3 host periods)
 

@@ -10,20 +10,20 @@ import importlib
 
 import numpy as np
 
-from ..record import RunRecord
-from .common import IdentificationError, Result, check_physical
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.identify.common import IdentificationError, Result, check_physical
 
 METHODS = {
     "energy": "addedinertia_env.identify.energy:identify_energy",
     "free-decay": "addedinertia_env.identify.free_decay:identify_free_decay",
     "forced": "addedinertia_env.identify.forced:identify_forced",
-    "whole-record": "addedinertia_env.identify.whole_record:identify_whole_record",
+    "whole-record": "addedinertia_env.discover.whole_record:identify_whole_record",
 }
 
 
 def identify(records: list[RunRecord], method: str = "energy", **options) -> Result:
     """lambda66 by ``method`` from ``records``: each record is first checked against its own rig
-    (:mod:`addedinertia_env.plausibility`, once per record: ``record.views.limits``; the methods read
+    (:mod:`addedinertia_env.records.plausibility`, once per record: ``record.views.limits``; the methods read
     the same views), and a physically impossible result is refused
     (:func:`~addedinertia_env.identify.common.check_physical`); both raise with the file names."""
     if method not in METHODS:
@@ -32,7 +32,7 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
     # in memory (a benchmark episode); a refusal raises RecordError.
     for rec in records:
         rec.views.limits  # noqa: B018
-    from ..consistency import check_momentum_consistent  # noqa: PLC0415
+    from addedinertia_env.records.consistency import check_momentum_consistent  # noqa: PLC0415
 
     for rec in records:  # the angles against the current: a record in degrees is refused here
         check_momentum_consistent(rec)
@@ -66,7 +66,7 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         if len(used) < len(all_records):
             result.details["records_for_memory_only"] = [r.name for k, r in enumerate(all_records) if k not in used]
         if memory:
-            from .memory_energy import with_memory  # noqa: PLC0415
+            from addedinertia_env.identify.memory_energy import with_memory  # noqa: PLC0415
 
             result = with_memory(result, [r.without_truth() for r in all_records], [r.without_truth() for r in records])
     return result

@@ -9,10 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from ..record import RunRecord
-from ..scan_kernels import bitwise_constant
-from ..series_stats import median_step
-from .fit_kernels import lstsq as rounded_lstsq
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.records.scan_kernels import bitwise_constant
+from addedinertia_env.records.series_stats import median_step
+from addedinertia_env.identify.fit_kernels import lstsq as rounded_lstsq
 
 
 # Plausible added inertia relative to the hull's own (rig.J_hull: hull + rod + frame + stator). A floating
@@ -60,7 +60,7 @@ def segment(rec: RunRecord, phase: str) -> slice | None:
 def largest_gap(rec: RunRecord, a: int, b: int) -> tuple[float, float] | None:
     """The largest gap in ``t`` between samples ``a`` and ``b`` (inclusive) longer than the
     spec's reporting threshold (five nominal periods), as ``(t_before, gap_s)``, or None."""
-    from ..record import MAX_GAP_PERIODS  # noqa: PLC0415
+    from addedinertia_env.records.record import MAX_GAP_PERIODS  # noqa: PLC0415
 
     period = rec.known.dt
     dt = np.diff(rec.t[a:b + 1])
@@ -215,15 +215,15 @@ def prepare() -> None:
     when it is built to score episodes); the compiled kernels are loaded (or compiled) here too."""
     from scipy.signal import savgol_coeffs  # noqa: F401, PLC0415
 
-    from ..scan_kernels import warm_up as warm_up_scans  # noqa: PLC0415
-    from ..series_kernels import warm_up  # noqa: PLC0415
+    from addedinertia_env.records.scan_kernels import warm_up as warm_up_scans  # noqa: PLC0415
+    from addedinertia_env.identify.series_kernels import warm_up  # noqa: PLC0415
 
-    from .balance_kernels import warm_up as warm_up_balance  # noqa: PLC0415
+    from addedinertia_env.identify.balance_kernels import warm_up as warm_up_balance  # noqa: PLC0415
 
     warm_up()
     warm_up_scans()
     warm_up_balance()
-    from .fit_kernels import warm_up as warm_up_fits  # noqa: PLC0415
+    from addedinertia_env.identify.fit_kernels import warm_up as warm_up_fits  # noqa: PLC0415
 
     warm_up_fits()
 
@@ -240,7 +240,7 @@ def _savgol_maps(window: int, degree: int, deriv: int) -> tuple[np.ndarray, np.n
     Vandermonde problem with the machine's LAPACK: 1e-8 off for a quintic over 201 samples, and
     wholly wrong over 2001, a 0.2 s window at 10 kHz).
     """
-    from .savgol_taps import conv_taps, weights  # noqa: PLC0415
+    from addedinertia_env.identify.savgol_taps import conv_taps, weights  # noqa: PLC0415
 
     taps = conv_taps(window, degree, deriv)
     half = window // 2

@@ -17,10 +17,18 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..series_kernels import (canonical_abscissae, first_at_or_past, fit_windows, is_ascending, place_rows,
-                              polynomial_roots_near_zero, scaled_deviation, window_rows)
-from .common import IdentificationError
-from .fit_kernels import shared_design_fits
+from addedinertia_env.identify.series_kernels import (
+    canonical_abscissae,
+    first_at_or_past,
+    fit_windows,
+    is_ascending,
+    place_rows,
+    polynomial_roots_near_zero,
+    scaled_deviation,
+    window_rows,
+)
+from addedinertia_env.identify.common import IdentificationError
+from addedinertia_env.identify.fit_kernels import shared_design_fits
 
 SHARED_DESIGN_TOLERANCE = 1e-11  # fits whose scaled abscissae (in [-1, 1]) agree this closely share one pseudo-inverse
 

@@ -62,18 +62,33 @@ import warnings
 
 import numpy as np
 
-from ..record import RunRecord
-from .common import IdentificationError, Result, pooled_interval
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.identify.common import IdentificationError, Result, pooled_interval
 # The balance, its motor work, calibration, rest angles, dissipation law and pooling are modules of
 # their own (identify/energy_*.py); the names other modules and tests use are importable from here too.
-from .energy_balance import (CALIBRATED_TORQUE_UNCERTAINTY, CURRENT_GAIN_UNCERTAINTY,  # noqa: F401
-                             MAX_SATURATED_FRACTION, MAX_SPEED_MISMATCH, RATE_DEGREE,
-                             RATE_HALF_WIDTH, BalanceTerms, Interval, RunBalance, inertia_from_terms)
-from .energy_calibration import LAG_PRECISION, MAX_LAG_S  # noqa: F401
-from .energy_dissipation import DAMPING_FIT_WINDOW_S  # noqa: F401
-from .energy_pooling import DEFAULT_FRACTIONS, DENSE_ANGLES, run_estimate, hann_weights, prepared_balance  # noqa: F401
-from .energy_rest import REST_FIT_S  # noqa: F401
-from .energy_work import WORK_SMOOTHING_S, interval_mean_current, phase_blocks  # noqa: F401
+from addedinertia_env.identify.energy_balance import (  # noqa: F401
+    CALIBRATED_TORQUE_UNCERTAINTY,
+    CURRENT_GAIN_UNCERTAINTY,
+    MAX_SATURATED_FRACTION,
+    MAX_SPEED_MISMATCH,
+    RATE_DEGREE,
+    RATE_HALF_WIDTH,
+    BalanceTerms,
+    Interval,
+    RunBalance,
+    inertia_from_terms,
+)
+from addedinertia_env.identify.energy_calibration import LAG_PRECISION, MAX_LAG_S  # noqa: F401
+from addedinertia_env.identify.energy_dissipation import DAMPING_FIT_WINDOW_S  # noqa: F401
+from addedinertia_env.identify.energy_pooling import (
+    DEFAULT_FRACTIONS,
+    DENSE_ANGLES,
+    run_estimate,
+    hann_weights,
+    prepared_balance,
+)  # noqa: F401
+from addedinertia_env.identify.energy_rest import REST_FIT_S  # noqa: F401
+from addedinertia_env.identify.energy_work import WORK_SMOOTHING_S, interval_mean_current, phase_blocks  # noqa: F401
 
 WORK_FORMS = ("reaction", "current", "electric")
 DIAGNOSTIC_FORM_WARNING = (

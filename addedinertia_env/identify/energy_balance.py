@@ -13,20 +13,32 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..metrics import current_at_limit
-from ..record import MAX_GAP_PERIODS, RunRecord
-from ..rig.friction import ROTOR_FRICTION_RATE_SCALE
-from ..rig.known import KnownRigError
-from ..scan_kernels import gap_counts, reaction_work, squared_step_sums, true_counts
-from ..series_kernels import accumulated_kernels, accumulated_windows
-from ..series_stats import median_step
-from .balance_kernels import angle_uncertainties, angle_values
-from .common import IdentificationError, SharedSavgol, largest_gap, local_fit, power_fit
-from .crossings import crossing_fits, first_crossings
-from .energy_calibration import MAX_LAG_S, flywheel_calibration
-from .energy_dissipation import DissipationMismatch, forward_damping_law
-from .energy_rest import REST_FIT_S, crossings_fit, encoder_step, power_series, power_series_derivative
-from .energy_work import electric_work_steps, smooth_by_phase, voltage_offset, interval_mean_current, phase_blocks
+from addedinertia_env.experiment.metrics import current_at_limit
+from addedinertia_env.records.record import MAX_GAP_PERIODS, RunRecord
+from addedinertia_env.sim.friction import ROTOR_FRICTION_RATE_SCALE
+from addedinertia_env.rig.known import KnownRigError
+from addedinertia_env.records.scan_kernels import gap_counts, reaction_work, squared_step_sums, true_counts
+from addedinertia_env.identify.series_kernels import accumulated_kernels, accumulated_windows
+from addedinertia_env.records.series_stats import median_step
+from addedinertia_env.identify.balance_kernels import angle_uncertainties, angle_values
+from addedinertia_env.identify.common import IdentificationError, SharedSavgol, largest_gap, local_fit, power_fit
+from addedinertia_env.identify.crossings import crossing_fits, first_crossings
+from addedinertia_env.identify.energy_calibration import MAX_LAG_S, flywheel_calibration
+from addedinertia_env.identify.energy_dissipation import DissipationMismatch, forward_damping_law
+from addedinertia_env.identify.energy_rest import (
+    REST_FIT_S,
+    crossings_fit,
+    encoder_step,
+    power_series,
+    power_series_derivative,
+)
+from addedinertia_env.identify.energy_work import (
+    electric_work_steps,
+    smooth_by_phase,
+    voltage_offset,
+    interval_mean_current,
+    phase_blocks,
+)
 
 
 FLYWHEEL_CALIBRATION = True  # calibrate the motor torque and the current's lag on the flywheel's balance
@@ -45,7 +57,7 @@ class BalanceTerms:
     """Every term of the energy balance at one boundary angle (J; s; rad/s; rad).
 
     :func:`inertia_from_terms` turns them into ``lambda66``; the error budget
-    (:mod:`addedinertia_env.experiment.energy_budget`) swaps single terms for the
+    (:mod:`addedinertia_env.apps.energy_budget`) swaps single terms for the
     simulator's truth to see what each one costs.
     """
 

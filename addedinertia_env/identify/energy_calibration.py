@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rig.friction import ROTOR_FRICTION_RATE_SCALE
-from ..series_kernels import calibration_target, lag_ranking, twice_integrated
-from ..series_stats import median_step
-from .fit_kernels import line_basis, project_out_line
+from addedinertia_env.sim.friction import ROTOR_FRICTION_RATE_SCALE
+from addedinertia_env.identify.series_kernels import calibration_target, lag_ranking, twice_integrated
+from addedinertia_env.records.series_stats import median_step
+from addedinertia_env.identify.fit_kernels import line_basis, project_out_line
 
 
 MAX_LAG_S = 0.012  # s, the longest current-channel lag the flywheel calibration looks for

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..record import RunRecord
-from ..series_stats import median_step
-from .common import SharedSavgol, savgol
-from .fit_kernels import lstsq as rounded_lstsq
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.records.series_stats import median_step
+from addedinertia_env.identify.common import SharedSavgol, savgol
+from addedinertia_env.identify.fit_kernels import lstsq as rounded_lstsq
 
 
 DAMPING_FIT_WINDOW_S = 0.1  # s, Savitzky-Golay window of the rates and accelerations of the damping fit

@@ -12,9 +12,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..record import RunRecord
-from .common import line_fit, pooled_interval
-from .energy_balance import Interval, RunBalance
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.identify.common import line_fit, pooled_interval
+from addedinertia_env.identify.energy_balance import Interval, RunBalance
 
 
 # Boundary angles as fractions of the way from the calibrated neutral to the stop phi2:

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..series_kernels import count_crossings
-from .fit_kernels import lstsq as rounded_lstsq
+from addedinertia_env.identify.series_kernels import count_crossings
+from addedinertia_env.identify.fit_kernels import lstsq as rounded_lstsq
 
 
 REST_FIT_S = 0.08  # s, span of encoder steps before t2 and after t3 that give the rest angles

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..record import RunRecord
-from ..scan_kernels import negative_step_ratios, relaxed_interval_means, value_change_starts
-from .common import smooth_angle, smooth_angles
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.records.scan_kernels import negative_step_ratios, relaxed_interval_means, value_change_starts
+from addedinertia_env.identify.common import smooth_angle, smooth_angles
 
 
 WORK_SMOOTHING_S = 0.2  # s, window of the quintic smoothing of the angles in the work sums

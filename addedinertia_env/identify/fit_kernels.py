@@ -1,6 +1,6 @@
 """Compiled least-squares pieces of the energy method, equal to numpy's to float rounding (not bit for bit).
 
-Unlike :mod:`~addedinertia_env.series_kernels`, these do not reproduce numpy's summation order
+Unlike :mod:`~addedinertia_env.identify.series_kernels`, these do not reproduce numpy's summation order
 (a BLAS ``ddot``/``gemm`` order is not reproducible in numba): every sum here is a fixed, documented
 order of its own, so the results are the same on every machine and differ from the numpy code they
 replaced in the last bits (lambda66 by at most 3e-14 relative over 792 records, no lag, acceptance,

@@ -36,8 +36,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..record import RunRecord
-from .common import IdentificationError, Result, pooled_interval
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.identify.common import IdentificationError, Result, pooled_interval
 
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
 FILTER_PERIOD_FRACTION = 1.0 / 6.0  # Savitzky-Golay window, as a share of the drive period

@@ -51,8 +51,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..record import RunRecord
-from .common import IdentificationError, Result, local_fit, pooled_interval, segment
+from addedinertia_env.records.record import RunRecord
+from addedinertia_env.identify.common import IdentificationError, Result, local_fit, pooled_interval, segment
 
 Z95 = 1.96
 MIN_SWING_COUNTS = 60  # hull-encoder counts: smaller swings are left out (quantisation)

@@ -60,7 +60,7 @@ from typing import Any
 
 import numpy as np
 
-from ..record import RunRecord, braked
+from addedinertia_env.records.record import RunRecord, braked
 
 # The passive families searched: each a tuple of sections, 'r' one real pole, 'c' a complex pair.
 FAMILIES: dict[str, tuple[str, ...]] = {"r1": ("r",), "c1": ("c",), "r2": ("r", "r"), "c1r1": ("c", "r"),

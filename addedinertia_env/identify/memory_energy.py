@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..record import RunRecord, motion_phase
-from .memory import SMOOTH_HALF, FamilyFit, MemoryIdentification, _basis, _smooth
+from addedinertia_env.records.record import RunRecord, motion_phase
+from addedinertia_env.identify.memory import SMOOTH_HALF, FamilyFit, MemoryIdentification, _basis, _smooth
 
 FRACTIONS = (0.25, 0.75)  # the energy method's default dense range of boundary angles (energy.DEFAULT_FRACTIONS)
 N_ANGLES = 41
@@ -67,7 +67,7 @@ def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
     k_mid = rev[0]
     rest = float(np.median(phi[fwd[-1]:rev[0] + 1])) if rev[0] > fwd[-1] else float(phi[k_mid])
     phi_n = rec.known.phi_neutral
-    from .energy import hann_weights  # noqa: PLC0415
+    from addedinertia_env.identify.energy import hann_weights  # noqa: PLC0415
 
     f = np.linspace(FRACTIONS[0], FRACTIONS[1], N_ANGLES)
     weights = hann_weights(f, FRACTIONS[0], FRACTIONS[1])
@@ -76,7 +76,7 @@ def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
     cols = []
     from scipy import signal  # noqa: PLC0415
 
-    from .memory import _section_tfs  # noqa: PLC0415
+    from addedinertia_env.identify.memory import _section_tfs  # noqa: PLC0415
 
     for num, den in _section_tfs(fit.sections):
         bd, ad = signal.bilinear(np.polymul(num, [1.0, 0.0]), den, 1.0 / dt)
@@ -146,7 +146,7 @@ def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sig
                      memory: MemoryIdentification) -> CorrectedEstimate | None:
     """lambda66 = A66(0) from the energy method's per-run values corrected by each accepted
     family's memory bias; the interval is the union over the families."""
-    from .common import pooled_interval  # noqa: PLC0415
+    from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
 
     out = {}
     lo_all, hi_all = math.inf, -math.inf
@@ -186,7 +186,7 @@ def combine(energy: float, energy_ci, fit: float, fit_ci) -> tuple[float, tuple[
     mean, the interval widened by the Birge ratio when they disagree beyond their intervals
     (:func:`~addedinertia_env.identify.common.pooled_interval`), and at least to +-1.96 x half
     their difference."""
-    from .common import pooled_interval  # noqa: PLC0415
+    from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
 
     sig = [max(0.5 * (energy_ci[1] - energy_ci[0]), 1e-12) / 1.96, max(0.5 * (fit_ci[1] - fit_ci[0]), 1e-12) / 1.96]
     value, lo, hi = pooled_interval(np.array([energy, fit]), np.array(sig))
@@ -203,7 +203,7 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
     the memory model, and the uncorrected value. Memory-free water (``memory: "none"``):
     the energy method's numbers unchanged. Not identifiable: the uncorrected value with its
     interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`)."""
-    from .memory import identify_memory  # noqa: PLC0415
+    from addedinertia_env.identify.memory import identify_memory  # noqa: PLC0415
 
     mem = identify_memory(all_records)
     details = dict(result.details)
@@ -225,7 +225,7 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
         half = UNIDENTIFIED_BIAS * abs(value)
         ci = (min(ci[0], value - half), max(ci[1], value + half))
         details["ci95_widened_by"] = f"+-{100 * UNIDENTIFIED_BIAS:.0f} % (the bias an unidentified memory may carry)"
-    from .common import Result  # noqa: PLC0415
+    from addedinertia_env.identify.common import Result  # noqa: PLC0415
 
     return Result(method=result.method, lambda66=value, ci95=(float(ci[0]), float(ci[1])),
                   n_intervals=result.n_intervals, details=details)

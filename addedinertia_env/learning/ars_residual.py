@@ -44,10 +44,10 @@ from typing import Any, Callable
 import numpy as np
 
 
-from ..atomic import atomic_target, atomic_write_text
-from ..experiment.controller import Controller
-from ..task import OBSERVATION_FIELDS
-from .paired_batch import run_batch
+from addedinertia_env.foundation.atomic import atomic_target, atomic_write_text
+from addedinertia_env.experiment.controller import Controller
+from addedinertia_env.experiment.task import OBSERVATION_FIELDS
+from addedinertia_env.learning.paired_batch import run_batch
 
 CLIP_X = 5.0  # normalised observations are clipped to +-5
 TRAIN_SEED_STRIDE = 1_000_003  # training scenario numbers of run ``seed``: disjoint streams per seed
@@ -104,7 +104,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
           log=print) -> dict[str, Any]:
     """Train (module doc); writes ``out/curve.jsonl`` (one line per generation) and ``out/policy.npz``;
     returns the training card. Stops after ``generations`` or ``cpu_minutes`` of CPU time."""
-    from ..bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
     out.mkdir(parents=True, exist_ok=True)
     suite = load_suite(suite_name)
@@ -232,7 +232,7 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
     import torch  # noqa: PLC0415 - torch is heavy
     from torch import nn  # noqa: PLC0415
 
-    from .residual_export import export_residual  # noqa: PLC0415
+    from addedinertia_env.learning.residual_export import export_residual  # noqa: PLC0415
 
     data = np.load(run / "policy.npz")
     train_card = json.loads((run / "training_card.json").read_text())

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
-from ..atomic import atomic_write_text
+from addedinertia_env.foundation.atomic import atomic_write_text
 
 METRICS = ("rel_error", "energy_J", "tracking_rms_rad", "saturated_frac")  # the benchmark numbers of an episode
 

@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..config_io import read_yaml
+from addedinertia_env.foundation.config_io import read_yaml
 
-from ..rig.presets import CONFIG_DIR, ConfigError
+from addedinertia_env.sim.presets import CONFIG_DIR, ConfigError
 
 ALGO_DIR = CONFIG_DIR / "algos"
 DEFAULT_ENV_ID = "AddedInertia/ReverseStroke-v0"

@@ -48,10 +48,10 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_target, atomic_write_text
-from ..task import OBSERVATION_FIELDS
-from .ars_residual import base_factory, base_params, capped_cost
-from .paired_batch import run_batch
+from addedinertia_env.foundation.atomic import atomic_target, atomic_write_text
+from addedinertia_env.experiment.task import OBSERVATION_FIELDS
+from addedinertia_env.learning.ars_residual import base_factory, base_params, capped_cost
+from addedinertia_env.learning.paired_batch import run_batch
 
 CLIP_X = 5.0  # normalised observations are clipped to +-5
 GATES = {"reverse": "is_reverse", "hold": "is_hold", "none": None}  # where the correction acts
@@ -165,7 +165,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pd", seed: int
     returns the training card. Stops after ``iterations`` or ``cpu_minutes`` of CPU time."""
     import torch  # noqa: PLC0415
 
-    from ..bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
     torch.set_num_threads(1)
     out.mkdir(parents=True, exist_ok=True)
@@ -291,8 +291,8 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
     import torch  # noqa: PLC0415 - torch is heavy
     from torch import nn  # noqa: PLC0415
 
-    from .export import random_observations  # noqa: PLC0415
-    from .residual_export import export_residual  # noqa: PLC0415
+    from addedinertia_env.learning.export import random_observations  # noqa: PLC0415
+    from addedinertia_env.learning.residual_export import export_residual  # noqa: PLC0415
 
     train_card = json.loads((run / "training_card.json").read_text())
     student = load_student(run / "policy.npz")

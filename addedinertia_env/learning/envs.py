@@ -37,8 +37,8 @@ from gymnasium import spaces
 from agents import make_controller
 from agents.residual import BASE_RATES, policy_rate_context, residual_action
 
-from ..experiment.controller import Controller
-from .toy import TOY_ENV_ID, register_toy
+from addedinertia_env.experiment.controller import Controller
+from addedinertia_env.learning.toy import TOY_ENV_ID, register_toy
 
 
 class ResidualWrapper(gym.Wrapper):
@@ -144,7 +144,7 @@ def make_vec(env_id: str, env_kwargs: dict[str, Any], residual: dict[str, Any] |
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor  # noqa: PLC0415
 
     if uses_batched(env_id, residual, vec_env, env_kwargs):
-        from ..vector.sb3 import BatchedVecEnv  # noqa: PLC0415
+        from addedinertia_env.vector.sb3 import BatchedVecEnv  # noqa: PLC0415
 
         return VecMonitor(BatchedVecEnv(n_envs, seed=seed, **dict(env_kwargs or {})))
 

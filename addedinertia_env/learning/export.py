@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from ..rig.presets import ConfigError
-from ..task import OBS_LIMIT, OBSERVATION_FIELDS
-from .callbacks import write_json_atomic
+from addedinertia_env.sim.presets import ConfigError
+from addedinertia_env.experiment.task import OBS_LIMIT, OBSERVATION_FIELDS
+from addedinertia_env.learning.callbacks import write_json_atomic
 
 OPSET = 17
 META_PREFIX = "addedinertia."
@@ -35,7 +35,7 @@ def load_trained(model_path: str | Path):
     """(model, vecnormalize or None, training card or {}) from ``model.zip`` or the folder holding it."""
     from stable_baselines3.common.vec_env import VecNormalize  # noqa: PLC0415
 
-    from .config import ALGOS  # noqa: PLC0415
+    from addedinertia_env.learning.config import ALGOS  # noqa: PLC0415
 
     path = Path(model_path)
     if path.is_dir():
@@ -127,7 +127,7 @@ def export_onnx(model_path: str | Path, onnx_path: str | Path, n_parity: int = 1
     import onnx  # noqa: PLC0415
     import torch  # noqa: PLC0415
 
-    from .. import __version__  # noqa: PLC0415
+    from addedinertia_env import __version__  # noqa: PLC0415
 
     model, vecnorm, train_card = load_trained(model_path)
     actor = _actor_module(model, vecnorm)
@@ -214,7 +214,7 @@ def save_with_metadata(graph, meta: dict[str, str], onnx_path: str | Path) -> No
 
 def _portable(training: dict[str, Any]) -> dict[str, Any]:
     """The training record with the config path relative to the repository (no machine's absolute path)."""
-    from ..rig.presets import CONFIG_DIR  # noqa: PLC0415
+    from addedinertia_env.sim.presets import CONFIG_DIR  # noqa: PLC0415
 
     config = dict(training.get("config") or {})
     path = config.get("path")

@@ -7,14 +7,14 @@ Two sources, never mixed in one dataset (their spaces differ):
   is the environment's own ``(observation, action, reward, terminated, truncated)``;
   the observation and action spaces are the environment's; the rewards are its rewards
   (their sum is the episode's return; the last step's accuracy term is the corrected score,
-  :data:`addedinertia_env.scoring.REWARD`).
+  :data:`addedinertia_env.evaluation.scoring.REWARD`).
 * **run records** (:func:`record_episodes`): bench, emulator or simulated run records
   (``addedinertia-run/1``), one episode per record, one step per sample. The observation
   is the sample's sensor readings ``[t, phi, psi, u, i]`` (s, rad, rad, V, A); the action
   is the commanded value (``i_cmd`` in A, else ``u_cmd`` in V, else the measured current:
   ``action_source`` in the episode's metadata says which); the reward is 0 at every step
   but the last, which is ``-abs(rel_error)`` of the leaderboard's ranked score
-  (:data:`addedinertia_env.scoring.RANKED`, the energy method as written), or nan where
+  (:data:`addedinertia_env.evaluation.scoring.RANKED`, the energy method as written), or nan where
   the record has no truth (a real bench: its estimate is still in the episode's metadata).
 
 The dataset's metadata (``minari.load_dataset(ID).storage.metadata["addedinertia"]``)
@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
+from addedinertia_env import __version__
 
 RECORD_OBSERVATION = ("t", "phi", "psi", "u", "i")
 PHASES = ("idle", "free", "hold", "reverse")  # info "phase" codes: index in this tuple
@@ -146,7 +146,7 @@ def simulate_episodes(episodes: int, controller: str, *, seed: int = 0, suite: s
 
     With ``references``, the reference controllers run the same seeds and their mean
     returns become the scoring's reference scores."""
-    from ..scoring import REWARD  # noqa: PLC0415
+    from addedinertia_env.evaluation.scoring import REWARD  # noqa: PLC0415
 
     env = make_env(suite, action_repeat)
     seeds = list(range(seed, seed + episodes))
@@ -183,7 +183,7 @@ def _suite_version(suite: str | None) -> dict[str, str] | None:
     """The suite's name (its ``-vN`` is the version) and the sha256 of its file, or None."""
     if suite is None:
         return None
-    from ..bench.suites import suite_path  # noqa: PLC0415
+    from addedinertia_env.bench.suites import suite_path  # noqa: PLC0415
 
     path = suite_path(suite)
     return {"name": suite, "file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
@@ -192,7 +192,7 @@ def _suite_version(suite: str | None) -> dict[str, str] | None:
 # --- run records --------------------------------------------------------------------------
 def record_episode(record) -> Episode:
     """One run record as one episode (module docstring: observation, action, reward)."""
-    from ..scoring import RANKED, score_episode  # noqa: PLC0415
+    from addedinertia_env.evaluation.scoring import RANKED, score_episode  # noqa: PLC0415
 
     s = record.samples
     n = len(record.t)
@@ -218,8 +218,8 @@ def record_episode(record) -> Episode:
 
 def record_episodes(paths: list[str]):
     """Episodes of the run records at ``paths`` (read and validated; a bad one raises RecordError)."""
-    from ..record import read_record  # noqa: PLC0415
-    from ..scoring import RANKED  # noqa: PLC0415
+    from addedinertia_env.records.record import read_record  # noqa: PLC0415
+    from addedinertia_env.evaluation.scoring import RANKED  # noqa: PLC0415
 
     seen: dict[Path, str] = {}
     for p in paths:  # run-0001.csv and run-0001.json are one record: never two episodes

@@ -12,9 +12,9 @@ each slot driven by
   :class:`agents.onnx_policy.OnnxPolicy` applies it on the benchmark).
 
 Both act once per drive set-point period (``action_repeat`` samples: 100 Hz on hard-v0),
-with the :class:`~addedinertia_env.task.ControllerContext` that
+with the :class:`~addedinertia_env.experiment.task.ControllerContext` that
 ``experiment.runner.controller_context`` gives on the benchmark. Each episode is scored
-by the benchmark's ranked score (:func:`addedinertia_env.scoring.score_episode`,
+by the benchmark's ranked score (:func:`addedinertia_env.evaluation.scoring.score_episode`,
 ``"as-written"``: ``e = (lambda66_est - lambda66_true) / lambda66_true``, the truth from the
 record's truth block). The scenario's truth (lambda66, the oracle's state) is used here for scoring and the oracle only: this is a trainer, not an estimator.
 
@@ -35,14 +35,14 @@ from threadpoolctl import ThreadpoolController
 
 from agents.residual import residual_action
 
-from ..bench.runner import cycle_seed
-from ..experiment.controller import Controller
-from ..experiment.oracle import OracleController
-from ..rig import forces
-from ..scoring import AS_WRITTEN, score_episode
-from ..task import ControllerContext, ReverseStrokeTask
-from ..vector.observe import observe
-from ..vector.pool import READY, ExperimentPool
+from addedinertia_env.bench.runner import cycle_seed
+from addedinertia_env.experiment.controller import Controller
+from addedinertia_env.experiment.oracle import OracleController
+from addedinertia_env.sim import forces
+from addedinertia_env.evaluation.scoring import AS_WRITTEN, score_episode
+from addedinertia_env.experiment.task import ControllerContext, ReverseStrokeTask
+from addedinertia_env.vector.observe import observe
+from addedinertia_env.vector.pool import READY, ExperimentPool
 
 _BLAS = ThreadpoolController()
 # (observations (m, n_obs) float32, their slots (m,)) -> corrections (m,) in [-1, 1]

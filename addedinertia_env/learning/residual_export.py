@@ -17,10 +17,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..machine import machine_info
-from ..task import OBSERVATION_FIELDS
-from .callbacks import write_json_atomic
-from .export import OPSET, measure_latency_us, random_observations, save_with_metadata
+from addedinertia_env.foundation.machine import machine_info
+from addedinertia_env.experiment.task import OBSERVATION_FIELDS
+from addedinertia_env.learning.callbacks import write_json_atomic
+from addedinertia_env.learning.export import OPSET, measure_latency_us, random_observations, save_with_metadata
 
 SAMPLE_RATE_HZ = 1000.0  # the rig's sample rate the trainers run at
 
@@ -42,7 +42,7 @@ def export_residual(module, numpy_policy: Callable[[np.ndarray], np.ndarray], tr
     import onnxruntime as ort  # noqa: PLC0415
     import torch  # noqa: PLC0415
 
-    from .. import __version__  # noqa: PLC0415
+    from addedinertia_env import __version__  # noqa: PLC0415
 
     onnx_path = Path(onnx_path)
     onnx_path.parent.mkdir(parents=True, exist_ok=True)

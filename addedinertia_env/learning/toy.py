@@ -3,7 +3,7 @@
 Description
     A mass-spring hull ``J phi'' + c phi = k_t i`` must follow a sinusoidal reference
     with a motor current ``i = action * i_max``. Only the tracking fields of
-    :data:`addedinertia_env.task.OBSERVATION_FIELDS` are filled; the rest are zero.
+    :data:`addedinertia_env.experiment.task.OBSERVATION_FIELDS` are filled; the rest are zero.
     One step costs microseconds, so training and export code can be tested in seconds.
     It is NOT the rig: numbers learned here say nothing about the reverse stroke.
 Action Space
@@ -22,7 +22,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..task import OBS_LIMIT, OBSERVATION_FIELDS, ObservationLayout
+from addedinertia_env.experiment.task import OBS_LIMIT, OBSERVATION_FIELDS, ObservationLayout
 
 TOY_ENV_ID = "AddedInertia/ToyTracking-v0"
 
@@ -90,7 +90,7 @@ def register_toy() -> None:
 
 def toy_config(algo: str = "ppo", timesteps: int = 512, **overrides):
     """The ``configs/algos/<algo>.yaml`` block for the stand-in task, shortened: for tests and smoke runs."""
-    from .config import load_config  # noqa: PLC0415
+    from addedinertia_env.learning.config import load_config  # noqa: PLC0415
 
     cfg = load_config(algo, env_id=TOY_ENV_ID)
     cfg.n_timesteps = timesteps

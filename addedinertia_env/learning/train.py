@@ -18,7 +18,7 @@ The resumed run is not bit-identical to an uninterrupted one (environment RNGs r
 
 from __future__ import annotations
 
-from ..machine import machine_info
+from addedinertia_env.foundation.machine import machine_info
 
 import json
 import re
@@ -27,11 +27,17 @@ from typing import Any
 
 import numpy as np
 
-from ..rig.presets import ConfigError
-from ..task import OBSERVATION_FIELDS
-from .callbacks import CostCheckpointCallback, EpisodeMetricsCallback, SeededEvalCallback, TrainingClock, write_json_atomic
-from .config import TrainConfig
-from .envs import effective_action_repeat, make_vec, pinned_base_params, uses_batched
+from addedinertia_env.sim.presets import ConfigError
+from addedinertia_env.experiment.task import OBSERVATION_FIELDS
+from addedinertia_env.learning.callbacks import (
+    CostCheckpointCallback,
+    EpisodeMetricsCallback,
+    SeededEvalCallback,
+    TrainingClock,
+    write_json_atomic,
+)
+from addedinertia_env.learning.config import TrainConfig
+from addedinertia_env.learning.envs import effective_action_repeat, make_vec, pinned_base_params, uses_batched
 
 OFF_POLICY = {"sac", "td3"}
 

@@ -3,7 +3,7 @@
     python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md
 
 (``make accuracy-table`` runs exactly that.) For each hull ``k`` of ``N``, a scenario from
-:func:`addedinertia_env.scenarios.make_scenario` (seed ``base + k``) with
+:func:`addedinertia_env.experiment.scenarios.make_scenario` (seed ``base + k``) with
 ``lambda66 / J_hull`` fixed at ``0.5 + 2 k / (N - 1)`` (evenly over 0.5..2.5) and the
 ``realistic`` sensor set (physics.md section 7); every other quantity (drag coefficient,
 linear damping, period, flywheel, torque constant, twist, hold) is drawn from
@@ -28,15 +28,15 @@ import time
 
 from agents.registry import DEFAULT_CONTROLLER
 
-from ..atomic import atomic_write_text
-from ..config_io import ConfigError
-from ..experiment.protocol import ExperimentError
-from ..identify import identify
-from ..identify.common import IdentificationError
-from ..machine import machine_line
-from ..record import RecordError
-from ..scenarios import make_scenario
-from ..simulate import effects_from_name, simulate_run
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.foundation.config_io import ConfigError
+from addedinertia_env.experiment.protocol import ExperimentError
+from addedinertia_env.identify import identify
+from addedinertia_env.identify.common import IdentificationError
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.records.record import RecordError
+from addedinertia_env.experiment.scenarios import make_scenario
+from addedinertia_env.apps.simulate import effects_from_name, simulate_run
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -149,12 +149,12 @@ def render(rows: list[HullRow], info: dict[str, Any]) -> str:
            f"- Machine: {info['machine']}; the machine was shared with other jobs.",
            f"- Run time: {info['wall_s']:.0f} s wall clock, {info['cpu_s']:.0f} s CPU (this process).",
            f"- Hulls: {len(rows)}, lambda66 / J_hull evenly from {LAMBDA_RATIO_RANGE[0]} to {LAMBDA_RATIO_RANGE[1]}; "
-           f"scenario seeds {info['seed']}..{info['seed'] + len(rows) - 1} (`addedinertia_env.scenarios.make_scenario`, "
+           f"scenario seeds {info['seed']}..{info['seed'] + len(rows) - 1} (`addedinertia_env.experiment.scenarios.make_scenario`, "
            "preset `wigley-2m`, other quantities drawn from `configs/randomization.yaml`).",
            "- Sensors: `realistic` (PHYSICS.md section 7: 17-bit hull and 14-bit motor encoders, current noise "
            "10 mA rms, offset 3 mA, gain error 0.5 %, 1 kHz). "
            + (f"Hidden effect in every hull: `{info['effect']}` (size drawn per hull from "
-              "its realistic range in `rig/effects/`)." if info.get("effect") else "No hidden effects."),
+              "its realistic range in `sim/effects/`)." if info.get("effect") else "No hidden effects."),
            f"- Controller for the energy method's reverse stroke: `{info['controller']}`.",
            "- One record per method and hull; errors relative to the true lambda66.", "",
            "## Summary", "",

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write_text, save_figure
-from ..machine import machine_line
+from addedinertia_env.foundation.atomic import atomic_write_text, save_figure
+from addedinertia_env.foundation.machine import machine_line
 
 VALIDATION_FIRST = 900_000_000  # training-split scenario numbers kept for validation (no run draws them)
 
@@ -36,8 +36,8 @@ def load_curve(run: Path) -> list[dict[str, Any]]:
 
 def validate(runs: list[Path], n: int, cap: float = 0.005) -> dict[str, Any]:
     """Each run's final policy, the base and the oracle on ``n`` validation scenarios of the training split."""
-    from ..bench.suites import load_suite  # noqa: PLC0415
-    from ..learning.ars_residual import LinearPolicy, base_factory, capped_cost, run_candidates  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.learning.ars_residual import LinearPolicy, base_factory, capped_cost, run_candidates  # noqa: PLC0415
 
     cards = [json.loads((r / "training_card.json").read_text()) for r in runs]
     suite = load_suite(cards[0]["suite"])
@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.validate:
         summary["validation"] = validate(args.runs, args.validate)
     if args.onnx:
-        from ..learning.ars_residual import export_onnx  # noqa: PLC0415
+        from addedinertia_env.learning.ars_residual import export_onnx  # noqa: PLC0415
 
         chosen = summary.get("validation", {}).get("chosen", args.runs[0].name)
         run = next(r for r in args.runs if r.name == chosen)

@@ -29,15 +29,15 @@ import numpy as np
 
 from agents import make_controller
 
-from ..atomic import atomic_write_text
-from ..hull.presets import bem_lambda66
-from ..identify import identify
-from ..machine import machine_line
-from ..metrics import episode_metrics
-from ..rig.presets import load_preset, rig_from_mapping
-from ..experiment.protocol import plan_from_preset
-from ..experiment.runner import run_experiment
-from ..rig.mujoco_rig import MujocoRig
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.sim.hull_presets import bem_lambda66
+from addedinertia_env.identify import identify
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.experiment.metrics import episode_metrics
+from addedinertia_env.sim.presets import load_preset, rig_from_mapping
+from addedinertia_env.experiment.protocol import plan_from_preset
+from addedinertia_env.experiment.runner import run_experiment
+from addedinertia_env.sim.mujoco_rig import MujocoRig
 
 COMMAND = "python -m addedinertia_env.reports.bem_prior"
 PRESETS = ("wigley-2m", "spheroid-7")

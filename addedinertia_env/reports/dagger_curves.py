@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write_text, save_figure
-from ..machine import machine_line
+from addedinertia_env.foundation.atomic import atomic_write_text, save_figure
+from addedinertia_env.foundation.machine import machine_line
 
 SELECTION_FIRST = 900_000_000  # training-split scenario numbers kept for the choice of seed
 
@@ -64,10 +64,10 @@ def validate(runs: list[Path], n: int, cap: float = 0.005) -> dict[str, Any]:
     training split from :data:`SELECTION_FIRST`; the run with the lowest median control error is chosen."""
     from agents import make_controller  # noqa: PLC0415
 
-    from ..bench.suites import load_suite  # noqa: PLC0415
-    from ..learning.ars_residual import base_factory, capped_cost  # noqa: PLC0415
-    from ..learning.dagger import load_student  # noqa: PLC0415
-    from ..learning.paired_batch import run_batch  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.learning.ars_residual import base_factory, capped_cost  # noqa: PLC0415
+    from addedinertia_env.learning.dagger import load_student  # noqa: PLC0415
+    from addedinertia_env.learning.paired_batch import run_batch  # noqa: PLC0415
 
     cards = [json.loads((r / "training_card.json").read_text()) for r in runs]
     suite = load_suite(cards[0]["suite"])
@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.validate > 0:
         summary["validation"] = validate(groups[0][1], args.validate)
         if args.onnx:
-            from ..learning.dagger import export_onnx  # noqa: PLC0415
+            from addedinertia_env.learning.dagger import export_onnx  # noqa: PLC0415
 
             chosen = next(r for r in groups[0][1] if r.name == summary["validation"]["chosen"])
             card = export_onnx(chosen, args.onnx, extra_card={"selection": summary["validation"]})

@@ -4,7 +4,7 @@
 
 (``make detection-table``.) For every effect of the vocabulary and for ``none``, seeds
 0..N-1 each simulate the standard dataset (:mod:`.dataset`) with that effect hidden at a
-size drawn from its realistic range (``rig/effects/``); :func:`.diagnose.discover` runs blind on the records;
+size drawn from its realistic range (``sim/effects/``); :func:`.diagnose.discover` runs blind on the records;
 only the scoring here reads the truth. The table replaces the block between the markers
 ``<!-- detection-table:begin -->`` and ``<!-- detection-table:end -->`` of the output file
 (or the whole file if it has no markers). Simulated records are cached under ``--cache``
@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..machine import machine_line
-from ..record import read_record
-from ..rig.effects import EFFECT_NAMES
-from ..discover.dataset import DatasetSpec, hidden_effect, simulate_dataset
-from ..discover.diagnose import discover
-from .sections import replace_section
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.records.record import read_record
+from addedinertia_env.sim.effects import EFFECT_NAMES
+from addedinertia_env.apps.discovery_dataset import DatasetSpec, hidden_effect, simulate_dataset
+from addedinertia_env.discover.diagnose import discover
+from addedinertia_env.reports.sections import replace_section
 
 BEGIN, END = "<!-- detection-table:begin -->", "<!-- detection-table:end -->"
 ROWS = ("none",) + EFFECT_NAMES

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write_text
+from addedinertia_env.foundation.atomic import atomic_write_text
 
 ENV_ID = "AddedInertia/ReverseStroke-v0"
 ENV_CASES = {  # name -> (env kwargs, seeds)
@@ -146,7 +146,7 @@ def _result(res) -> dict[str, Any]:
 
 
 def _identify_all(records: list, kinds: dict[str, list[tuple[str, dict]]]) -> dict[str, Any]:
-    from ..identify import identify  # noqa: PLC0415
+    from addedinertia_env.identify import identify  # noqa: PLC0415
 
     out: dict[str, Any] = {}
     by_kind: dict[str, list] = {}
@@ -171,9 +171,9 @@ def identify_digests(data: list[Path]) -> dict[str, Any]:
     """identify() on simulated records of every preset (and on a foreign lab's records)."""
     from agents.registry import DEFAULT_CONTROLLER  # noqa: PLC0415
 
-    from ..experiment.protocol import plan_from_preset  # noqa: PLC0415
-    from ..rig.presets import available_rigs, load_preset, rig_from_mapping  # noqa: PLC0415
-    from ..simulate import simulate_run  # noqa: PLC0415
+    from addedinertia_env.experiment.protocol import plan_from_preset  # noqa: PLC0415
+    from addedinertia_env.sim.presets import available_rigs, load_preset, rig_from_mapping  # noqa: PLC0415
+    from addedinertia_env.apps.simulate import simulate_run  # noqa: PLC0415
 
     out: dict[str, Any] = {}
     for preset in available_rigs():
@@ -192,7 +192,7 @@ def identify_digests(data: list[Path]) -> dict[str, Any]:
 
 
 def _foreign(data: Path) -> dict[str, Any]:
-    from ..record import read_record  # noqa: PLC0415
+    from addedinertia_env.records.record import read_record  # noqa: PLC0415
 
     with tempfile.TemporaryDirectory() as tmp:
         root = data
@@ -215,8 +215,8 @@ ROW_KEYS = ("lambda66_true", "lambda66_est", "ci95", "rel_error", "abs_rel_error
 
 def bench_digests() -> dict[str, Any]:
     """Benchmark rows on the smoke suite's test split."""
-    from ..bench.runner import run_tasks  # noqa: PLC0415
-    from ..bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.bench.runner import run_tasks  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
     suite = load_suite("smoke")
     tasks = [suite.task(sc, c) for c in BENCH_CONTROLLERS for sc in suite.scenarios("test")]
@@ -226,9 +226,9 @@ def bench_digests() -> dict[str, Any]:
 
 def trainer_digests() -> dict[str, Any]:
     """The trainers' batched episodes (base pid, and the oracle) on hard-v0 training scenarios."""
-    from ..bench.suites import load_suite  # noqa: PLC0415
-    from ..learning.ars_residual import base_factory, base_params  # noqa: PLC0415
-    from ..learning.paired_batch import run_batch  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.learning.ars_residual import base_factory, base_params  # noqa: PLC0415
+    from addedinertia_env.learning.paired_batch import run_batch  # noqa: PLC0415
 
     suite = load_suite("hard-v0")
     make_base = base_factory("pid", base_params(suite, "pid"))

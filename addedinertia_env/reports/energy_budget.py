@@ -6,7 +6,7 @@
 For each preset in ``configs/rigs``, seeded runs (``energy_budget.seeded_plan``: the twist varied
 by +-5 % per seed) with the controller ``lqr`` are simulated with the true state logged, and
 the error of the energy method's estimate is split term by term by swapping in the truth
-(:mod:`addedinertia_env.experiment.energy_budget`). Sensors: ``calibrated`` (the preset's, with
+(:mod:`addedinertia_env.apps.energy_budget`). Sensors: ``calibrated`` (the preset's, with
 the current and voltage gain errors set to zero) and ``preset`` (as shipped, 0.5 % current-gain
 error). "Before" is the estimator of git revision ``--before`` (loaded from the repository's
 history, run on the same records): it shows what each change removed.
@@ -30,13 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_write_text
-from ..experiment import energy_budget as eb
-from ..identify import identify
-from ..identify.common import IdentificationError
-from ..identify.energy import BalanceTerms, inertia_from_terms, prepared_balance
-from ..machine import machine_line
-from ..rig.presets import available_rigs
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.apps import energy_budget as eb
+from addedinertia_env.identify import identify
+from addedinertia_env.identify.common import IdentificationError
+from addedinertia_env.identify.energy import BalanceTerms, inertia_from_terms, prepared_balance
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.sim.presets import available_rigs
 
 COMMAND = "python -m addedinertia_env.reports.energy_budget"
 REPO = Path(__file__).resolve().parents[2]
@@ -149,7 +149,7 @@ def foreign_lab(legacy, archive: str | Path | None) -> list[dict] | None:
     """Each reverse-symmetric record of the foreign-lab development set ``archive`` (a .tar.xz; None: none): error after and before, percent."""
     import json  # noqa: PLC0415
 
-    from ..record import read_record  # noqa: PLC0415
+    from addedinertia_env.records.record import read_record  # noqa: PLC0415
 
     if archive is None:
         return None
@@ -203,7 +203,7 @@ def render(results: dict, foreign: list[dict] | None, args, wall_s: float) -> st
              "encoder quantisation, is not one frozen draw shared by every seed). The error of the energy "
              "method (`identify --method energy`, work form `reaction`) is split term by term by swapping "
              "in the simulator's true value of one term group at a time "
-             "(`addedinertia_env/experiment/energy_budget.py`); a line is *estimate minus estimate with "
+             "(`addedinertia_env/apps/energy_budget.py`); a line is *estimate minus estimate with "
              "that group true*, in percent of the true lambda66: median over the seeds (half the 16-84 % "
              "range in brackets). `bookkeeping` is the balance with every term true (the simulator's own "
              "energy closure), `engine inertia` the inertia MuJoCo's mass matrix integrates minus the "

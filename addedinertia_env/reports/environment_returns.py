@@ -13,9 +13,9 @@ import argparse
 import json
 import sys
 
-from ..envs.baselines import BEGIN, END, POLICIES, run, table_block
-from ..machine import machine_line
-from .sections import replace_section
+from addedinertia_env.envs.baselines import BEGIN, END, POLICIES, run, table_block
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.reports.sections import replace_section
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..discover import discover
-from ..identify import identify
-from ..machine import machine_line
-from ..record import read_record
-from .sections import replace_section
+from addedinertia_env.discover import discover
+from addedinertia_env.identify import identify
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.records.record import read_record
+from addedinertia_env.reports.sections import replace_section
 
 BEGIN, END = "<!-- foreign-lab-table:begin -->", "<!-- foreign-lab-table:end -->"
 COMMAND = "python -m addedinertia_env.reports.foreign_lab --data PATH/foreign-lab.tar.xz --out docs/DISCOVERY.md"

@@ -20,14 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_write_text, save_figure
-from ..hull import stability as stab
-from ..hull.geometry import HullShape, quarter_mesh
-from ..hull.presets import preset_hull
-from ..hull.study import cache_path, read_cache, study, summary, write_cache
-from ..machine import machine_line
-from ..rig import hydro
-from ..rig.presets import CONFIG_DIR
+from addedinertia_env.foundation.atomic import atomic_write_text, save_figure
+from addedinertia_env.hydro import stability as stab
+from addedinertia_env.hydro.geometry import HullShape, quarter_mesh
+from addedinertia_env.sim.hull_presets import preset_hull
+from addedinertia_env.hydro.study import cache_path, read_cache, study, summary, write_cache
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.hydro import closed_forms as hydro
+from addedinertia_env.sim.presets import CONFIG_DIR
 
 LAMB_FILE = CONFIG_DIR / "hull" / "lamb_check.json"
 RATIOS = (3.0, 5.0, 7.0, 10.0)
@@ -38,7 +38,7 @@ COMMAND = "python -m addedinertia_env.reports.hydrodynamics"
 
 def solve_lamb_check(progress=print) -> dict:
     """Deeply submerged spheroids (length 2 m) at several resolutions, direct and indirect BEM."""
-    from ..hull.bem import require_capytaine, solve_yaw  # noqa: PLC0415
+    from addedinertia_env.hydro.bem import require_capytaine, solve_yaw  # noqa: PLC0415
 
     cpt = require_capytaine()
     rows = []
@@ -162,7 +162,7 @@ def _methods() -> list[str]:
     """How each number is obtained."""
     L = ["## How each number is obtained", "",
          "- **BEM**: Capytaine's constant-panel solver, *direct* (potential) boundary-integral formulation. "
-         "The meshes are generated from the hull's analytic shape (`addedinertia_env/hull/geometry.py`): the quarter "
+         "The meshes are generated from the hull's analytic shape (`addedinertia_env/hydro/geometry.py`): the quarter "
          "`x >= 0, y >= 0`, solved with both reflection symmetries (4 times cheaper), cosine-spaced towards the ends. "
          "Every mesh is checked before solving: closed (free edges only on the waterline and symmetry planes), "
          "consistently oriented with outward normals (displaced volume from the divergence theorem > 0), no panel "
@@ -186,8 +186,8 @@ def _methods() -> list[str]:
          "- **Retardation function** (Cummins): `K(t) = (2/pi) integral B66(omega) cos(omega t) d omega` over the "
          "sweep with an `omega^-3` tail; checked by rebuilding A66(omega) from K and A66(inf) (Ogilvie). "
          "Its transform `B66 + j omega (A66 - A66(inf))` is also fitted by a small stable state-space system "
-         "(`hull/radiation_ss.py`, order chosen as the smallest with a relative fit error under 5 %). The simulator "
-         "integrates a stricter fit: passive and exact at zero and at the swing frequency (`hull/memory_fit.py`, "
+         "(`hydro/radiation_ss.py`, order chosen as the smallest with a relative fit error under 5 %). The simulator "
+         "integrates a stricter fit: passive and exact at zero and at the swing frequency (`hydro/memory_fit.py`, "
          "stored in the cache by `addedinertia hull PRESET --fit-memory`), the optional `cummins` hydrodynamic "
          "model of a rig; what it does to the measurement is in [RADIATION_MEMORY.md](RADIATION_MEMORY.md).", ""]
     return L
@@ -275,7 +275,7 @@ def _radiation(summaries: dict, figdir: Path) -> list[str]:
                  f"{100 * rt['ogilvie_max_rel_error']:.1f} % | {s['radiation_state_space']['order']} "
                  f"({100 * s['radiation_state_space']['fit_error']:.1f} %) |")
     for name, (s, facts, data) in summaries.items():
-        from ..hull.figures import plot_study  # noqa: PLC0415
+        from addedinertia_env.hydro.figures import plot_study  # noqa: PLC0415
 
         plot_study(data, figdir / f"hull_{name}.png", swing_omega=facts["swing_omega"],
                    caption=f"{COMMAND}  (also: addedinertia hull {name} --plot FILE); BEM: Capytaine "
@@ -314,10 +314,10 @@ def _course_stability(s: dict, data: dict) -> list[str]:
 
 def _from_a_record(ship, added: dict, s: dict, res: dict) -> list[str]:
     """lambda66 = A66(0) and its interval from a simulated wigley-2m record (energy method), and the course stability over that interval (``res``: the stability over +-10 %)."""
-    from ..identify import identify  # noqa: PLC0415
-    from ..rig.presets import load_preset, rig_from_mapping  # noqa: PLC0415
-    from ..experiment.protocol import plan_from_preset
-    from ..simulate import simulate_run  # noqa: PLC0415
+    from addedinertia_env.identify import identify  # noqa: PLC0415
+    from addedinertia_env.sim.presets import load_preset, rig_from_mapping  # noqa: PLC0415
+    from addedinertia_env.experiment.protocol import plan_from_preset
+    from addedinertia_env.apps.simulate import simulate_run  # noqa: PLC0415
 
     pdata = load_preset("wigley-2m")
     rec = simulate_run(rig_from_mapping(pdata), "feedforward-pd", plan_from_preset(pdata), seed=0, run_id="hydro-doc")

@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import save_figure
-from .sections import replace_section
+from addedinertia_env.foundation.atomic import save_figure
+from addedinertia_env.reports.sections import replace_section
 
 MARK = "<!-- curves:{algo}:{end} -->"
 DOC = Path("docs/LEARNING.md")
@@ -42,8 +42,8 @@ def run_seed(algo: str, seed: int, timesteps: int, eval_every: int, eval_episode
         card = json.loads(card_path.read_text())
         if card["cost"]["env_steps"] >= timesteps:
             return card
-    from ..learning.config import load_config  # noqa: PLC0415 - torch is heavy
-    from ..learning.train import train  # noqa: PLC0415
+    from addedinertia_env.learning.config import load_config  # noqa: PLC0415 - torch is heavy
+    from addedinertia_env.learning.train import train  # noqa: PLC0415
 
     cfg = load_config(algo)
     cfg.n_timesteps = timesteps
@@ -64,7 +64,7 @@ def classical_reference(controller: str, eval_seed: int, n_episodes: int, action
     import addedinertia_env  # noqa: F401, PLC0415
     from agents import make_controller  # noqa: PLC0415 - agents depends on this package
 
-    from ..experiment.runner import drive  # noqa: PLC0415
+    from addedinertia_env.experiment.runner import drive  # noqa: PLC0415
 
     rel, energy = [], []
     for k in range(n_episodes):
@@ -121,7 +121,7 @@ def plot(algo: str, metric: dict[str, np.ndarray], reward: dict[str, np.ndarray]
 def section(algo: str, args, cards: list[dict[str, Any]], metric, reward, figure: str, command: str,
             reference: dict[str, Any] | None = None) -> str:
     """The marked Markdown section of one algorithm: the command, the machine, the figure, the curve table and the cost per seed (CPU minutes)."""
-    from ..machine import machine_info  # noqa: PLC0415
+    from addedinertia_env.foundation.machine import machine_info  # noqa: PLC0415
 
     m = {**machine_info(), "load_avg_1_5_15": [round(x, 1) for x in os.getloadavg()]}
     cpu_min = [c["cost"]["cpu_s"] / 60 for c in cards]

@@ -30,8 +30,8 @@ from pathlib import Path
 def run(rows_path: str, specs: list[str]) -> None:
     """Identify each record set of ``specs`` with and without the memory step and append one JSON row per
     set to ``rows_path`` (a resumable log of the table's raw numbers)."""
-    from ..identify import identify  # noqa: PLC0415
-    from ..record import read_record  # noqa: PLC0415
+    from addedinertia_env.identify import identify  # noqa: PLC0415
+    from addedinertia_env.records.record import read_record  # noqa: PLC0415
 
     with open(rows_path, "a") as out:
         for spec in specs:
@@ -95,7 +95,7 @@ def render(rows_path: str, answers_specs: list[str]) -> str:
         after, ci_after = res["lambda66"], res["ci95"]
         if "lambda66_uncorrected" in res and "lambda66_energy_corrected" not in res:
             # a row made before identify combined the two estimates: the same function on its pieces
-            from ..identify.memory_energy import combine  # noqa: PLC0415
+            from addedinertia_env.identify.memory_energy import combine  # noqa: PLC0415
 
             after, ci_after = combine(res["lambda66"], res["ci95"], res["A66_zero_memory_fit"],
                                       res["A66_zero_memory_fit_ci95"])

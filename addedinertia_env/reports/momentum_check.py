@@ -4,7 +4,7 @@
         --data PATH/foreign-lab-2.tar.xz
 
 For each group of records, the largest share of the allowance an honest record uses
-(:func:`~addedinertia_env.consistency.momentum_account`'s ``used``; over 1 is refused), the
+(:func:`~addedinertia_env.records.consistency.momentum_account`'s ``used``; over 1 is refused), the
 smallest share the same records use with ``phi`` and ``psi`` in degrees, and how many of those
 are refused. Groups: the dev sets' reverse-symmetric runs (``--data``, unpacked into a
 temporary folder), simulated records (wigley-2m and spheroid-7, the default controller, one
@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..consistency import momentum_account
-from ..machine import machine_line
-from ..record import read_record
-from ..run_record import RunRecord
+from addedinertia_env.records.consistency import momentum_account
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.records.record import read_record
+from addedinertia_env.records.run_record import RunRecord
 
 EFFECTS = ("none", "bearing_coulomb", "fluid_memory", "spring_stiffening", "neutral_offset", "sensor_delay",
            "torque_constant")
@@ -40,9 +40,9 @@ def in_degrees(rec: RunRecord) -> RunRecord:
 def simulated() -> list[RunRecord]:
     """Fourteen simulated reverse-symmetric records: wigley-2m and spheroid-7 with the default controller,
     each with one hidden effect of :data:`EFFECTS` at a seeded realistic size."""
-    from ..experiment.protocol import plan_from_preset  # noqa: PLC0415
-    from ..rig.presets import load_preset, rig_from_mapping  # noqa: PLC0415
-    from ..simulate import effects_from_name, simulate_run  # noqa: PLC0415
+    from addedinertia_env.experiment.protocol import plan_from_preset  # noqa: PLC0415
+    from addedinertia_env.sim.presets import load_preset, rig_from_mapping  # noqa: PLC0415
+    from addedinertia_env.apps.simulate import effects_from_name, simulate_run  # noqa: PLC0415
 
     out = []
     for preset in ("wigley-2m", "spheroid-7"):
@@ -56,7 +56,7 @@ def simulated() -> list[RunRecord]:
 
 def env_episodes(n: int = 40) -> list[RunRecord]:
     """``n`` episodes of eight batched environments driven by random actions (uniform in +-0.3), as records."""
-    from ..vector.env import ReverseStrokeVectorEnv  # noqa: PLC0415
+    from addedinertia_env.vector.env import ReverseStrokeVectorEnv  # noqa: PLC0415
 
     env = ReverseStrokeVectorEnv(8)
     env.reset(seed=5)

@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write_text
-from ..experiment.oracle import OracleController
-from ..rig import forces
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.experiment.oracle import OracleController
+from addedinertia_env.sim import forces
 
 FIRST = 800_000_000  # held-aside training scenarios (as the DAgger runs' validation)
 
@@ -77,9 +77,9 @@ def run(n: int, cap: float = 0.005) -> dict[str, Any]:
     """Every variant, ``pd`` and ``pid`` (the benchmark's gains) on ``n`` scenarios from :data:`FIRST`."""
     from agents import make_controller  # noqa: PLC0415
 
-    from ..bench.suites import load_suite  # noqa: PLC0415
-    from ..learning import paired_batch  # noqa: PLC0415
-    from ..learning.ars_residual import base_factory, base_params, capped_cost  # noqa: PLC0415
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
+    from addedinertia_env.learning import paired_batch  # noqa: PLC0415
+    from addedinertia_env.learning.ars_residual import base_factory, base_params, capped_cost  # noqa: PLC0415
 
     suite = load_suite("hard-v0")
     seeds = list(range(FIRST, FIRST + n))
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="also write the result as JSON here")
     args = parser.parse_args(argv)
     result = run(args.scenarios)
-    from ..machine import machine_line  # noqa: PLC0415
+    from addedinertia_env.foundation.machine import machine_line  # noqa: PLC0415
 
     result["command"] = "python -m addedinertia_env.reports.oracle_ablation " + " ".join(
         argv if argv is not None else sys.argv[1:])

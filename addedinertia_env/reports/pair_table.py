@@ -2,7 +2,7 @@
 
     python -m addedinertia_env.reports.pair_table --seeds 1 --out docs/DISCOVERY.md
 
-(``make pair-table``.) For every pair of registered effects (``rig/effects/``; a new word
+(``make pair-table``.) For every pair of registered effects (``sim/effects/``; a new word
 joins by itself) and seeds 0..N-1, the standard dataset (:mod:`..discover.dataset`:
 twists 0.05 and 0.10 rad x holds 0.5 and 5 s on the project's engine) is simulated with
 both effects hidden at sizes drawn from their realistic ranges
@@ -25,12 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..discover.dataset import DatasetSpec, simulate_dataset, simulate_pair_dataset
-from ..discover.diagnose import discover
-from ..discover.pairs import hidden_pair, parse_pair, vocabulary_pairs
-from ..machine import machine_line
-from ..record import read_record
-from .sections import replace_section
+from addedinertia_env.apps.discovery_dataset import DatasetSpec, simulate_dataset, simulate_pair_dataset
+from addedinertia_env.discover.diagnose import discover
+from addedinertia_env.discover.pairs import hidden_pair, parse_pair, vocabulary_pairs
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.records.record import read_record
+from addedinertia_env.reports.sections import replace_section
 
 BEGIN, END = "<!-- pair-table:begin -->", "<!-- pair-table:end -->"
 QUIRKS_BEGIN, QUIRKS_END = "<!-- pair-table-quirks:begin -->", "<!-- pair-table-quirks:end -->"
@@ -50,7 +50,7 @@ def _records(label: str, seed: int, cache: Path | None, make):
 def quirky(records, seed: int, label: str = ""):
     """``records`` as a DAQ with two quirks drawn from ``seed`` and ``label`` (the hidden pair:
     each pair of a seed meets its own quirks) would log them, and the quirks."""
-    from ..daq import apply_quirks, draw_quirks  # noqa: PLC0415
+    from addedinertia_env.records.daq import apply_quirks, draw_quirks  # noqa: PLC0415
 
     rng = np.random.default_rng(np.random.SeedSequence([seed, 27, 11, zlib.crc32(label.encode())]))
     quirks = draw_quirks(rng)

@@ -4,13 +4,13 @@ made with the ``cummins`` hydrodynamic model on, beside the same runs with it of
     python -m addedinertia_env.reports.radiation_memory --seeds 3 --out docs/RADIATION_MEMORY.md
 
 For each preset (``wigley-2m``, ``spheroid-7``) and seed, the standard discovery dataset
-(:mod:`addedinertia_env.discover.dataset`: twists 0.05 and 0.10 rad, holds 0.5 and 5 s,
+(:mod:`addedinertia_env.apps.discovery_dataset`: twists 0.05 and 0.10 rad, holds 0.5 and 5 s,
 realistic sensors, the dataset's controller, no hidden effect) is simulated twice with the
 same noise: with radiation memory on (the preset's lambda66 = A66(0), the BEM cache's
 memory model) and off (constant lambda66). Each reverse-symmetric record gets the energy
 method (one record at a time, no ``truth`` read); each set of four records gets
 ``discover``. Scoring reads the records' truth: A66(0), A66 at the natural swing frequency
-and A66(inf) (:func:`addedinertia_env.rig.radiation.truth_block`).
+and A66(inf) (:func:`addedinertia_env.hydro.radiation.truth_block`).
 
 The generated block of the doc (between its markers) holds the command, date, machine,
 the summary per preset and reference, the per-record table and discovery's verdicts; the
@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from ..machine import machine_line
-from .sections import replace_section
+from addedinertia_env.foundation.machine import machine_line
+from addedinertia_env.reports.sections import replace_section
 
 COMMAND = "python -m addedinertia_env.reports.radiation_memory"
 PRESETS = ("wigley-2m", "spheroid-7")
@@ -47,9 +47,9 @@ def run_case(preset: str, seed: int, memory: bool, discover_too: bool = True,
     """One dataset (4 records) on ``preset`` with memory on or off: energy estimates, truth, verdict.
 
     ``controller``: the reverse stroke's controller (default: the discovery dataset's)."""
-    from ..discover import discover  # noqa: PLC0415
-    from ..discover.dataset import DatasetSpec, simulate_dataset  # noqa: PLC0415
-    from ..identify import IdentificationError, identify  # noqa: PLC0415
+    from addedinertia_env.discover import discover  # noqa: PLC0415
+    from addedinertia_env.apps.discovery_dataset import DatasetSpec, simulate_dataset  # noqa: PLC0415
+    from addedinertia_env.identify import IdentificationError, identify  # noqa: PLC0415
 
     spec = DatasetSpec(rig=preset, hydrodynamics="cummins" if memory else "constant")
     if controller:
@@ -87,10 +87,10 @@ def run_case(preset: str, seed: int, memory: bool, discover_too: bool = True,
 
 def _free_decay(preset: str, seed: int, memory: bool) -> float:
     """lambda66 (kg m^2) by the free-decay method from one passive decay (twist 0.10 rad); nan if refused."""
-    from ..experiment.free_decay import FreeDecayPlan, run_free_decay  # noqa: PLC0415
-    from ..identify import IdentificationError, identify  # noqa: PLC0415
-    from ..rig.mujoco_rig import MujocoRig  # noqa: PLC0415
-    from ..rig.presets import load_preset, rig_from_mapping  # noqa: PLC0415
+    from addedinertia_env.experiment.free_decay import FreeDecayPlan, run_free_decay  # noqa: PLC0415
+    from addedinertia_env.identify import IdentificationError, identify  # noqa: PLC0415
+    from addedinertia_env.sim.mujoco_rig import MujocoRig  # noqa: PLC0415
+    from addedinertia_env.sim.presets import load_preset, rig_from_mapping  # noqa: PLC0415
 
     p = rig_from_mapping(load_preset(preset), hydrodynamics="cummins" if memory else "constant")
     rec = run_free_decay(MujocoRig(p, seed=np.random.SeedSequence([seed, 15, 4])), FreeDecayPlan(alpha=0.10),
@@ -113,10 +113,10 @@ def water_work(preset: str, hold: float, alpha: float = 0.10, seed: int = SEED0,
     only these works are not mirrored: ``A66(inf) + (W_rev - W_fwd) / wbar^2`` with
     ``wbar^2 = (w1f^2 + w1r^2) / 2``.
     """
-    from ..experiment.energy_budget import simulate_with_truth  # noqa: PLC0415
-    from ..experiment.protocol import plan_from_preset  # noqa: PLC0415
-    from ..rig import forces  # noqa: PLC0415
-    from ..rig.presets import load_preset, rig_from_mapping  # noqa: PLC0415
+    from addedinertia_env.apps.energy_budget import simulate_with_truth  # noqa: PLC0415
+    from addedinertia_env.experiment.protocol import plan_from_preset  # noqa: PLC0415
+    from addedinertia_env.sim import forces  # noqa: PLC0415
+    from addedinertia_env.sim.presets import load_preset, rig_from_mapping  # noqa: PLC0415
 
     data = load_preset(preset)
     p = rig_from_mapping(data, hydrodynamics="cummins")

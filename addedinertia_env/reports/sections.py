@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..atomic import atomic_write_text
+from addedinertia_env.foundation.atomic import atomic_write_text
 
 
 def replace_section(path: str | Path, block: str, begin: str, end: str, heading: str | None = None) -> Path:

@@ -1,3 +1,5 @@
-"""The rig and its physics: parameters and presets (params, presets, known), the engines
-(mujoco_rig, batched), forces and effects, sensors, and the loops between a controller and
-the drive (control_loop, board_loop). Layer 1, physics (docs/ARCHITECTURE.md)."""
+"""Floor 1, the rig contract: what the experiment, the task, the board loop and the bench need of
+a rig, and nothing of how it is simulated. interface.py: the Rig protocol; known.py: KnownRig,
+what the experimenter knows (the run record's rig block, typed); signals.py: MotorCommand (and
+its MODES) and Reading, the drive's command and the sample the data acquisition reports.
+"""

@@ -1,6 +1,6 @@
 """The rig protocol: what the experiment, the task and the environment need of a rig.
 
-The MuJoCo model (:class:`~addedinertia_env.rig.mujoco_rig.MujocoRig`), a single view of
+The MuJoCo model (:class:`~addedinertia_env.sim.mujoco_rig.MujocoRig`), a single view of
 the batched model and the real bench (``hw_adapter``) all implement it. Nothing above
 this interface knows which one it drives.
 """
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
-from .known import KnownRig
-from .signals import MotorCommand, Reading
+from addedinertia_env.rig.known import KnownRig
+from addedinertia_env.rig.signals import MotorCommand, Reading
 
 
 @runtime_checkable

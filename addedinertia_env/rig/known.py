@@ -5,8 +5,8 @@ the task and the experiment may use (data sheet, test in air, static calibration
 the simulated truth). It is built one way from each source:
 
 * a run record's ``rig`` block: :meth:`KnownRig.from_block` (``RunRecord.known``),
-* a simulated rig's :class:`~addedinertia_env.rig.params.RigParams`: :meth:`KnownRig.from_params`
-  (``RigParams.known()``; a preset goes through :func:`~addedinertia_env.rig.presets.rig_from_mapping`),
+* a simulated rig's :class:`~addedinertia_env.sim.params.RigParams`: :meth:`KnownRig.from_params`
+  (``RigParams.known()``; a preset goes through :func:`~addedinertia_env.sim.presets.rig_from_mapping`),
 * a lab file joined with the board's CAPS: ``hw_adapter.lab.known_rig``,
 
 and written back with :meth:`KnownRig.to_block` (the keys of ``spec/run-record.md``; keys
@@ -17,7 +17,7 @@ it does not know, such as a bench's ``board`` and ``lab``, are kept in ``extra``
 
 The block's keys are declared once, in :data:`RIG_BLOCK` (name, meaning and unit, required or
 not, the bound a value must keep, who states it): the record reader
-(:mod:`addedinertia_env.record`), :class:`KnownRig` and the bench's lab file
+(:mod:`addedinertia_env.records.record`), :class:`KnownRig` and the bench's lab file
 (``hw_adapter.lab``) all read that one table (``spec/run-record.md``).
 """
 
@@ -246,7 +246,7 @@ class KnownRig:
 
     @classmethod
     def from_params(cls, params: Any) -> "KnownRig":
-        """From a simulated rig's :class:`~addedinertia_env.rig.params.RigParams` (no truth)."""
+        """From a simulated rig's :class:`~addedinertia_env.sim.params.RigParams` (no truth)."""
         m, s = params.motor, params.sensors
         gear = float(params.drive.gear_ratio)
         return cls(J_hull=params.hull.J_hull, J_flywheel=m.J_flywheel, c_torsion=params.spring.c,

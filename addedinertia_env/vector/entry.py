@@ -6,8 +6,8 @@ from typing import Any
 
 from gymnasium.vector import VectorEnv
 
-from .env import ReverseStrokeVectorEnv
-from .shards import ShardedVectorEnv
+from addedinertia_env.vector.env import ReverseStrokeVectorEnv
+from addedinertia_env.vector.shards import ShardedVectorEnv
 
 
 def make_vector_env(num_envs: int = 1, workers: int = 1, **kwargs: Any) -> VectorEnv:

@@ -21,7 +21,7 @@ environment with ``scenario_seed=`` that number runs the same episode
 
 ``suite="hard-v0"`` (``suite_split`` ``"train"`` or ``"tuning"``) draws a benchmark suite's
 scenarios as the single environment does, hidden effects and control loop (reading delay,
-held and quantised set-points: :class:`~addedinertia_env.rig.control_loop.LoopState`, the
+held and quantised set-points: :class:`~addedinertia_env.loop.control_loop.LoopState`, the
 single environment's own loop code) included.
 
 Differences from ``num_envs`` single environments, by design: the passive tail after the
@@ -49,13 +49,13 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..envs.config import EnvConfig
-from ..identify.common import prepare as prepare_identification
-from ..scenarios import load_ranges
-from ..scoring import REWARD, Estimate, estimate, score_episode
-from ..task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
-from .observe import observe
-from .pool import ENDED, READY, SETTLE, FREE, EMPTY, ExperimentPool
+from addedinertia_env.envs.config import EnvConfig
+from addedinertia_env.identify.common import prepare as prepare_identification
+from addedinertia_env.experiment.scenarios import load_ranges
+from addedinertia_env.evaluation.scoring import REWARD, Estimate, estimate, score_episode
+from addedinertia_env.experiment.task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
+from addedinertia_env.vector.observe import observe
+from addedinertia_env.vector.pool import ENDED, READY, SETTLE, FREE, EMPTY, ExperimentPool
 
 _BLAS = ThreadpoolController()  # the small least-squares fits run on one BLAS thread (16x faster on a busy 2-core machine)
 # Spare slots per environment (free strokes running ahead). An episode spends about 0.6 of its
@@ -70,7 +70,7 @@ METRIC_KEYS = ("lambda66_est", "lambda66_true", "rel_error", "energy_J", "tracki
 
 def estimate_lambda66(record) -> Estimate:
     """The estimate of one ended episode, as the single environment scores it
-    (:func:`addedinertia_env.scoring.estimate`, the corrected score): lambda66 kg m^2 and its
+    (:func:`addedinertia_env.evaluation.scoring.estimate`, the corrected score): lambda66 kg m^2 and its
     95 % interval, or nan and the failure when the identification fails. Runs on one BLAS
     thread; any process may compute it (the sharded env sends records to whichever worker
     has the least to do)."""
@@ -115,7 +115,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
         suite, suite_split = env_kwargs.pop("suite", None), env_kwargs.pop("suite_split", "train")
         self.suite, self.suite_split = None, suite_split
         if suite is not None:  # a benchmark suite's scenarios, control loop included (as ReverseStrokeEnv)
-            from ..bench.suites import load_suite  # noqa: PLC0415
+            from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
             if suite_split not in ("train", "tuning"):
                 raise ValueError(f"ReverseStrokeVectorEnv option suite_split={suite_split!r}: expected 'train' "
@@ -402,7 +402,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
     def _score(self, envs: np.ndarray, records: list, estimates: list) -> dict[str, Any]:
         """The benchmark numbers of the episodes that ended (ReverseStrokeEnv._score), as info arrays,
         from their records and :func:`estimate_lambda66` estimates
-        (:func:`addedinertia_env.scoring.score_episode`, the corrected score)."""
+        (:func:`addedinertia_env.evaluation.scoring.score_episode`, the corrected score)."""
         pool, n = self.pool, self.num_envs
         mask = np.zeros(n, dtype=bool)
         mask[envs] = True

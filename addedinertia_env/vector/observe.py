@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..task import LOOKAHEAD_S, OBS_LIMIT, OBSERVATION_FIELDS
-from .pool import ENDED, HOLD, ExperimentPool
-from .reference import reference_one
+from addedinertia_env.experiment.task import LOOKAHEAD_S, OBS_LIMIT, OBSERVATION_FIELDS
+from addedinertia_env.vector.pool import ENDED, HOLD, ExperimentPool
+from addedinertia_env.vector.reference import reference_one
 
 _SCALES = np.array([scale for _, scale in OBSERVATION_FIELDS.values()])
 _LOOKAHEAD = np.array(LOOKAHEAD_S)

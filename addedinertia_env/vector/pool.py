@@ -1,7 +1,7 @@
 """Reverse-symmetric experiments in many slots of one batched rig: the protocol on arrays.
 
 :class:`ExperimentPool` runs :class:`~addedinertia_env.experiment.protocol.Experiment`'s
-state machine for every slot of a :class:`~addedinertia_env.rig.batched.BatchedRig` at
+state machine for every slot of a :class:`~addedinertia_env.sim.batched.BatchedRig` at
 once, one rig sample per :meth:`ExperimentPool.sample`:
 
 ``settle`` (braked, passive) -> ``free`` (released; the hull swings through neutral; the
@@ -26,8 +26,8 @@ that the identified lambda66 equals the single environment's).
 
 A scenario's control loop (a benchmark suite's: reading delay, a 100 Hz drive with
 zero-order hold, quantised set-points; hard-v0) runs on the pool's
-:class:`~addedinertia_env.rig.control_loop.LoopState`, the class the single environment's
-:class:`~addedinertia_env.rig.control_loop.LoopRig` runs with one environment: commands
+:class:`~addedinertia_env.loop.control_loop.LoopState`, the class the single environment's
+:class:`~addedinertia_env.loop.control_loop.LoopRig` runs with one environment: commands
 pass through it to the rig, readings through its delay lines to everything here.
 
 Paused slots (``empty``, ``ready``, ``ended``) keep their state, clock, noise counter
@@ -47,18 +47,30 @@ from typing import Any, Sequence
 import numpy as np
 from numba.typed import List
 
-from ..experiment.filters import endpoint_slope_weights
-from ..experiment.reference import MirroredReference, fit_stroke
-from ..experiment.sample_log import make_record
-from ..rig import forces
-from ..rig.batched import CURRENT, VOLTAGE, BatchedRig
-from ..rig.control_loop import LoopState
-from ..rig.simulated import SimulatedRigBase
-from ..rig.sensors import BatchedReading
-from ..scenarios import Scenario
-from .pool_kernels import (BROKEN, ENDED_NOW, EVENTS, OVER, RELEASE, STOP, TO_REVERSE, flush_staged,
-                           restore_rings, slot_bookkeeping, slot_masks, slot_rates)
-from .reference import MirroredReferences
+from addedinertia_env.experiment.filters import endpoint_slope_weights
+from addedinertia_env.experiment.reference import MirroredReference, fit_stroke
+from addedinertia_env.experiment.sample_log import make_record
+from addedinertia_env.sim import forces
+from addedinertia_env.sim.batched import CURRENT, VOLTAGE, BatchedRig
+from addedinertia_env.loop.control_loop import LoopState
+from addedinertia_env.sim.simulated import SimulatedRigBase
+from addedinertia_env.sim.sensors import BatchedReading
+from addedinertia_env.experiment.scenarios import Scenario
+from addedinertia_env.vector.pool_kernels import (
+    BROKEN,
+    ENDED_NOW,
+    EVENTS,
+    OVER,
+    RELEASE,
+    STOP,
+    TO_REVERSE,
+    flush_staged,
+    restore_rings,
+    slot_bookkeeping,
+    slot_masks,
+    slot_rates,
+)
+from addedinertia_env.vector.reference import MirroredReferences
 
 EMPTY, SETTLE, FREE, READY, HOLD, REVERSE, ENDED = range(7)
 STAGE_NAMES = ("empty", "settle", "free", "ready", "hold", "reverse", "ended")

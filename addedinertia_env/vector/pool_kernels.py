@@ -10,7 +10,7 @@ as lists of slots (:data:`EVENTS`), which the pool handles in the order of the n
 it replaced.
 
 The laws come from their one definition: the saturation rule is
-:func:`~addedinertia_env.metrics.current_at_limit` / :func:`~addedinertia_env.metrics.voltage_at_limit`
+:func:`~addedinertia_env.experiment.metrics.current_at_limit` / :func:`~addedinertia_env.experiment.metrics.voltage_at_limit`
 compiled as they are; the rate filter's weights are
 :func:`~addedinertia_env.experiment.filters.endpoint_slope_weights` and the stop fit's the
 pseudo-inverse rows the pool builds (``np.polyfit``'s quadratic), passed in.
@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .. import metrics
+from addedinertia_env.experiment import metrics
 
 # Event lists that slot_bookkeeping returns (rows of its ``events`` array).
 EVENTS = ("broken", "to_reverse", "ended", "stop", "over", "release")

@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..experiment.reference import DEFAULT_DEGREE, StrokeLaw
-from ..experiment.stroke_kernels import clenshaw_one
+from addedinertia_env.experiment.reference import DEFAULT_DEGREE, StrokeLaw
+from addedinertia_env.experiment.stroke_kernels import clenshaw_one
 
 
 @njit(cache=True, inline="always")

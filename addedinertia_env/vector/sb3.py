@@ -17,7 +17,7 @@ from typing import Any, Sequence
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
-from .env import METRIC_KEYS, ReverseStrokeVectorEnv
+from addedinertia_env.vector.env import METRIC_KEYS, ReverseStrokeVectorEnv
 
 
 class BatchedVecEnv(VecEnv):

@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import VectorEnv
 
-from .env import ReverseStrokeVectorEnv, estimate_lambda66
+from addedinertia_env.vector.env import ReverseStrokeVectorEnv, estimate_lambda66
 
 # Shard 0 (this process) holds this fraction fewer environments than an even split: besides its
 # shard it relays the records, joins the shards' results and runs the caller's code, and with an
