@@ -264,9 +264,9 @@ def test_an_import_cycle_is_caught():
 # ------------------------------------------------------------- docs/ARCHITECTURE.md's claims
 
 
-def doc_tree() -> dict[str, list[str]]:
+def doc_tree(text: str | None = None) -> dict[str, list[str]]:
     """The folders of ARCHITECTURE.md's tree block (``addedinertia_env.sim``, ``agents``) -> the files it names there."""
-    text = DOC.read_text()
+    text = DOC.read_text() if text is None else text
     block = text.split("## The tree", 1)[1].split("```", 2)[1]
     tree: dict[str, list[str]] = {}
     current = None
@@ -285,10 +285,10 @@ def doc_tree() -> dict[str, list[str]]:
     return tree
 
 
-def doc_floors() -> dict[str, int]:
+def doc_floors(text: str | None = None) -> dict[str, int]:
     """The floors table of ARCHITECTURE.md: folder (dotted) -> floor."""
     out: dict[str, int] = {}
-    for row in re.findall(r"^\| *(\d) *\|([^|]*)\|", DOC.read_text(), re.M):
+    for row in re.findall(r"^\| *(\d) *\|([^|]*)\|", DOC.read_text() if text is None else text, re.M):
         for name in re.findall(r"`([\w/]+)/`", row[1]):
             out[name.replace("/", ".") if name in PACKAGES or name.startswith(PKG) else f"{PKG}.{name}"] = int(row[0])
     return out
@@ -314,3 +314,13 @@ def test_the_files_the_architecture_names_are_there():
 
 def test_the_architecture_floors_table_is_this_one():
     assert doc_floors() == FLOORS, "ARCHITECTURE.md's floors table and tests/test_layers.py FLOORS differ"
+
+
+def test_the_architecture_checks_can_fail():
+    """A page whose tree names a folder that is gone, or puts a folder on another floor, is read as such."""
+    page = ("## The tree\n\n```\naddedinertia_env/   root\n  sim/        forces.py, gone.py\n  attic/      old\n"
+            "agents/     x.py\n```\n\n| floor | folders | what |\n|---|---|---|\n| 3 | `sim/` | simulator |\n"
+            "| 2 | `experiment/` `agents/` | wrong floors |\n")
+    tree = doc_tree(page)
+    assert set(tree) == {f"{PKG}.sim", f"{PKG}.attic", "agents"} and tree[f"{PKG}.sim"] == ["forces.py", "gone.py"]
+    assert doc_floors(page) == {f"{PKG}.sim": 3, f"{PKG}.experiment": 2, "agents": 2} != FLOORS
