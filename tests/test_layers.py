@@ -324,3 +324,15 @@ def test_the_architecture_checks_can_fail():
     tree = doc_tree(page)
     assert set(tree) == {f"{PKG}.sim", f"{PKG}.attic", "agents"} and tree[f"{PKG}.sim"] == ["forces.py", "gone.py"]
     assert doc_floors(page) == {f"{PKG}.sim": 3, f"{PKG}.experiment": 2, "agents": 2} != FLOORS
+
+
+def test_the_water_is_defined_once():
+    """ARCHITECTURE.md: hydrodynamics in one place, the water's density and gravity in hydro/water.py only."""
+    where = []
+    for path in modules():
+        for node in ast.walk(ast.parse(path.read_text())):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(
+                node, ast.AnnAssign) else []
+            where += [f"{module_name(path)}.{t.id}" for t in targets
+                      if isinstance(t, ast.Name) and re.fullmatch(r"RHO(_WATER)?|GRAVITY|G_ACCEL", t.id)]
+    assert sorted(where) == [f"{PKG}.hydro.water.GRAVITY", f"{PKG}.hydro.water.RHO_WATER"], where
