@@ -37,6 +37,8 @@ FLOORS: dict[str, int] = {
     f"{PKG}.experiment": 4,
     # 5 estimators, diagnosis and controllers
     f"{PKG}.identify": 5, f"{PKG}.discover": 5, f"{PKG}.decay": 5, "agents": 5,
+    # 5 how an episode is scored (the one scoring function), beside the estimators it calls
+    f"{PKG}.evaluation": 5,
     # 6 applications: simulation runs, environments, training, the benchmark, the bench hardware
     f"{PKG}.apps": 6, f"{PKG}.envs": 6, f"{PKG}.vector": 6, f"{PKG}.learning": 6, f"{PKG}.bench": 6,
     "hw_adapter": 6,
