@@ -7,7 +7,9 @@ that several test files read are built here, session-scoped, and shared:
   (:class:`~addedinertia_env.experiment.oracle.OracleController`), preset ``name``;
 * ``realistic_record``: the wigley-2m preset as it stands (realistic sensors, physics.md
   section 7) with the default controller ``feedforward-pd``;
-* ``realistic_record_path``: that record written to a session folder (CSV + JSON).
+* ``realistic_record_path``: that record written to a session folder (CSV + JSON);
+* ``unpack_shared(name)``: a developers' archive (``shared/data/<name>``, e.g. the
+  foreign-lab sets) unpacked into a fresh temporary folder; the test skips when it is absent.
 
 Tests that change a record must copy it first (the ``clone`` fixture is
 :func:`copy_record`).
@@ -16,6 +18,7 @@ Tests that change a record must copy it first (the ``clone`` fixture is
 from __future__ import annotations
 
 import copy
+import tarfile
 from pathlib import Path
 
 import pytest
@@ -30,6 +33,7 @@ from addedinertia_env.experiment.protocol import plan_from_preset
 from addedinertia_env.apps.simulate import simulate_run
 
 REALISTIC_SEED = 1
+_REPO = Path(__file__).resolve().parents[1]
 
 
 def copy_record(record: RunRecord) -> RunRecord:
@@ -78,3 +82,27 @@ def realistic_record_path(realistic_record, tmp_path_factory) -> Path:
     """The realistic record written as ``run-0000.csv`` + ``.json`` (read-only by convention)."""
     record, _ = realistic_record
     return write_record(copy_record(record), tmp_path_factory.mktemp("realistic") / "run-0000.csv")
+
+
+def shared_archive(name: str) -> Path | None:
+    """``shared/data/<name>``: ../shared beside the repository (as in run-record.md's links),
+    beside a worktree's parent, or /work/shared; None when none of them holds it."""
+    paths = (base / "shared" / "data" / name for base in (_REPO.parent, _REPO.parent.parent, Path("/work")))
+    return next((p for p in paths if p.exists()), None)
+
+
+@pytest.fixture(scope="session")
+def unpack_shared(tmp_path_factory):
+    """``unpack_shared(name)``: the shared archive ``name`` unpacked into a fresh temporary
+    folder, returned as the folder that holds its ``answers.json``; skips when it is absent."""
+
+    def unpack(name: str) -> Path:
+        archive = shared_archive(name)
+        if archive is None:
+            pytest.skip(f"shared {name} data not present")
+        out = tmp_path_factory.mktemp(name.split(".")[0])
+        with tarfile.open(archive) as tar:
+            tar.extractall(out, filter="data")
+        return next(p.parent for p in out.rglob("answers.json"))
+
+    return unpack
