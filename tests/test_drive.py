@@ -7,13 +7,14 @@ import math
 
 import numpy as np
 import pytest
+from conftest import both_engines
 
 from addedinertia_env.foundation.config_io import ConfigError
 from addedinertia_env.sim import forces
 from addedinertia_env.sim.batched import BatchedRig
 from addedinertia_env.sim.drive import DriveParams
 from addedinertia_env.rig.known import KnownRig
-from addedinertia_env.sim.motor import MODES, MotorCommand
+from addedinertia_env.sim.motor import MotorCommand
 from addedinertia_env.sim.mujoco_rig import MujocoRig
 from addedinertia_env.sim.params import MotorParams, RigParams
 from addedinertia_env.sim.presets import load_preset, rig_from_mapping
@@ -37,18 +38,7 @@ def _command(k: int) -> MotorCommand:
 
 
 def _both_engines(params: RigParams, n: int = 600) -> tuple[np.ndarray, np.ndarray]:
-    mj, batch = MujocoRig(params, seed=4), BatchedRig([params], seed=[4])
-    mj.reset(phi0=-0.08, omega0=3.0, brake=False)
-    batch.reset(phi0=-0.08, omega0=3.0, brake=False)
-    a, b = [], []
-    for k in range(n):
-        cmd = _command(k) if k < 500 else MotorCommand("passive")
-        ra = mj.step(cmd)
-        rb = batch.step([MODES.index(cmd.mode)], [cmd.value])
-        s = mj.true_state()
-        a.append([s.phi, s.w, s.psi, s.omega, s.i, ra.u, ra.i])
-        b.append([batch.phi[0], batch.w[0], batch.psi[0], batch.omega[0], batch.i[0], rb.u[0], rb.i[0]])
-    return np.array(a), np.array(b, dtype=float)
+    return both_engines(params, lambda k: _command(k) if k < 500 else MotorCommand("passive"), n, omega0=3.0)
 
 
 @pytest.mark.parametrize("name", sorted(FLAWS))

@@ -8,16 +8,15 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from conftest import both_engines
 
 from addedinertia_env.apps.discovery_dataset import DatasetSpec
 from addedinertia_env.discover.diagnose import Thresholds, discover
 from addedinertia_env.discover.model import GrayBoxModel, candidates
 from addedinertia_env.discover.prepare import prepare
 from addedinertia_env.sim import effects as E
-from addedinertia_env.sim.batched import BatchedRig
 from addedinertia_env.sim.effects import registry
-from addedinertia_env.sim.motor import MODES, MotorCommand
-from addedinertia_env.sim.mujoco_rig import MujocoRig
+from addedinertia_env.sim.motor import MotorCommand
 from addedinertia_env.sim.params import RigParams
 from addedinertia_env.sim.presets import load_preset, rig_from_mapping
 from addedinertia_env.experiment.protocol import plan_from_preset
@@ -59,18 +58,7 @@ def _drive(k: int) -> MotorCommand:
 
 def _both_engines(params: RigParams, n: int = 600) -> tuple[np.ndarray, np.ndarray]:
     """(MuJoCo, batched) histories of [phi, w, psi, omega, i, read u, read i], same seed and inputs."""
-    mj, batch = MujocoRig(params, seed=4), BatchedRig([params], seed=[4])
-    mj.reset(phi0=-0.08, brake=False)
-    batch.reset(phi0=-0.08, brake=False)
-    a, b = [], []
-    for k in range(n):
-        cmd = _drive(k)
-        ra = mj.step(cmd)
-        rb = batch.step([MODES.index(cmd.mode)], [cmd.value])
-        s = mj.true_state()
-        a.append([s.phi, s.w, s.psi, s.omega, s.i, ra.u, ra.i])
-        b.append([batch.phi[0], batch.w[0], batch.psi[0], batch.omega[0], batch.i[0], rb.u[0], rb.i[0]])
-    return np.array(a), np.array(b, dtype=float)
+    return both_engines(params, _drive, n)
 
 
 def _drawn(name: str, seed: int = 5) -> E.Effects:

@@ -12,7 +12,6 @@ alarm from the chattering current).
 from __future__ import annotations
 
 import json
-import tarfile
 from pathlib import Path
 
 import numpy as np
@@ -22,25 +21,10 @@ from addedinertia_env.discover import discover
 from addedinertia_env.identify import identify
 from addedinertia_env.records.record import read_record, sampling
 
-# ../shared beside the repository (as in run-record.md's links), from a checkout or a worktree
-_REPO = Path(__file__).resolve().parents[1]
-CANDIDATE_ARCHIVES = [base / "shared" / "data" / "foreign-lab.tar.xz"
-                      for base in (_REPO.parent, _REPO.parent.parent, Path("/work"))]
-
-
-def _archive() -> Path | None:
-    return next((p for p in CANDIDATE_ARCHIVES if p.exists()), None)
-
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory) -> Path:
-    archive = _archive()
-    if archive is None:
-        pytest.skip("shared foreign-lab data not present")
-    out = tmp_path_factory.mktemp("foreign")
-    with tarfile.open(archive) as tar:
-        tar.extractall(out, filter="data")
-    return next(p.parent for p in out.rglob("answers.json"))
+def lab(unpack_shared) -> Path:
+    return unpack_shared("foreign-lab.tar.xz")
 
 
 def answers(lab: Path) -> dict:

@@ -12,7 +12,6 @@ and then judged like the others. One case runs by default, all of them in the sl
 from __future__ import annotations
 
 import json
-import tarfile
 from pathlib import Path
 
 import pytest
@@ -22,21 +21,12 @@ from addedinertia_env.discover.radiation_memory import NAME as RADIATION
 from addedinertia_env.records.record import read_record
 from addedinertia_env.sim.effects import registry
 
-_REPO = Path(__file__).resolve().parents[1]
-CANDIDATE_ARCHIVES = [base / "shared" / "data" / "foreign-lab-2.tar.xz"
-                      for base in (_REPO.parent, _REPO.parent.parent, Path("/work"))]
 CASES = [f"case-{k:02d}" for k in range(8)]
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory) -> Path:
-    archive = next((p for p in CANDIDATE_ARCHIVES if p.exists()), None)
-    if archive is None:
-        pytest.skip("shared foreign-lab-2 data not present")
-    out = tmp_path_factory.mktemp("foreign2")
-    with tarfile.open(archive) as tar:
-        tar.extractall(out, filter="data")
-    return next(p.parent for p in out.rglob("answers.json"))
+def lab(unpack_shared) -> Path:
+    return unpack_shared("foreign-lab-2.tar.xz")
 
 
 def answer(lab: Path, case: str) -> dict:

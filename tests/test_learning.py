@@ -36,19 +36,16 @@ def test_shipped_configs_load(algo, env_id):
     assert "seed" not in kwargs
 
 
-def test_config_refuses_unknown_keys_by_name(tmp_path):
+@pytest.mark.parametrize("body, match", [
+    ("n_timesteps: 100\n  hyperparams: {learning_rat: 0.001}", "learning_rat"),
+    ("n_timestep: 100", "n_timestep"),
+    ("residual: {scale: -1}", "residual.scale"),
+    ("residual: {base_rate: host}", "residual.base_rate = 'host'"),
+])
+def test_config_refuses_unknown_keys_by_name(tmp_path, body, match):
     bad = tmp_path / "ppo.yaml"
-    bad.write_text(f"{DEFAULT_ENV_ID}:\n  n_timesteps: 100\n  hyperparams: {{learning_rat: 0.001}}\n")
-    with pytest.raises(ConfigError, match="learning_rat"):
-        load_config("ppo", bad)
-    bad.write_text(f"{DEFAULT_ENV_ID}:\n  n_timestep: 100\n")
-    with pytest.raises(ConfigError, match="n_timestep"):
-        load_config("ppo", bad)
-    bad.write_text(f"{DEFAULT_ENV_ID}:\n  residual: {{scale: -1}}\n")
-    with pytest.raises(ConfigError, match="residual.scale"):
-        load_config("ppo", bad)
-    bad.write_text(f"{DEFAULT_ENV_ID}:\n  residual: {{base_rate: host}}\n")
-    with pytest.raises(ConfigError, match="residual.base_rate = 'host'"):
+    bad.write_text(f"{DEFAULT_ENV_ID}:\n  {body}\n")
+    with pytest.raises(ConfigError, match=match):
         load_config("ppo", bad)
 
 

@@ -9,7 +9,6 @@ radiation_memory candidate must name memory only where the water remembers.
 from __future__ import annotations
 
 import json
-import tarfile
 from pathlib import Path
 
 import pytest
@@ -18,21 +17,12 @@ from addedinertia_env.discover import radiation_memory
 from addedinertia_env.identify import identify
 from addedinertia_env.records.record import read_record
 
-_REPO = Path(__file__).resolve().parents[1]
-ARCHIVES = [base / "shared" / "data" / "foreign-lab-2.tar.xz" for base in (_REPO.parent, _REPO.parent.parent, Path("/work"))]
-
 pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory) -> Path:
-    archive = next((p for p in ARCHIVES if p.exists()), None)
-    if archive is None:
-        pytest.skip("shared foreign-lab-2 data not present")
-    out = tmp_path_factory.mktemp("foreign2")
-    with tarfile.open(archive) as tar:
-        tar.extractall(out, filter="data")
-    return next(p.parent for p in out.rglob("answers.json"))
+def lab(unpack_shared) -> Path:
+    return unpack_shared("foreign-lab-2.tar.xz")
 
 
 def answers(lab: Path) -> dict:

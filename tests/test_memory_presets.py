@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 import addedinertia_env  # noqa: F401 - registers the ids
+from conftest import single_and_vector_episode
 from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv
 from addedinertia_env.sim.batched_single import BatchedSingleRig
 from addedinertia_env.sim.forces import true_lambda66
@@ -111,25 +112,9 @@ def test_vector_env_on_a_memory_preset_equals_the_single_env(name):
 def test_mujoco_single_env_and_vector_env_identify_alike_with_memory():
     """The default single env (MuJoCo, memory in its own step) against the batched one: the same
     lambda66 within the engines' difference, far below the memory's own bias (percent)."""
-    name = "wigley-2m-memory"
-    venv = ReverseStrokeVectorEnv(1, preset=name, **SHORT)
-    venv.reset(seed=8)
-    env = gym.make(ENV_ID, preset=name, **SHORT)
-    env.reset(seed=8)
-    a = np.full((1, 1), 0.05, np.float32)
-    for _ in range(400):
-        _, _, term, _, info = venv.step(a)
-        if term[0]:
-            break
-    for _ in range(400):
-        _, _, st, _, sinfo = env.step(a[0])
-        if st:
-            break
-    assert term[0] and st
+    info, sinfo = single_and_vector_episode(preset="wigley-2m-memory", **SHORT)
     assert info["lambda66_true"][0] == sinfo["lambda66_true"]
     assert info["lambda66_est"][0] == pytest.approx(sinfo["lambda66_est"], rel=1e-3)
-    env.close()
-    venv.close()
 
 
 def test_the_bench_emulator_serves_a_memory_preset():

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 import addedinertia_env  # noqa: F401 - registers the ids
+from conftest import single_and_vector_episode
 from addedinertia_env.envs.reverse_stroke import ReverseStrokeEnv
 from addedinertia_env.sim.batched_single import BatchedSingleRig
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv, estimate_lambda66
@@ -129,20 +130,7 @@ def test_an_autoreset_episode_is_the_single_env_with_its_scenario_seed():
 def test_lambda66_agrees_with_the_mujoco_single_env():
     """The default single env (MuJoCo) and the batched env identify the same lambda66 within
     the engines' difference (far below the method's own error)."""
-    venv = ReverseStrokeVectorEnv(1, **SHORT)
-    venv.reset(seed=8)
-    env = gym.make(ENV_ID, **SHORT)
-    env.reset(seed=8)
-    a = np.full((1, 1), 0.05, np.float32)
-    for _ in range(400):
-        _, _, term, _, info = venv.step(a)
-        if term[0]:
-            break
-    for _ in range(400):
-        _, _, st, _, sinfo = env.step(a[0])
-        if st:
-            break
-    assert term[0] and st
+    info, sinfo = single_and_vector_episode(**SHORT)
     assert info["lambda66_est"][0] == pytest.approx(sinfo["lambda66_est"], rel=1e-3)
 
 

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from addedinertia_env.bench.statistics import clearly as clearly  # one rule for both scores
 from addedinertia_env.bench.statistics import median, median_ci, paired_median_difference
 
 ORACLE = "oracle"
@@ -90,13 +91,3 @@ def wilcoxon_p(d: np.ndarray) -> float:
     from scipy.stats import wilcoxon  # noqa: PLC0415
 
     return float(wilcoxon(d, zero_method="zsplit").pvalue)
-
-
-def clearly(diff: dict[str, Any]) -> int:
-    """+1 when the interval of ``d`` lies above zero, -1 below, 0 when it includes zero."""
-    lo, hi = diff["ci95"]
-    if lo > 0:
-        return 1
-    if hi < 0:
-        return -1
-    return 0

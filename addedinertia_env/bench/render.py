@@ -62,6 +62,17 @@ def tie_note(entries: list[dict]) -> str:
             "energy: " + "; ".join(", ".join(f"`{n}`" for n in g) for g in tied) + ".")
 
 
+def _row_minus_column(rows: list[dict], cell) -> str:
+    """A Markdown table of ``cell(row_entry, column_entry)`` between every two of ``rows``
+    (``-`` on the diagonal), headed by the entries' controllers."""
+    lines = ["| row minus column | " + " | ".join(f"`{e['controller']}`" for e in rows) + " |",
+             "|" + "---|" * (len(rows) + 1)]
+    for a in rows:
+        cells = ["-" if a is b else cell(a, b) for b in rows]
+        lines.append(f"| `{a['controller']}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def pairwise_table(entries: list[dict]) -> str:
     """Paired tests between every two rows (Markdown): the median of ``|c_row| - |c_column|``
     over their common scenarios; ``*`` when its 95 % bootstrap interval excludes zero (the row
@@ -71,19 +82,13 @@ def pairwise_table(entries: list[dict]) -> str:
     rows = [e for e in entries if e.get("control_errors") is not None and e["controller"] != paired.ORACLE]
     if len(rows) < 2:
         return ""
-    lines = ["| row minus column | " + " | ".join(f"`{e['controller']}`" for e in rows) + " |",
-             "|" + "---|" * (len(rows) + 1)]
-    for a in rows:
-        cells = []
-        for b in rows:
-            if a is b:
-                cells.append("-")
-                continue
-            d = paired.difference(a["control_errors"], b["control_errors"])
-            mark = "*" if paired.clearly(d) else ""
-            cells.append(f"{100 * d['median']:+.3f} %{mark}" if math.isfinite(d["median"]) else "fail")
-        lines.append(f"| `{a['controller']}` | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+
+    def cell(a: dict, b: dict) -> str:
+        d = paired.difference(a["control_errors"], b["control_errors"])
+        mark = "*" if paired.clearly(d) else ""
+        return f"{100 * d['median']:+.3f} %{mark}" if math.isfinite(d["median"]) else "fail"
+
+    return _row_minus_column(rows, cell)
 
 
 def score_pairwise_table(entries: list[dict]) -> str:
@@ -95,18 +100,12 @@ def score_pairwise_table(entries: list[dict]) -> str:
     rows = [e for e in entries if e.get("scenario_scores")]
     if len(rows) < 2:
         return ""
-    lines = ["| row minus column | " + " | ".join(f"`{e['controller']}`" for e in rows) + " |",
-             "|" + "---|" * (len(rows) + 1)]
-    for a in rows:
-        cells = []
-        for b in rows:
-            if a is b:
-                cells.append("-")
-                continue
-            d = score.difference(a["scenario_scores"], b["scenario_scores"])
-            cells.append(f"{100 * d['mean']:+.3f} %{'*' if score.clearly(d) else ''}")
-        lines.append(f"| `{a['controller']}` | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+
+    def cell(a: dict, b: dict) -> str:
+        d = score.difference(a["scenario_scores"], b["scenario_scores"])
+        return f"{100 * d['mean']:+.3f} %{'*' if score.clearly(d) else ''}"
+
+    return _row_minus_column(rows, cell)
 
 
 def render_markdown(entries: list[dict], figures: dict[str, Path] | None = None, relative_to: Path | None = None,

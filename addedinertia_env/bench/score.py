@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from addedinertia_env.bench.statistics import clearly as clearly  # one rule for both scores
+
 SCORE_VERSION = "capped-mean-v1"
 CAP = 0.10  # |relative error| at which an estimate counts as unusable; a failure scores this
 
@@ -112,13 +114,3 @@ def difference(s_a: dict[tuple, float], s_b: dict[tuple, float], n_boot: int = 2
     d = np.array([s_a[k] - s_b[k] for k in keys], float)
     lo, hi = bootstrap_mean(d, n_boot=n_boot, seed=seed)
     return {"mean": float(np.mean(d)) if len(d) else math.nan, "ci95": [lo, hi], "n": int(len(d))}
-
-
-def clearly(diff: dict[str, Any]) -> int:
-    """+1 when the paired interval lies above zero (A clearly worse), -1 below, 0 when it includes zero."""
-    lo, hi = diff["ci95"]
-    if lo > 0:
-        return 1
-    if hi < 0:
-        return -1
-    return 0

@@ -29,6 +29,18 @@ LEVEL = 0.95
 RLIABLE_REPS = 2000  # stratified-bootstrap resamples for rliable's intervals (its default is 50,000)
 
 
+def clearly(diff: dict[str, Any]) -> int:
+    """Which side of zero a paired difference ``diff`` (``{"ci95": [lo, hi], ...}``) clearly lies:
+    +1 when its interval lies above zero (the first entry clearly worse), -1 below, 0 when it
+    includes zero. The rule of both :mod:`.paired` and :mod:`.score`."""
+    lo, hi = diff["ci95"]
+    if lo > 0:
+        return 1
+    if hi < 0:
+        return -1
+    return 0
+
+
 def _median_axis(x: np.ndarray, axis: int = -1) -> np.ndarray:
     """Median along ``axis`` that tolerates +-inf (no inf - inf): the mean of the two middle order
     statistics, or the one value where they are equal."""

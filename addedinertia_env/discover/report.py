@@ -31,6 +31,12 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
 
     folder.mkdir(parents=True, exist_ok=True)
     out = []
+
+    def saved(fig, name: str) -> None:
+        fig.tight_layout()
+        save_figure(fig, folder / name, dpi=110)
+        out.append(folder / name)
+
     fits = [("nominal", diag.nominal)] + ([("+".join(diag.causes), diag.extended)] if diag.causes else [])
     # 1. residuals against time, by stroke, each run a line
     fig, axes = plt.subplots(len(fits), 2, figsize=(11, 3.2 * len(fits)), squeeze=False, sharey="row")
@@ -45,10 +51,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
             ax.set_xlabel("time from stroke start [s]")
             ax.set_ylabel("hull angle residual [urad]")
         axes[row, 1].legend(fontsize=7)
-    fig.tight_layout()
-    p = folder / "residuals_time.png"
-    save_figure(fig, p, dpi=110)
-    out.append(p)
+    saved(fig, "residuals_time.png")
     # 2. residual RMS by run: amplitude and hold
     fig, ax = plt.subplots(figsize=(7, 3.5))
     width = 0.8 / len(fits)
@@ -62,10 +65,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
     ax.set_ylabel("hull residual RMS [urad]")
     ax.set_yscale("log")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    p = folder / "residuals_by_run.png"
-    save_figure(fig, p, dpi=110)
-    out.append(p)
+    saved(fig, "residuals_by_run.png")
     # 3. autocorrelation
     fig, ax = plt.subplots(figsize=(7, 3.2))
     n = len(diag.nominal.hull_residuals)
@@ -76,10 +76,7 @@ def plot_residuals(diag: Diagnosis, folder: Path) -> list[Path]:
     ax.set_xlabel("lag [s]")
     ax.set_ylabel("autocorrelation")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    p = folder / "residuals_acf.png"
-    save_figure(fig, p, dpi=110)
-    out.append(p)
+    saved(fig, "residuals_acf.png")
     return out
 
 
