@@ -43,7 +43,7 @@ def test_packaging_metadata_without_warnings(tmp_path):
 
 KERNEL_RUN = """
 import json, numpy as np
-from addedinertia_env import scan_kernels as s
+from addedinertia_env.records import scan_kernels as s
 x = np.repeat(np.arange(50.0), 3); x[7] = np.nan; x[8] = np.nan
 out = s.value_change_starts(x)
 stats = [s.value_change_starts.stats]
@@ -67,7 +67,7 @@ def test_compiled_kernels_are_cached_and_give_identical_results(tmp_path):
 
 def test_the_default_cache_folder_is_writable():
     """Numba writes beside the sources (__pycache__), else in a per-user folder; either must be writable."""
-    proc = _python("from addedinertia_env import scan_kernels as s; print(s.value_change_starts._cache._cache_path)",
+    proc = _python("from addedinertia_env.records import scan_kernels as s; print(s.value_change_starts._cache._cache_path)",
                    env={"NUMBA_CACHE_DIR": ""})
     path = Path(proc.stdout.strip())
     assert proc.returncode == 0 and path.is_dir() and os.access(path, os.W_OK), (path, proc.stderr[-1000:])

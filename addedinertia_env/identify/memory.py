@@ -99,10 +99,14 @@ class _Series:
 
 
 def _series(rec: RunRecord) -> _Series:
-    rig = rec.rig
-    dt = 1.0 / float(rig["sample_rate"])
+    known = rec.known
+    dt = 1.0 / known.sample_rate
     t = np.asarray(rec.t, float)
-    grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-6)) + 1)
+    # The even grid ends at the first gap too long to bridge (over a second): no equation holds across
+    # it, and a grid through a gap of hours would not fit in memory. Shorter gaps are held, below.
+    long_gaps = np.nonzero(np.diff(t) > max(1.0, 5.0 * dt))[0]
+    t_end = t[long_gaps[0]] if long_gaps.size else t[-1]
+    grid = t[0] + dt * np.arange(int(math.floor((t_end - t[0]) / dt + 1e-6)) + 1)
     held = braked(rec)
     if "brake" not in rec.samples:  # no brake column: the phases say when the hull moves freely
         held = held | ~np.isin(np.asarray(rec.phase), ("free", "reverse"))
@@ -112,8 +116,7 @@ def _series(rec: RunRecord) -> _Series:
     for k in gaps:
         free[(grid >= t[k]) & (grid <= t[k + 1])] = False
     return _Series(rec.name, grid, _smooth(np.interp(grid, t, rec["phi"])), _smooth(np.interp(grid, t, rec["psi"])), free, dt,
-                   float(rig["J_hull"]), float(rig["J_flywheel"]), float(rig["c_torsion"]),
-                   float(rig["phi_neutral"]))
+                   known.J_hull, known.J_flywheel, known.c_torsion, known.phi_neutral)
 
 
 SMOOTH_HALF = 10  # samples: half-width of the Hann smoothing applied to phi and psi before the equation
