@@ -25,6 +25,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from addedinertia_env.records.record import RunRecord
 
 NAME = "radiation_memory"
@@ -58,6 +60,7 @@ def candidate(records: list[RunRecord], memory=None) -> dict[str, Any]:
         out["why"] = f"a pole at {slowest:.2f} rad/s: a slow lag, not the free surface's radiation"
     else:
         out["named"] = True
+        out["flywheel_effects"], out["flywheel_balance"] = flywheel_effects(records)
         out["why"] = (f"a passive memory ({best.family}) leaves {ratio:.3f} of the memory-free residual; "
                       f"A66(inf)/A66(0) = {best.A_inf / best.A_zero:.3f}")
     return out
@@ -71,4 +74,38 @@ def merge(cause: str, causes: list[str], evidence: dict[str, Any]) -> tuple[str,
     if not evidence.get("named"):
         return cause, causes
     others = [c for c in causes if c not in (NAME, "fluid_memory")]
+    others += [w for w in evidence.get("flywheel_effects", []) if w not in others]
     return NAME, [NAME] + others[:1]
+
+
+def flywheel_effects(records: list[RunRecord]) -> tuple[list[str], dict[str, Any]]:
+    """Effects of the drive that the flywheel's own balance ``J_f theta'' = s k_t i(t - lag) - M_f``
+    shows, judged on it alone: no water enters it, so water that remembers (whose misfit swamps the
+    gray-box model's hull residuals) cannot hide them (PHYSICS.md section 8). ``torque_constant``
+    where every reverse run's torque scale ``s`` is off 1 by the effect's smallest size (the
+    registry's ``min_size``) on the same side, ``sensor_delay`` likewise for the lag; returns the
+    words and the per-run scales and lags (the energy method's calibration,
+    :func:`addedinertia_env.identify.energy_calibration.flywheel_calibration`)."""
+    from addedinertia_env.identify.common import IdentificationError  # noqa: PLC0415
+    from addedinertia_env.identify.energy_balance import RunBalance  # noqa: PLC0415
+    from addedinertia_env.sim.effects import registry  # noqa: PLC0415
+
+    scales, lags = [], []
+    for rec in records:
+        if rec.experiment.get("kind") == "free-decay":
+            continue
+        try:
+            balance = RunBalance(rec.without_truth(), "reaction", False)
+        except (IdentificationError, ValueError):
+            continue
+        if (balance.torque_scale, balance.current_lag) != (1.0, 0.0):  # (1, 0): no calibration was possible
+            scales.append(balance.torque_scale)
+            lags.append(balance.current_lag)
+    words = []
+    for word, values, neutral in (("torque_constant", scales, 1.0), ("sensor_delay", lags, 0.0)):
+        if word not in registry.effect_names() or not values:
+            continue
+        off = np.asarray(values) - neutral
+        if np.all(np.abs(off) >= registry.get(word).min_size) and (np.all(off > 0) or np.all(off < 0)):
+            words.append(word)
+    return words, {"torque_scales": scales, "current_lags_s": lags}
