@@ -36,6 +36,14 @@ def register(sub) -> None:
     p.add_argument("--hydrodynamics", choices=["constant", "cummins"], default=None,
                    help="the water's model (default: the preset's): constant added inertia, or cummins radiation "
                         "memory from the hull's BEM cache (docs/RADIATION_MEMORY.md)")
+    p.add_argument("--frequencies", type=float, nargs="+", default=None, metavar="HZ",
+                   help="--kind forced-oscillation: drive frequencies, Hz (at least two; default: ratios 0.75, 0.85, "
+                        "1.2, 1.35 of the natural frequency found by the first half swing)")
+    p.add_argument("--periods", type=positive_int, default=None,
+                   help="--kind forced-oscillation: measured drive periods per frequency (default 2)")
+    p.add_argument("--settle", type=non_negative_float, default=None,
+                   help="--kind forced-oscillation: s driven at each frequency before its measured periods "
+                        "(default 0; docs/RADIATION_MEMORY.md says how long water that remembers needs)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
@@ -49,6 +57,18 @@ def run(args) -> int:
     rig = rig_from_mapping(data, effects=effects_from_name(args.effect, args.seed), sensors=sensors,
                            hydrodynamics=args.hydrodynamics)
     plan = plan_from_preset(data, hold_s=args.hold, alpha=args.alpha)
+    forced = {"frequencies_hz": tuple(args.frequencies) if args.frequencies else None, "periods": args.periods,
+              "settle_s": args.settle}
+    if args.kind != "forced-oscillation" and any(v is not None for v in forced.values()):
+        raise BadInput("--frequencies, --periods and --settle apply to --kind forced-oscillation only; "
+                       f"got --kind {args.kind}")
+    if args.kind == "forced-oscillation":
+        from addedinertia_env.experiment.forced import ForcedPlan  # noqa: PLC0415
+
+        try:
+            plan = ForcedPlan(alpha=plan.alpha, **{k: v for k, v in forced.items() if v is not None})
+        except ValueError as e:
+            raise BadInput(f"--frequencies/--periods/--settle: {e}") from None
     if args.kind == "reverse-symmetric":
         from agents.registry import CLASSICAL, make_controller  # noqa: PLC0415
 
@@ -63,6 +83,9 @@ def run(args) -> int:
         info(f"removed {stale}, a temporary file of a killed earlier run")
     signature = {"rig": args.rig, "controller": args.controller, "seed": args.seed, "hold": args.hold,
                  "alpha": args.alpha, "kind": args.kind, "sensors": args.sensors, "effect": args.effect}
+    for key, value in forced.items():  # (absent when not given: earlier records' signatures stay valid)
+        if value is not None:
+            signature[key] = list(value) if isinstance(value, tuple) else value
     if args.hydrodynamics is not None:  # (absent otherwise: earlier records' signatures stay valid)
         signature["hydrodynamics"] = args.hydrodynamics
     kept: list[Path] = []

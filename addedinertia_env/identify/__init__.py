@@ -68,7 +68,10 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         if memory:
             from addedinertia_env.identify.memory_energy import with_memory  # noqa: PLC0415
 
-            result = with_memory(result, [r.without_truth() for r in all_records], [r.without_truth() for r in records])
+            from addedinertia_env.identify.memory_energy import FRACTIONS  # noqa: PLC0415
+
+            result = with_memory(result, [r.without_truth() for r in all_records], [r.without_truth() for r in records],
+                                 fractions=options.get("fractions", FRACTIONS))
     return result
 
 

@@ -48,9 +48,10 @@ class RunMemoryWork:
     dW_basis: np.ndarray  # angles x memory coefficients: (W_rev - W_fwd) per unit coefficient
 
 
-def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
+def run_memory_work(rec: RunRecord, fit: FamilyFit, fractions=FRACTIONS) -> RunMemoryWork | None:
     """The memory works of ``fit``'s basis at the energy method's boundary angles of one
-    reverse-symmetric run (None when the run has no forward and reverse stroke)."""
+    reverse-symmetric run (None when the run has no forward and reverse stroke);
+    ``fractions``: the energy method's ``(lo, hi)`` range of boundary angles."""
     dt = 1.0 / rec.known.sample_rate
     t = np.asarray(rec.t, float)
     grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-6)) + 1)
@@ -69,8 +70,9 @@ def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
     phi_n = rec.known.phi_neutral
     from addedinertia_env.identify.energy import hann_weights  # noqa: PLC0415
 
-    f = np.linspace(FRACTIONS[0], FRACTIONS[1], N_ANGLES)
-    weights = hann_weights(f, FRACTIONS[0], FRACTIONS[1])
+    lo, hi = _window(fractions)
+    f = np.linspace(lo, hi, N_ANGLES)
+    weights = hann_weights(f, lo, hi)
     phi1 = phi_n + f * (rest - phi_n)
     # the basis' memory moments and their works along the measured motion
     cols = []
@@ -102,6 +104,13 @@ def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
     if not keep.any():
         return None
     return RunMemoryWork(rec.name, phi1[keep], weights[keep], np.array(KE)[keep], np.array(dW)[keep])
+
+
+def _window(fractions) -> tuple[float, float]:
+    """The ``(lo, hi)`` range of boundary angles the energy method averaged over (a list of
+    three or more fractions: its smallest and largest, the same span)."""
+    f = [float(x) for x in fractions]
+    return min(f), max(f)
 
 
 def _crossing(phi: np.ndarray, idx: np.ndarray, level: float):
@@ -143,7 +152,7 @@ class CorrectedEstimate:
 
 
 def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sigma: list[float],
-                     memory: MemoryIdentification) -> CorrectedEstimate | None:
+                     memory: MemoryIdentification, fractions=FRACTIONS) -> CorrectedEstimate | None:
     """lambda66 = A66(0) from the energy method's per-run values corrected by each accepted
     family's memory bias; the interval is the union over the families."""
     from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
@@ -154,7 +163,7 @@ def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sig
     for fit in memory.accepted:
         vals, sigs, biases = [], [], []
         for rec, v, s in zip(records, per_run, per_run_sigma):
-            work = run_memory_work(rec, fit)
+            work = run_memory_work(rec, fit, fractions)
             if work is None or not np.isfinite(v):
                 continue
             b, grad = family_bias(work, fit)
@@ -196,7 +205,8 @@ def combine(energy: float, energy_ci, fit: float, fit_ci) -> tuple[float, tuple[
     return value, (value - half, value + half)
 
 
-def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunRecord], prior: str | None = None):
+def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunRecord], prior: str | None = None,
+                fractions=FRACTIONS):
     """The energy method's :class:`~addedinertia_env.identify.common.Result` with the water's
     memory identified from ``all_records`` (decays and reverse runs) and corrected for:
     ``lambda66`` becomes A66(0) (:func:`combine`); the JSON adds ``A66_swing``, ``A66_inf`` (each with ``ci95``),
@@ -210,7 +220,8 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
     details.update(mem.to_json())
     value, ci = result.lambda66, result.ci95
     if mem.identified:
-        corrected = corrected_energy(reverse_records, details.get("per_run", []), details.get("per_run_sigma", []), mem)
+        corrected = corrected_energy(reverse_records, details.get("per_run", []), details.get("per_run_sigma", []), mem,
+                                     fractions)
         if corrected is not None:
             details["lambda66_uncorrected"] = value
             details["lambda66_uncorrected_ci95"] = list(ci)
