@@ -41,7 +41,10 @@ class ExperimentPlan:
     """How one reverse-symmetric experiment is run."""
 
     alpha: float = 0.1  # rad, twist of the rod before release
-    hold_s: float = 2.0  # s, brake hold at the reversal
+    #: s, brake hold at the reversal: 0.1 s, the study's recommendation (docs/RADIATION_MEMORY.md,
+    #: "The protocol's part": in water that remembers, the shortest hold a brake makes leaves the
+    #: smallest memory bias; memory-free accuracy unchanged)
+    hold_s: float = 0.1
     settle_s: float = 0.1  # s, braked idle before release
     tail_s: float = 0.1  # s, passive idle after the reverse stroke
     lead_s: float = 0.05  # s, the fitted stroke starts this long before the neutral crossing

@@ -41,6 +41,14 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
     memory = options.pop("memory", False)
     if memory not in (False, True, "auto"):
         raise ValueError(f"identify(): memory={memory!r}; expected False, True or 'auto'")
+    forced = []
+    if method == "energy" and memory:
+        # forced runs beside reverse runs: A66 at their frequencies, evidence about the memory (forced_memory.py)
+        forced = [r for r in records if r.experiment.get("kind") == "forced-oscillation"]
+        if forced and len(forced) < len(records):
+            records = [r for r in records if r.experiment.get("kind") != "forced-oscillation"]
+        else:
+            forced = []
     all_records, used = records, list(range(len(records)))
     if method == "energy":  # free decays beside reverse runs: read for the water's memory, not refused
         decays = [k for k, r in enumerate(records) if r.experiment.get("kind") == "free-decay"]
@@ -72,6 +80,10 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
 
             result = with_memory(result, [r.without_truth() for r in all_records], [r.without_truth() for r in records],
                                  fractions=options.get("fractions", FRACTIONS))
+        if forced:
+            from addedinertia_env.identify.forced_memory import with_forced  # noqa: PLC0415
+
+            result = with_forced(result, [r.without_truth() for r in forced])
     return result
 
 

@@ -225,3 +225,34 @@ def forced_summary(records: list[RunRecord]) -> dict:
     except IdentificationError as e:
         out["A66_zero"] = f"not extrapolated: {e}"
     return out
+
+
+def with_forced(result, forced_records: list[RunRecord]):
+    """The energy method's result with forced runs read beside it as evidence about the water's
+    memory: ``details["forced"]`` holds A66 at every drive frequency and A66(0) extrapolated
+    from them. Where the other records leave the memory ``not identifiable`` (or none were
+    corrected) and the forced runs give A66(0), that value and its interval become
+    ``lambda66`` (``details["lambda66_from"]`` says so); otherwise the estimate is unchanged
+    and the forced A66(0) stands beside it as a check (per-frequency accuracy ~0.1-0.2 %,
+    docs/RADIATION_MEMORY.md: coarser than the corrected energy method)."""
+    from addedinertia_env.identify.common import Result  # noqa: PLC0415
+
+    details = dict(result.details)
+    try:
+        summary = forced_summary(forced_records)
+    except IdentificationError as e:
+        details["forced"] = f"not read: {e}"
+        return Result(method=result.method, lambda66=result.lambda66, ci95=result.ci95,
+                      n_intervals=result.n_intervals, details=details)
+    details["forced"] = summary
+    value, ci = result.lambda66, result.ci95
+    zero = summary["A66_zero"]
+    unidentified = str(details.get("memory", "")).startswith("not identifiable")
+    if unidentified and isinstance(zero, dict):
+        details["lambda66_from"] = ("forced runs: A66(0) extrapolated from A66 at the drive frequencies under the "
+                                    "swing (the reverse runs' memory was not identifiable)")
+        details["lambda66_unidentified_memory"] = value
+        value, ci = zero["A66_zero"], tuple(zero["ci95"])
+        details.pop("ci95_widened_by", None)
+    return Result(method=result.method, lambda66=float(value), ci95=(float(ci[0]), float(ci[1])),
+                  n_intervals=result.n_intervals, details=details)
