@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table
+.PHONY: pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -183,7 +183,13 @@ docs-reports: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.energy_budget --seeds 4 $(if $(FOREIGN_LAB),--data $(FOREIGN_LAB))
 	$(BIN)/python -m addedinertia_env.reports.bem_prior --seeds 4
 	$(BIN)/python -m addedinertia_env.reports.radiation_memory --seeds 3 --out docs/RADIATION_MEMORY.md
+	$(MAKE) protocol-study
 	$(BIN)/python -m addedinertia_env.reports.oracle_ablation --scenarios 48 --out docs/figures/oracle_ablation_hard.json
+
+# docs/RADIATION_MEMORY.md, "The protocol's part": hold, twist, window and forced runs in water that
+# remembers, before and after the memory correction (~10 CPU min; resumes from out/protocol_study/rows.jsonl).
+protocol-study: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.protocol_study --seeds 2 --free-seeds 8 --out docs/RADIATION_MEMORY.md
 
 docs-accuracy: accuracy-table
 	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 8 --out docs/ACCURACY_bearing_coulomb.md --effect bearing_coulomb
