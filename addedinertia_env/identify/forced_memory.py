@@ -72,6 +72,7 @@ class FrequencyPoint:
 
     @property
     def ci95(self) -> tuple[float, float]:
+        """The 95 % interval of A66 at this frequency, kg m^2."""
         return self.A66 - Z95 * self.sigma, self.A66 + Z95 * self.sigma
 
 

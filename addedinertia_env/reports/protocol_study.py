@@ -231,7 +231,7 @@ def render(rows: list[dict], seeds: int, wall_s: float | None = None, free_seeds
     cpu = [r.get("cpu_s", 0.0) for r in rows]
     if cpu:
         lines.append(f"- Cost: {sum(cpu):.0f} CPU s in all, median {np.median(cpu):.1f} CPU s per point "
-                     "(simulation and both readings)." + (f" Wall clock {wall_s:.0f} s." if wall_s else ""))
+                     "(simulation and both readings; rows kept from an earlier, resumed run count with their own CPU time).")
         lines.append("")
     lines += ["| preset | factor | level | tank s per run | before: error vs A66(0) | after: error vs A66(0) "
               "| after: median half-width | covered | memory found |",
