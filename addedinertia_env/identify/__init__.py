@@ -74,9 +74,7 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         if len(used) < len(all_records):
             result.details["records_for_memory_only"] = [r.name for k, r in enumerate(all_records) if k not in used]
         if memory:
-            from addedinertia_env.identify.memory_energy import with_memory  # noqa: PLC0415
-
-            from addedinertia_env.identify.memory_energy import FRACTIONS  # noqa: PLC0415
+            from addedinertia_env.identify.memory_energy import FRACTIONS, with_memory  # noqa: PLC0415
 
             result = with_memory(result, [r.without_truth() for r in all_records], [r.without_truth() for r in records],
                                  fractions=options.get("fractions", FRACTIONS))
