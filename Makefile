@@ -133,11 +133,11 @@ leaderboard-hard:
 	  LEADERBOARD_HTML=docs/leaderboard_hard.html \
 	  LEARNED_POLICIES="agents/policies/reverse_stroke.onnx agents/policies/hard_residual.onnx agents/policies/hard_dagger.onnx"
 
-# docs/LEADERBOARD_drive.md: drive-v0, the suite where the drive's flaws make control decide
-# (configs/suites/drive-v0.yaml, docs/DRIVE.md); `make tune-drive` first.
+# docs/LEADERBOARD_drive.md: drive-v1, the suite where the drive's flaws make control decide
+# (configs/suites/drive-v1.yaml, docs/DRIVE.md); `make tune-drive` first.
 leaderboard-drive:
-	$(MAKE) leaderboard BENCH_SUITE=drive-v0 LEADERBOARD_DOC=docs/LEADERBOARD_drive.md \
-	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v0.html LEARNED_POLICIES= \
+	$(MAKE) leaderboard BENCH_SUITE=drive-v1 LEADERBOARD_DOC=docs/LEADERBOARD_drive.md \
+	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v1.html LEARNED_POLICIES= \
 	  BENCH_CONTROLLERS="oracle zero pd pid lqr feedforward-pd drive-aware"
 
 # The drive-aware entry's pre-spin on drive-v0's tuning split (configs/controllers/tuned-drive-v0.yaml).

@@ -55,8 +55,11 @@ def tasks(seeds: list[int], flaws: list[str], controllers: list[str]) -> list[Ep
             else:
                 rig = rig.replace(motor=dataclasses.replace(rig.motor, u_max=SUPPLIES[flaw]))
             sc = dataclasses.replace(sc, rig=rig)
-            for c in controllers:
-                out.append(EpisodeTask(suite="drive-study", split=flaw, scenario=sc, preset="wigley-2m", controller=c))
+            for c in controllers:  # "name" or "name@knob=value,knob=value" (a knob's value other than tuned)
+                name, _, knobs = c.partition("@")
+                kwargs = {k: float(v) for k, v in (kv.split("=") for kv in knobs.split(",") if kv)}
+                out.append(EpisodeTask(suite="drive-study", split=flaw, scenario=sc, preset="wigley-2m",
+                                       controller=name, controller_kwargs=kwargs))
     return out
 
 
@@ -72,7 +75,7 @@ def main() -> None:
     seeds = list(range(a.first_seed, a.first_seed + a.seeds))
     rows = run_tasks(tasks(seeds, a.flaws, a.controllers), jobs=a.jobs,
                      on_row=lambda r: print(json.dumps({k: r.get(k) for k in (
-                         "controller", "split", "seed", "rel_error", "rel_error_corrected", "failure",
+                         "controller", "controller_kwargs", "split", "seed", "rel_error", "rel_error_corrected", "failure",
                          "tracking_rms_rad", "saturated_frac", "wall_s")}), flush=True))
     oracle = {(r["split"], r["seed"]): r["rel_error"] for r in rows if r["controller"] == "oracle"}
     for flaw in a.flaws:

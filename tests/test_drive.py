@@ -239,3 +239,17 @@ def test_a_geared_preset_runs_its_drive_and_its_lab_states_the_ratio():
     with pytest.raises(ConfigError, match="gear_ratio = 0.5"):
         lab_from_mapping({**{k: 1.0 for k in ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L")},
                           "phi_neutral": 0.0, "gear_ratio": 0.5}, "lab.yaml")
+
+
+def test_drive_v1_draws_backlash_and_cogging_within_its_stated_ranges():
+    """drive-v1 (configs/suites/drive-v1.yaml): every tuning scenario's drive within the suite's ranges,
+    the backlash with a rotor to cross it, the gear ratio known in the record."""
+    from addedinertia_env.bench.suites import load_suite
+
+    suite = load_suite("drive-v1")
+    for sc in suite.scenarios("tuning")[:4]:
+        d = sc.rig.drive
+        assert 3.0 <= d.gear_ratio <= 8.0 and 0.88 <= d.gear_efficiency <= 0.96
+        assert math.radians(0.5) <= d.backlash <= math.radians(1.5) and 1e-5 <= d.rotor_inertia <= 2e-5
+        assert 3e-3 <= d.cogging_torque <= 10e-3 and d.cogging_periods == 24.0
+        assert sc.rig.known().to_block()["gear_ratio"] == pytest.approx(d.gear_ratio)
