@@ -452,10 +452,11 @@ def _quantities(sections, coef, swing_omega, strict: bool = False) -> np.ndarray
 
 
 def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega: float,
-               strict: bool | None = None, start: np.ndarray | None = None) -> FamilyFit:
+               strict: bool | None = None, start: np.ndarray | None = None, fixed: bool = False) -> FamilyFit:
     """The best fit of one family (pole positions searched from a few starts, or from ``start``: the
     poles of the same family with an instantaneous part). ``strict`` (default: the name ends in
-    :data:`STRICT_SUFFIX`): the kernel without an instantaneous part (:func:`_kernel_map`)."""
+    :data:`STRICT_SUFFIX`): the kernel without an instantaneous part (:func:`_kernel_map`). ``fixed``: the
+    poles stay at ``start`` (packed as :func:`pack_sections` does; a prior's poles), only the coefficients fitted."""
     from scipy.optimize import least_squares  # noqa: PLC0415
 
     strict = name.endswith(STRICT_SUFFIX) if strict is None else strict
@@ -464,6 +465,10 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
     lb, ub = _bounds(kinds)
     best = None
     starts = [np.clip(start, lb, ub)] if start is not None else _starts(kinds)
+    if fixed:
+        from types import SimpleNamespace  # noqa: PLC0415
+
+        best, starts = SimpleNamespace(x=np.asarray(start, float), jac=None), []
     for x0 in starts:
         try:
             r = least_squares(lambda x: data.projected_residual(_unpack(kinds, x), strict), x0, bounds=(lb, ub),
@@ -483,6 +488,8 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
     # the pole positions' share: the quantities' change along the poles' own covariance
     try:
         J = best.jac
+        if J is None:
+            raise ValueError("fixed poles: no share of their positions")
         s2 = float(resid @ resid) / max(len(resid) - X.shape[1] - len(best.x), 1)
         Vx = np.linalg.pinv(J.T @ J) * s2 * _cluster_inflation(data, resid)
         grads = []
@@ -510,6 +517,19 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
                      T @ V[:n_mem, :n_mem] @ T.T, strict, best.x.copy())
 
 
+def pack_sections(sections: list[tuple]) -> tuple[tuple[str, ...], np.ndarray]:
+    """The kinds and packed pole parameters of ``sections`` (the inverse of :func:`_unpack`)."""
+    kinds, x = [], []
+    for sec in sections:
+        kinds.append(sec[0])
+        if sec[0] == "r":
+            x.append(math.log(sec[1]))
+        else:
+            z = min(max(sec[2], 1e-6), 1.0 - 1e-6)
+            x += [math.log(sec[1]), math.log(z / (1.0 - z))]
+    return tuple(kinds), np.array(x)
+
+
 def _bounds(kinds: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of the packed pole parameters: log magnitudes within :data:`POLE_RANGE`, damping logits within +-6."""
     lo, hi = (math.log(v) for v in POLE_RANGE)
@@ -534,6 +554,16 @@ def _cluster_inflation(data: MemoryData, resid: np.ndarray) -> float:
 
 
 # --- the hull's memory -------------------------------------------------------------------
+@dataclass(frozen=True)
+class PriorKernel:
+    """Poles of a memory kernel from outside the records (a BEM solve), for :func:`identify_memory`."""
+
+    name: str  # "bem"
+    sections: tuple  # ('r', a) / ('c', wn, z), rad/s
+    strict: bool  # without an instantaneous part (a potential-flow kernel)
+    source: str  # where it came from (the cache's path)
+
+
 @dataclass
 class MemoryIdentification:
     """What the records say about the water's memory (kg m^2, rad/s)."""
@@ -549,7 +579,8 @@ class MemoryIdentification:
     fits: list[FamilyFit] = field(default_factory=list)
     rss_none: float = math.nan
     free_s: float = 0.0
-    prior: str = "none (records alone)"
+    prior: str = "none"
+    prior_note: str = ""  # with a prior: its source and whether the records accepted it
 
     @property
     def identified(self) -> bool:
@@ -573,6 +604,8 @@ class MemoryIdentification:
                 "families_kept": [f.family for f in self.accepted],
                 "fits": [f.summary() for f in self.fits], "rss_memory_free": self.rss_none,
                 "prior": self.prior, "free_motion_s": self.free_s}
+            if self.prior_note:
+                out["memory_model"]["prior_note"] = self.prior_note
         else:
             out["memory_model"] = {"swing_omega_rad_s": self.swing_omega, "rss_memory_free": self.rss_none,
                                    "fits": [f.summary() for f in self.fits], "prior": self.prior,
@@ -599,8 +632,12 @@ def swing_frequency(data: MemoryData) -> float:
     return float(math.pi / np.median(halves))
 
 
-def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...]] | None = None) -> MemoryIdentification:
-    """The water's memory from a hull's records (free decays and reverse runs together)."""
+def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...]] | None = None,
+                    prior: PriorKernel | None = None) -> MemoryIdentification:
+    """The water's memory from a hull's records (free decays and reverse runs together). ``prior``: a
+    kernel's poles from elsewhere (the BEM cache, ``identify --prior bem``): fitted as one more family with
+    its poles fixed, and reported, with its own interval, where the records accept it (passive, within
+    :data:`FAMILY_RSS_TOLERANCE` of the best residual); else the records alone, and the JSON says why."""
     families = FAMILIES if families is None else families
     try:
         data = MemoryData(records)
@@ -638,8 +675,18 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
             fits.append(fit_family(data, name, kinds, w_s, start=own.x))
         except MemoryNotIdentifiable:
             continue
+    prior_fit = None
+    if prior is not None and best_plain > -math.inf:
+        kinds, x = pack_sections(list(prior.sections))
+        try:
+            prior_fit = fit_family(data, prior.name, kinds, w_s, strict=prior.strict, start=x, fixed=True)
+            fits.append(prior_fit)
+        except MemoryNotIdentifiable:
+            prior_fit = None
     passive = [f for f in fits if f.passive]
-    base = MemoryIdentification("none", w_s, fits=fits, rss_none=rss_none, free_s=data.free_s)
+    base = MemoryIdentification("none", w_s, fits=fits, rss_none=rss_none, free_s=data.free_s,
+                                prior="none" if prior is None else prior.name,
+                                prior_note="" if prior is None else f"{prior.source}: not used (no memory in the records)")
     if not passive:
         if fits and min(f.rss for f in fits) < MEMORY_RSS_RATIO * rss_none:
             base.status = ("not identifiable: the records show memory but no passive low-order model fits "
@@ -658,13 +705,24 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
     # the one reported: the simplest of those that fit (fewest pole parameters and free coefficients, then the
     # smaller residual): a kernel without an instantaneous part where the records do not need one
     best = min(accepted, key=lambda f: (f.n_params, f.rss))
+    note = ""
+    if prior is not None:
+        if prior_fit is not None and any(f is prior_fit for f in accepted):
+            best, accepted = prior_fit, [prior_fit]  # the prior's shape, which the records accept, pins the family
+            note = (f"{prior.source}: its poles kept (residual {prior_fit.rss / min(f.rss for f in passive):.2f} "
+                    "x the best passive family's); coefficients and A66 from the records")
+        else:
+            why = ("not passive with these records" if prior_fit is not None and not prior_fit.passive else
+                   f"residual {prior_fit.rss / min(f.rss for f in passive):.2f} x the best passive family's, over "
+                   f"{FAMILY_RSS_TOLERANCE}" if prior_fit is not None else "could not be fitted")
+            note = f"{prior.source}: rejected by the records ({why}); the records alone"
     ci = {}
     for key in ("A66_inf", "A66_zero", "A66_swing"):
         lo = min(getattr(f, _attr(key)) - Z95 * f.sigma[key] for f in accepted)
         hi = max(getattr(f, _attr(key)) + Z95 * f.sigma[key] for f in accepted)
         ci[key] = (float(lo), float(hi))
     return MemoryIdentification("identified", w_s, best.A_zero, best.A_inf, best.A_swing, ci, best, accepted, fits,
-                                rss_none, data.free_s)
+                                rss_none, data.free_s, "none" if prior is None else prior.name, note)
 
 
 def _attr(key: str) -> str:
