@@ -25,16 +25,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from addedinertia_env.discover.model import GrayBoxModel, _stack
+from addedinertia_env.discover.model import GrayBoxModel, ParamSpec, _stack
 from addedinertia_env.identify.memory import FamilyFit, MemoryIdentification
 from addedinertia_env.sim import forces
 from addedinertia_env.sim.integrator import rk4_step
 
 
+FREE_INF = True  # the whole-record fit reads A66(inf) itself (see MemoryGrayBoxModel)
+
+
 @dataclass(frozen=True)
 class MemoryKernel:
-    """A passive memory kernel in state space, per kg m^2 of A66(0): ``x' = A x + b w``,
-    ``mu / A66(0) = c.x + d w``; ``a_inf_ratio`` = A66(inf)/A66(0)."""
+    """A passive memory kernel in state space, per kg m^2 of the memory's size A66(0) - A66(inf):
+    ``x' = A x + b w``, ``mu / (A66(0) - A66(inf)) = c.x + d w``; ``a_inf_ratio`` = A66(inf)/A66(0) as identified."""
 
     A: np.ndarray
     b: np.ndarray
@@ -70,7 +73,8 @@ class MemoryKernel:
                 c[i + 1] += -2.0 * z * wn * fit.theta[k + 1]
                 d += fit.theta[k + 1]
                 i, k = i + 2, k + 2
-        return cls(A, b, c / fit.A_zero, d / fit.A_zero, fit.A_inf / fit.A_zero, fit.family)
+        size = fit.A_zero - fit.A_inf  # the memory's share of A66(0), > 0 for a passive family
+        return cls(A, b, c / size, d / size, fit.A_inf / fit.A_zero, fit.family)
 
     def after_rest(self, x: np.ndarray, seconds: np.ndarray) -> np.ndarray:
         """The state after ``seconds`` (per segment) with the hull held still: ``exp(A t) x``; ``x`` (n, P, S)."""
@@ -92,15 +96,31 @@ def kernel_of(memory: MemoryIdentification | None) -> MemoryKernel | None:
 class MemoryGrayBoxModel(GrayBoxModel):
     """:class:`~addedinertia_env.discover.model.GrayBoxModel` with the radiation memory's state (module doc)."""
 
-    def __init__(self, data, effect=None, kernel: MemoryKernel | None = None):
+    def __init__(self, data, effect=None, kernel: MemoryKernel | None = None, free_inf: bool = FREE_INF):
         super().__init__(data, effect)
         if kernel is None:
             raise ValueError("MemoryGrayBoxModel needs a memory kernel (kernel_of(identify_memory(records)))")
         self.kernel = kernel
+        self.free_inf = free_inf
+        if free_inf:  # A66(inf) a parameter too: the kernel's shape from the memory fit, its size from this fit
+            self.specs = self.specs + (ParamSpec("A66_inf", "kg m^2", 10.0 * kernel.a_inf_ratio, 0.0, 1e3, 0.5),)
+            self.names = tuple(sp.name for sp in self.specs)
+
+    def extend(self, theta: np.ndarray) -> np.ndarray:
+        """A memory-free model's parameters with this model's own appended (A66(inf) from the identified ratio)."""
+        theta = np.asarray(theta, float)
+        if not self.free_inf or len(theta) == len(self.names):
+            return theta
+        return np.r_[theta, theta[0] * self.kernel.a_inf_ratio]
 
     def with_effects(self, effects: tuple[str, ...]) -> "MemoryGrayBoxModel":
-        """The same model (data and kernel) with other effects."""
-        return MemoryGrayBoxModel(self.data, effects or None, self.kernel)
+        """The same model (data and kernel) with other effects (their parameters before ``A66_inf``)."""
+        return MemoryGrayBoxModel(self.data, effects or None, self.kernel, self.free_inf)
+
+    def _a_inf(self, thetas: np.ndarray) -> np.ndarray:
+        if self.free_inf:
+            return thetas[:, self.names.index("A66_inf")][:, None]
+        return thetas[:, 0][:, None] * self.kernel.a_inf_ratio
 
     def hull_prediction(self, thetas: np.ndarray) -> np.ndarray:
         """Model hull angle at every step boundary of every segment, (P, n_hull), with the memory state."""
@@ -109,6 +129,7 @@ class MemoryGrayBoxModel(GrayBoxModel):
         delays, ratios = self._motor_input_params(ns, P)
         inputs = [self._inputs(delays[p], ratios[p])[0] for p in range(P)]
         lam = thetas[:, 0][:, None]
+        a_inf = self._a_inf(thetas)
         segs = self.segments
         mean = _stack([[m for m, _ in row] for row in inputs])
         slope = _stack([[s for _, s in row] for row in inputs])
@@ -121,7 +142,8 @@ class MemoryGrayBoxModel(GrayBoxModel):
         idx_f, idx_c = np.nonzero(first)[0], np.nonzero(carried)[0]
         zeros_f = np.zeros((P, len(idx_f)))
         phi_f, r_end, x_end = self._integrate(phi0[:, idx_f], zeros_f, np.zeros((n, P, len(idx_f))),
-                                              mean[:, idx_f], slope[:, idx_f], self._h[idx_f], lam, ns, ends[idx_f])
+                                              mean[:, idx_f], slope[:, idx_f], self._h[idx_f], lam, a_inf, ns,
+                                              ends[idx_f])
         phi[:, idx_f] = phi_f
         if len(idx_c):
             src = np.array([int(np.nonzero(idx_f == segs[i].carry_from)[0][0]) for i in idx_c])
@@ -129,24 +151,25 @@ class MemoryGrayBoxModel(GrayBoxModel):
             r0 = forces.water_rate_after_rest(r_end[:, src], hold[None, :], ns)
             x0 = self.kernel.after_rest(x_end[:, :, src], hold)
             phi_c, _, _ = self._integrate(phi0[:, idx_c], r0, x0, mean[:, idx_c], slope[:, idx_c], self._h[idx_c],
-                                          lam, ns, ends[idx_c])
+                                          lam, a_inf, ns, ends[idx_c])
             phi[:, idx_c] = phi_c
         parts = [phi[:, k, 1: s.steps + 1] for k, s in enumerate(segs)]
         return np.concatenate(parts, axis=1)
 
-    def _integrate(self, phi0, r0, x0, mean, slope, h_steps, lam, ns, ends):
+    def _integrate(self, phi0, r0, x0, mean, slope, h_steps, lam, a_inf, ns, ends):
         """RK4 of the hull with the memory state; phi at every step boundary (P, S, N + 1) and the water and
         memory states at each segment's end."""
         data, k = self.data, self.kernel
         c = data.c
         neutral = forces.true_neutral(ns)
         water = forces.has_water_memory(ns)
-        J = data.J_hull + lam * k.a_inf_ratio  # (P, 1)
+        J = data.J_hull + a_inf  # (P, 1)
+        size = lam - a_inf  # the memory's share of A66(0)
         A, b, cv, d = k.A, k.b[:, None, None], k.c, k.d
 
         def deriv(z, torque):  # the memory state is (n, P, S): its trailing axes broadcast with the step lengths
             phi, w, r, x = z
-            mu = lam * (np.tensordot(cv, x, axes=1) + d * w)
+            mu = size * (np.tensordot(cv, x, axes=1) + d * w)
             acc = (-c * (phi - neutral) + forces.hull_extra_torque(phi, w, r, ns) + torque - mu) / J
             dr = forces.water_rate_derivative(w, r, ns) if water else 0.0 * r
             return w, acc, dr, np.tensordot(A, x, axes=1) + b * w

@@ -90,11 +90,11 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
     model = fit.model if kernel is None else MemoryGrayBoxModel(data, effects or None, kernel)
     x0 = None
     if lambda66_start is not None:
-        x0 = model.start()
+        x0 = model.start() if kernel is None else model.extend(fit.theta)
         x0[model.names.index("lambda66")] = float(lambda66_start)
         fit = fit_model(model, x0)
     elif kernel is not None:  # from the memory-free fit's parameters
-        fit = fit_model(model, fit.theta)
+        fit = fit_model(model, model.extend(fit.theta))
     lam = fit.params["lambda66"]
     sigma_fisher = math.sqrt(max(fit.covariance(inflate=True)[0, 0], 0.0))
     sigma_white = math.sqrt(max(fit.covariance(inflate=False)[0, 0], 0.0))
@@ -140,18 +140,18 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
                            "flywheel_excess": s["flywheel_excess"], "lag1": s["lag1"],
                            "converged": fit.success,
                            "lambda66_start": float((model.start() if x0 is None else x0)[model.names.index("lambda66")]),
-                           "n_evals": fit.n_evals, **_memory_details(memory, kernel, lam)})
+                           "n_evals": fit.n_evals, **_memory_details(memory, kernel, lam, fit.params.get("A66_inf"))})
 
 
-def _memory_details(memory, kernel, lam: float) -> dict:
+def _memory_details(memory, kernel, lam: float, a_inf: float | None) -> dict:
     """What the fit took from the water's memory (``identify --json``)."""
     if memory is None:
         return {}
     out = {"memory": memory.to_json()["memory"], "prior": memory.prior}
     if kernel is not None:
-        out.update({"memory_state": f"{kernel.family}: {kernel.order} states, identified from the same records "
-                                    "(identify/memory.py), scaled by lambda66 = A66(0)",
-                    "A66_inf": lam * kernel.a_inf_ratio, "A66_inf_over_A66_zero": kernel.a_inf_ratio})
+        out.update({"memory_state": f"{kernel.family}: {kernel.order} states, the kernel's shape identified from the "
+                                    "same records (identify/memory.py), its size lambda66 - A66_inf fitted here",
+                    "A66_inf": lam * kernel.a_inf_ratio if a_inf is None else a_inf})
     return out
 
 
@@ -196,10 +196,12 @@ def _gain_sensitivity(model, fit) -> float:
 
     effects = model.effects + ("torque_constant",)
     scaled = model.with_effects(effects) if hasattr(model, "with_effects") else GrayBoxModel(model.data, effects)
-    theta = np.concatenate([fit.theta, [1.0]])
+    params = fit.params
+    new = [k for k, n in enumerate(scaled.names) if n not in params]  # the torque-constant ratio, 1 = as stated
+    theta = np.array([params.get(n, 1.0) for n in scaled.names])
     eps = 1e-3
     r0 = scaled.residuals(theta[None, :])[0]
-    theta[-1] += eps
+    theta[new[0]] += eps
     r1 = scaled.residuals(theta[None, :])[0]
     J = fit.jacobian
     d_theta = -np.linalg.pinv(J.T @ J) @ (J.T @ ((r1 - r0) / eps))
