@@ -490,8 +490,7 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
         J = best.jac
         if J is None:
             raise ValueError("fixed poles: no share of their positions")
-        s2 = float(resid @ resid) / max(len(resid) - X.shape[1] - len(best.x), 1)
-        Vx = np.linalg.pinv(J.T @ J) * s2 * _cluster_inflation(data, resid)
+        Vx = _clustered_pole_covariance(data, J, resid)
         grads = []
         for j in range(len(best.x)):
             h = 1e-4
@@ -543,14 +542,19 @@ def _bounds(kinds: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     return np.array(lb), np.array(ub)
 
 
-def _cluster_inflation(data: MemoryData, resid: np.ndarray) -> float:
-    """How much correlated the residuals are within a window: the clustered variance of a
-    mean residual over the independent one (>= 1)."""
-    sums = np.bincount(data.window_of_row, weights=resid, minlength=data.n_windows)
-    n = np.bincount(data.window_of_row, minlength=data.n_windows)
-    indep = float(resid @ resid)
-    clustered = float(sums @ sums)
-    return max(1.0, clustered / max(indep, 1e-300) / max(float(np.mean(n)), 1.0) * 1.0) if indep > 0 else 1.0
+def _clustered_pole_covariance(data: MemoryData, J: np.ndarray, resid: np.ndarray) -> np.ndarray:
+    """Covariance of the packed pole parameters, clustered by window like the coefficients'
+    (:meth:`MemoryData.clustered_covariance`): ``J`` is the Jacobian of the projected residual (rows x
+    pole parameters) at the fit, whose residual is ``resid``. The integral form's rows within a window
+    are strongly correlated (each is a double integral over the same samples), so a variance from
+    ``s^2 (J'J)^-1`` would count every 20 ms row as new information and make the poles, and with them
+    A66(inf), look several times surer than the records allow."""
+    bread = np.linalg.pinv(J.T @ J)
+    scores = np.zeros((data.n_windows, J.shape[1]))
+    np.add.at(scores, data.window_of_row, J * resid[:, None])
+    g = data.n_windows
+    meat = scores.T @ scores * (g / max(g - 1, 1))
+    return bread @ meat @ bread
 
 
 # --- the hull's memory -------------------------------------------------------------------
