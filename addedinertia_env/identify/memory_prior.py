@@ -49,11 +49,16 @@ def bem_prior(records: list[RunRecord], bem_cache: str | Path | None = None) -> 
             raise IdentificationError(f"--prior bem on {names}: no BEM cache given and the records name no hull "
                                       "(experiment.simulate.rig or experiment.hull); expected --bem-cache PATH.bem.json")
         bem_cache = cache_path(preset)
+        named = f" (the cache of the hull the records name, {preset!r})"
+    else:
+        named = ""
     path = Path(bem_cache)
     try:
         block = json.loads(path.read_text()).get("memory_model")
     except (OSError, ValueError) as e:
-        raise IdentificationError(f"--prior bem: {path}: {e}; expected a BEM cache (addedinertia hull PRESET)") from None
+        raise IdentificationError(f"--prior bem on {names}: {path}{named}: {type(e).__name__}: "
+                                  f"{getattr(e, 'strerror', None) or e}; expected a BEM cache written by "
+                                  "'addedinertia hull PRESET' (or --bem-cache PATH.bem.json)") from None
     if not isinstance(block, dict):
         raise IdentificationError(f"--prior bem: {path}: field 'memory_model' missing; expected the block written "
                                   "by 'addedinertia hull PRESET --fit-memory'")
