@@ -87,4 +87,8 @@ def identify_memory_with_prior(records: list[RunRecord], prior: str = "none",
         return identify_memory(records)
     if prior != "bem":
         raise ValueError(f"prior={prior!r}; expected 'none' or 'bem'")
-    return identify_memory(records, prior=bem_prior(records, bem_cache))
+    kernel = bem_prior(records, bem_cache)
+    mem = identify_memory(records, prior=kernel)
+    if mem.prior != "bem":  # the records could not be read for memory at all: say the prior was asked for
+        mem.prior, mem.prior_note = "bem", f"{kernel.source}: not used ({mem.status})"
+    return mem
