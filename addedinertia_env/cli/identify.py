@@ -22,6 +22,13 @@ def register(sub) -> None:
                    help="energy method: identify the water's radiation memory from the records (free decays "
                         "given beside reverse runs help) and correct for it, so that lambda66 is A66(0) "
                         "(default auto; docs/RADIATION_MEMORY.md); off: the energy balance alone")
+    p.add_argument("--prior", choices=("none", "bem"), default="none",
+                   help="with --memory auto: 'none' (default) identifies the memory model from the records alone; "
+                        "'bem' lends it the hull's BEM cache's kernel shape where the records accept it (stated "
+                        "in the JSON as prior)")
+    p.add_argument("--bem-cache", default=None, metavar="PATH.bem.json",
+                   help="--prior bem: the BEM cache (default configs/rigs/PRESET.bem.json of the preset the "
+                        "records name)")
     p.add_argument("--verbose", action="store_true", help="include every interval in the JSON")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -39,8 +46,13 @@ def run(args) -> int:
             info("--work applies to the energy method only; ignored")
         else:
             options["work"] = args.work
-    if args.method == "energy" and args.memory == "auto":
-        options["memory"] = True
+    options["memory"] = args.memory
+    if args.method in ("energy", "whole-record"):
+        options["prior"] = args.prior
+        if args.bem_cache is not None:
+            options["bem_cache"] = args.bem_cache
+    elif args.prior != "none" or args.bem_cache is not None:
+        info("--prior and --bem-cache apply to the energy and whole-record methods only; ignored")
     if args.effect is not None:
         if args.method != "whole-record":
             info("--effect applies to the whole-record method only; ignored")

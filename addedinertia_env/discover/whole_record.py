@@ -50,7 +50,7 @@ DEFAULT_CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, physics.md section 7 (curr
 
 
 def identify_whole_record(records: list[RunRecord], effect: str | None = None,
-                          lambda66_start: float | None = None) -> Result:
+                          lambda66_start: float | None = None, memory=None) -> Result:
     """lambda66 (kg m^2) with a 95 % interval and the Cramer-Rao bound, from reverse-symmetric
     and free-decay runs of one rig (others are skipped and listed in ``details['skipped']``).
 
@@ -59,6 +59,11 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
     nominal model.
     ``lambda66_start`` (kg m^2): the fit's starting value for lambda66 (e.g. the BEM's A66
     at the swing frequency, ``addedinertia hull``); default the model's generic start.
+    ``memory``: the water's memory identified from the same records
+    (:class:`~addedinertia_env.identify.memory.MemoryIdentification`, as ``identify(..., memory="auto")``
+    passes it); when it found one, the model carries its state
+    (:class:`~addedinertia_env.discover.memory_state.MemoryGrayBoxModel`) and ``lambda66`` is A66(0);
+    memory-free water (``memory: "none"``) or None: the model without it, unchanged.
     """
     from addedinertia_env.discover.fit import fit_model  # noqa: PLC0415
     from addedinertia_env.discover.model import GrayBoxModel, candidates  # noqa: PLC0415
@@ -79,12 +84,17 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
     if lambda66_start is not None and not (math.isfinite(lambda66_start) and lambda66_start > 0):
         raise IdentificationError(f"lambda66_start = {lambda66_start!r}: expected a finite number > 0 (kg m^2)")
     data, fit = choose_release_lag(data, effects or None)  # which sample the DAQ logged the release at
-    model = fit.model
+    from addedinertia_env.discover.memory_state import MemoryGrayBoxModel, kernel_of  # noqa: PLC0415
+
+    kernel = kernel_of(memory)
+    model = fit.model if kernel is None else MemoryGrayBoxModel(data, effects or None, kernel)
     x0 = None
     if lambda66_start is not None:
-        x0 = model.start()
+        x0 = model.start() if kernel is None else model.extend(fit.theta)
         x0[model.names.index("lambda66")] = float(lambda66_start)
         fit = fit_model(model, x0)
+    elif kernel is not None:  # from the memory-free fit's parameters
+        fit = fit_model(model, model.extend(fit.theta))
     lam = fit.params["lambda66"]
     sigma_fisher = math.sqrt(max(fit.covariance(inflate=True)[0, 0], 0.0))
     sigma_white = math.sqrt(max(fit.covariance(inflate=False)[0, 0], 0.0))
@@ -130,7 +140,19 @@ def identify_whole_record(records: list[RunRecord], effect: str | None = None,
                            "flywheel_excess": s["flywheel_excess"], "lag1": s["lag1"],
                            "converged": fit.success,
                            "lambda66_start": float((model.start() if x0 is None else x0)[model.names.index("lambda66")]),
-                           "n_evals": fit.n_evals})
+                           "n_evals": fit.n_evals, **_memory_details(memory, kernel, lam, fit.params.get("A66_inf"))})
+
+
+def _memory_details(memory, kernel, lam: float, a_inf: float | None) -> dict:
+    """What the fit took from the water's memory (``identify --json``)."""
+    if memory is None:
+        return {}
+    out = {"memory": memory.to_json()["memory"], "prior": memory.prior}
+    if kernel is not None:
+        out.update({"memory_state": f"{kernel.family}: {kernel.order} states, the kernel's shape identified from the "
+                                    "same records (identify/memory.py), its size lambda66 - A66_inf fitted here",
+                    "A66_inf": lam * kernel.a_inf_ratio if a_inf is None else a_inf})
+    return out
 
 
 def record_gaps(records: list[RunRecord]) -> list[dict]:
@@ -172,11 +194,14 @@ def _gain_sensitivity(model, fit) -> float:
     every logged current is scaled by ``1 + g`` (the model's own Jacobian, one extra evaluation)."""
     from addedinertia_env.discover.model import GrayBoxModel  # noqa: PLC0415
 
-    scaled = GrayBoxModel(model.data, model.effects + ("torque_constant",))
-    theta = np.concatenate([fit.theta, [1.0]])
+    effects = model.effects + ("torque_constant",)
+    scaled = model.with_effects(effects) if hasattr(model, "with_effects") else GrayBoxModel(model.data, effects)
+    params = fit.params
+    new = [k for k, n in enumerate(scaled.names) if n not in params]  # the torque-constant ratio, 1 = as stated
+    theta = np.array([params.get(n, 1.0) for n in scaled.names])
     eps = 1e-3
     r0 = scaled.residuals(theta[None, :])[0]
-    theta[-1] += eps
+    theta[new[0]] += eps
     r1 = scaled.residuals(theta[None, :])[0]
     J = fit.jacobian
     d_theta = -np.linalg.pinv(J.T @ J) @ (J.T @ ((r1 - r0) / eps))

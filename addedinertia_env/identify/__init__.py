@@ -21,11 +21,21 @@ METHODS = {
 }
 
 
+PRIORS = ("none", "bem")  # what the memory model may lean on besides the records (identify --prior)
+
+
 def identify(records: list[RunRecord], method: str = "energy", **options) -> Result:
     """lambda66 by ``method`` from ``records``: each record is first checked against its own rig
     (:mod:`addedinertia_env.records.plausibility`, once per record: ``record.views.limits``; the methods read
     the same views), and a physically impossible result is refused
-    (:func:`~addedinertia_env.identify.common.check_physical`); both raise with the file names."""
+    (:func:`~addedinertia_env.identify.common.check_physical`); both raise with the file names.
+
+    ``memory`` (energy and whole-record methods): ``"auto"`` (the default, as the CLI's ``--memory auto``)
+    identifies the water's radiation memory from the records and corrects for it, so that lambda66 is A66(0)
+    (docs/RADIATION_MEMORY.md); memory-free records give ``memory: "none"`` and unchanged numbers; ``"off"``
+    (or False): the method alone. ``prior``: ``"none"`` (the default: the records alone) or ``"bem"``: the
+    hull's BEM cache (``bem_cache``, a path; default the cache of the preset the records name) as a prior on
+    the memory model (:mod:`~addedinertia_env.identify.memory_prior`); stated in the result as ``prior``."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     # The plausibility check, once per record: the reader ran it, or it runs here for a record made
@@ -38,9 +48,18 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         check_momentum_consistent(rec)
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
-    memory = options.pop("memory", False)
-    if memory not in (False, True, "auto"):
-        raise ValueError(f"identify(): memory={memory!r}; expected False, True or 'auto'")
+    memory = options.pop("memory", "auto")
+    if memory not in (False, True, "auto", "off"):
+        raise ValueError(f"identify(): memory={memory!r}; expected 'auto' (the default), 'off', True or False")
+    memory = memory in (True, "auto")
+    prior = options.pop("prior", "none")
+    if prior not in PRIORS:
+        raise ValueError(f"identify(): prior={prior!r}; expected one of {', '.join(map(repr, PRIORS))}")
+    bem_cache = options.pop("bem_cache", None)
+    if method == "whole-record" and memory:  # the gray-box model carries the identified memory's state
+        from addedinertia_env.identify.memory_prior import identify_memory_with_prior  # noqa: PLC0415
+
+        options["memory"] = identify_memory_with_prior([r.without_truth() for r in records], prior, bem_cache)
     forced = []
     if method == "energy" and memory:
         # forced runs beside reverse runs: A66 at their frequencies, evidence about the memory (forced_memory.py)
@@ -77,7 +96,7 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
             from addedinertia_env.identify.memory_energy import FRACTIONS, with_memory  # noqa: PLC0415
 
             result = with_memory(result, [r.without_truth() for r in all_records], [r.without_truth() for r in records],
-                                 fractions=options.get("fractions", FRACTIONS))
+                                 prior=prior, bem_cache=bem_cache, fractions=options.get("fractions", FRACTIONS))
         if forced:
             from addedinertia_env.identify.forced_memory import with_forced  # noqa: PLC0415
 

@@ -38,8 +38,11 @@ theta_i G_i(0)``, and the model is passive where ``Re K(j w) >= 0`` on a frequen
 
 Families (:data:`FAMILIES`): one real pole (A66 falls monotonically: a mass coupled
 through a damper), one complex pair (A66 may rise above A66(0) before falling: the
-free-surface's resonant shape), two real poles, a pair and a real pole, two pairs. The
-memory-free model (``none``) is fitted too; memory is declared only when it explains most
+free-surface's resonant shape), two real poles, a pair and a real pole, two pairs; each but the
+one real pole also without an instantaneous part (``-sp``, strictly proper: ``B66(inf) = 0``, as
+potential-flow radiation has; see :func:`_kernel_map` for why the records need that told to them:
+an instantaneous part of the kernel is a damping, and trades against A66(inf)). The reported family
+is the simplest of those that fit (fewest parameters). The memory-free model (``none``) is fitted too; memory is declared only when it explains most
 of what the memory-free model leaves (:data:`MEMORY_RSS_RATIO`) with a passive model.
 
 Intervals: per family, the coefficients' covariance is clustered by window (the integral
@@ -63,8 +66,11 @@ import numpy as np
 from addedinertia_env.records.record import RunRecord, braked
 
 # The passive families searched: each a tuple of sections, 'r' one real pole, 'c' a complex pair.
-FAMILIES: dict[str, tuple[str, ...]] = {"r1": ("r",), "c1": ("c",), "r2": ("r", "r"), "c1r1": ("c", "r"),
-                                        "c2": ("c", "c")}
+# A name ending in STRICT_SUFFIX is the same family without an instantaneous part (see _kernel_map).
+STRICT_SUFFIX = "-sp"
+FAMILIES: dict[str, tuple[str, ...]] = {"r1": ("r",), "c1": ("c",), "c1-sp": ("c",), "r2": ("r", "r"),
+                                        "r2-sp": ("r", "r"), "c1r1": ("c", "r"), "c1r1-sp": ("c", "r"),
+                                        "c2": ("c", "c"), "c2-sp": ("c", "c")}
 MAX_STARTS = 2  # starting pole sets per family (a slow and a fast section, both ways round)
 WINDOW_S = 1.5  # s: integral-form windows (long against the memory's ~0.1-1 s, short against drift)
 ROW_STEP_S = 0.02  # s: one equation row every 20 ms (the integral form is smooth)
@@ -213,33 +219,38 @@ class MemoryData:
         self.Yp = self.Y - self.Q @ (self.Q.T @ self.Y)
 
     # -- memory columns for a pole set -------------------------------------------------
-    def memory_columns(self, sections: list[tuple]) -> np.ndarray:
+    def memory_columns(self, sections: list[tuple], strict: bool = False) -> np.ndarray:
         """``d(G_i phi)`` since each window's start for the basis of ``sections``
-        (``('r', a)``: 1/(s + a); ``('c', wn, z)``: 1/D and s/D, D = s^2 + 2 z wn s + wn^2)."""
+        (``('r', a)``: 1/(s + a); ``('c', wn, z)``: 1/D and s/D, D = s^2 + 2 z wn s + wn^2), in the
+        free coefficients (``strict``: without the kernel's instantaneous part, :func:`_kernel_map`)."""
         from scipy import signal  # noqa: PLC0415
 
         per_series = []
+        filters: dict[float, list] = {}  # the discrete sections per sampling step (computed once per call)
         for s in self.series:
             cols = []
-            for tf_num, tf_den in _section_tfs(sections):
-                bd, ad = signal.bilinear(tf_num, tf_den, 1.0 / s.dt)
-                zi = signal.lfilter_zi(bd, ad) * s.phi[0]
+            if s.dt not in filters:
+                filters[s.dt] = [(*bilinear(n, d, 1.0 / s.dt),) for n, d in _section_tfs(sections)]
+                filters[s.dt] = [(bd, ad, signal.lfilter_zi(bd, ad)) for bd, ad in filters[s.dt]]
+            for bd, ad, zi1 in filters[s.dt]:
+                zi = zi1 * s.phi[0]
                 cols.append(signal.lfilter(bd, ad, s.phi, zi=zi)[0])
             per_series.append(np.stack(cols, axis=1))
-        return np.vstack([per_series[w.series][w.rows] - per_series[w.series][w.start] for w in self.windows])
+        M = np.vstack([per_series[w.series][w.rows] - per_series[w.series][w.start] for w in self.windows])
+        return M @ _kernel_map(sections, strict)
 
-    def projected_residual(self, sections: list[tuple]) -> np.ndarray:
+    def projected_residual(self, sections: list[tuple], strict: bool = False) -> np.ndarray:
         """The residual of the memory-free equation after the memory columns of ``sections`` (a kernel's poles)
         are fitted by least squares in the space the projection leaves, in the equation's units (N m s^2)."""
-        M = self.memory_columns(sections)
+        M = self.memory_columns(sections, strict)
         Mp = M - self.Q @ (self.Q.T @ M)
         coef, *_ = np.linalg.lstsq(Mp, self.Yp, rcond=None)
         return self.Yp - Mp @ coef
 
-    def solve(self, sections: list[tuple]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """All coefficients (memory first, then :attr:`BASE`, then the windows' momenta), the
+    def solve(self, sections: list[tuple], strict: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All coefficients (the memory's free ones first, then :attr:`BASE`, then the windows' momenta), the
         residual, and the full design."""
-        M = self.memory_columns(sections) if sections else np.zeros((len(self.Y), 0))
+        M = self.memory_columns(sections, strict) if sections else np.zeros((len(self.Y), 0))
         X = np.hstack([M, self.X])
         sc = np.sqrt(np.mean(X**2, axis=0))
         sc = np.where(sc > 0, sc, 1.0)
@@ -258,6 +269,57 @@ class MemoryData:
         g = self.n_windows
         meat = scores.T @ scores * (g / max(g - 1, 1))
         return (bread @ meat @ bread) / np.outer(sc, sc)
+
+
+def bilinear(num, den, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """The Tustin (bilinear) discretisation of ``num(s)/den(s)`` at sampling rate ``fs``: the same
+    as :func:`scipy.signal.bilinear` (``s = 2 fs (z - 1)/(z + 1)``), without its polynomial-class overhead
+    (the memory fit calls it thousands of times)."""
+    num = np.atleast_1d(np.asarray(num, float))
+    den = np.atleast_1d(np.asarray(den, float))
+    n = len(den) - 1
+    num = np.r_[np.zeros(n + 1 - len(num)), num]
+    c = 2.0 * fs
+    b, a = np.zeros(n + 1), np.zeros(n + 1)
+    for m in range(n + 1):  # the s^m term: c^m (z - 1)^m (z + 1)^(n - m) over (z + 1)^n
+        term = np.polymul(np.poly(np.ones(m)), np.poly(-np.ones(n - m))) * c**m
+        b += num[n - m] * term
+        a += den[n - m] * term
+    return b / a[0], a / a[0]
+
+
+def _feedthrough_index(sections: list[tuple]) -> list[int]:
+    """The basis functions whose ``s G_i(s)`` tends to a constant as s grows (``1/(s + a)`` and ``s/D``): the
+    kernel's instantaneous part ``K(inf) = B66(inf)`` is the sum of their coefficients."""
+    out, k = [], 0
+    for sec in sections:
+        out.append(k if sec[0] == "r" else k + 1)
+        k += 1 if sec[0] == "r" else 2
+    return out
+
+
+def _kernel_map(sections: list[tuple], strict: bool) -> np.ndarray:
+    """``theta = T c``: the basis coefficients from the free ones ``c``. Without ``strict`` every
+    coefficient is free (``T = I``). With ``strict`` the kernel has no instantaneous part,
+    ``K(inf) = B66(inf) = 0``: the first feedthrough coefficient is minus the sum of the others.
+
+    Why a family needs that variant: an instantaneous part of the kernel is a damping ``B66(inf) w``,
+    the same term as the drag's linear ``b1 w``; the records tell them apart only through the kernel's
+    shape (``K(0) = 0``), i.e. by how the acceleration right after a release bends in the first tens of
+    milliseconds, which the encoder barely resolves (one count is 5e-5 rad: a hull released at 0.3
+    rad/s^2 moves one count in 18 ms). A free kernel then trades a large ``B66(inf)`` against a low
+    ``A66(inf)`` at almost the same residual (measured: docs/RADIATION_MEMORY.md). Potential-flow
+    radiation at a free surface has ``B66(w) -> 0`` as ``w -> inf`` (the kernel ``K(t) = (2/pi) int B66
+    cos(w t) dw`` is a bounded function; Ogilvie 1964, Newman 1977 section 6.16); another water (a mass
+    behind a damper) need not, so both variants are fitted and the simpler that fits is reported."""
+    n = sum(1 if sec[0] == "r" else 2 for sec in sections)
+    T = np.eye(n)
+    ft = _feedthrough_index(sections)
+    if not strict or not ft:
+        return T
+    T[ft[0], :] = 0.0
+    T[ft[0], ft[1:]] = -1.0
+    return np.delete(T, ft[0], axis=1)
 
 
 def _section_tfs(sections: list[tuple]):
@@ -327,6 +389,19 @@ class FamilyFit:
     b1: float = 0.0
     b2: float = 0.0
     cov_theta: np.ndarray | None = field(default=None, repr=False)  # covariance of ``theta`` (clustered)
+    strict: bool = False  # without an instantaneous part: B66(inf) = 0 (:func:`_kernel_map`)
+    x: np.ndarray | None = field(default=None, repr=False)  # the packed pole parameters (a start for the variant)
+
+    @property
+    def n_params(self) -> int:
+        """Pole parameters plus free memory coefficients: the fit's size (the simplest that fits is reported)."""
+        n_basis = sum(1 if sec[0] == "r" else 2 for sec in self.sections)
+        return n_basis + n_basis - (1 if self.strict else 0)
+
+    @property
+    def B_inf(self) -> float:
+        """The kernel's instantaneous part ``K(inf) = B66(inf)``, N m s (0 for a strictly proper family)."""
+        return float(sum(self.theta[k] for k in _feedthrough_index(self.sections)))
 
     def added_inertia(self, omega) -> np.ndarray:
         """A66(omega), kg m^2."""
@@ -358,14 +433,16 @@ class FamilyFit:
                 poles.append({"re": -z * wn, "im": wn * math.sqrt(max(1.0 - z * z, 0.0))})
         return {"family": self.family, "order": sum(1 if s[0] == "r" else 2 for s in self.sections),
                 "poles_1_per_s": poles, "A66_inf": self.A_inf, "A66_zero": self.A_zero,
-                "A66_swing": self.A_swing, "passive": self.passive, "rss": self.rss}
+                "A66_swing": self.A_swing, "B66_inf_N_m_s": self.B_inf, "strictly_proper": self.strict,
+                "passive": self.passive, "rss": self.rss}
 
 
-def _quantities(sections, coef, swing_omega) -> np.ndarray:
-    """Linear maps from the coefficients to (A_inf, A_zero, A_swing)."""
-    m = len(coef) - 0
-    g0 = np.real(_basis(sections, 0.0)) if sections else np.zeros(0)
-    gs = np.real(_basis(sections, 1j * swing_omega)) if sections else np.zeros(0)
+def _quantities(sections, coef, swing_omega, strict: bool = False) -> np.ndarray:
+    """Linear maps from the coefficients (the memory's free ones first) to (A_inf, A_zero, A_swing)."""
+    m = len(coef)
+    T = _kernel_map(sections, strict)
+    g0 = np.real(_basis(sections, 0.0)) @ T if sections else np.zeros(0)
+    gs = np.real(_basis(sections, 1j * swing_omega)) @ T if sections else np.zeros(0)
     n_mem = len(g0)
     rows = np.zeros((3, m))
     rows[:, n_mem] = 1.0  # A_inf
@@ -374,15 +451,27 @@ def _quantities(sections, coef, swing_omega) -> np.ndarray:
     return rows
 
 
-def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega: float) -> FamilyFit:
-    """The best fit of one family (pole positions searched from a few starts)."""
+def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega: float,
+               strict: bool | None = None, start: np.ndarray | None = None, fixed: bool = False) -> FamilyFit:
+    """The best fit of one family (pole positions searched from a few starts, or from ``start``: the
+    poles of the same family with an instantaneous part). ``strict`` (default: the name ends in
+    :data:`STRICT_SUFFIX`): the kernel without an instantaneous part (:func:`_kernel_map`). ``fixed``: the
+    poles stay at ``start`` (packed as :func:`pack_sections` does; a prior's poles), only the coefficients fitted."""
     from scipy.optimize import least_squares  # noqa: PLC0415
 
+    strict = name.endswith(STRICT_SUFFIX) if strict is None else strict
+    if strict and len(kinds) == 1 and kinds[0] == "r":
+        raise MemoryNotIdentifiable(f"family {name}: one real pole without an instantaneous part has no memory left")
     lb, ub = _bounds(kinds)
     best = None
-    for x0 in _starts(kinds):
+    starts = [np.clip(start, lb, ub)] if start is not None else _starts(kinds)
+    if fixed:
+        from types import SimpleNamespace  # noqa: PLC0415
+
+        best, starts = SimpleNamespace(x=np.asarray(start, float), jac=None), []
+    for x0 in starts:
         try:
-            r = least_squares(lambda x: data.projected_residual(_unpack(kinds, x)), x0, bounds=(lb, ub),
+            r = least_squares(lambda x: data.projected_residual(_unpack(kinds, x), strict), x0, bounds=(lb, ub),
                               x_scale=1.0, diff_step=1e-4, max_nfev=60, xtol=1e-6, ftol=1e-10)
         except (ValueError, np.linalg.LinAlgError):
             continue
@@ -391,30 +480,32 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
     if best is None:
         raise MemoryNotIdentifiable(f"family {name}: no fit converged")
     sections = _unpack(kinds, best.x)
-    coef, resid, X = data.solve(sections)
+    coef, resid, X = data.solve(sections, strict)
     V = data.clustered_covariance(X, resid)
-    rows = _quantities(sections, coef, swing_omega)
+    rows = _quantities(sections, coef, swing_omega, strict)
     values = rows @ coef
     var = np.einsum("ij,jk,ik->i", rows, V, rows)
     # the pole positions' share: the quantities' change along the poles' own covariance
     try:
         J = best.jac
-        s2 = float(resid @ resid) / max(len(resid) - X.shape[1] - len(best.x), 1)
-        Vx = np.linalg.pinv(J.T @ J) * s2 * _cluster_inflation(data, resid)
+        if J is None:
+            raise ValueError("fixed poles: no share of their positions")
+        Vx = _clustered_pole_covariance(data, J, resid)
         grads = []
         for j in range(len(best.x)):
             h = 1e-4
             xp = best.x.copy()
             xp[j] += h
             sp = _unpack(kinds, xp)
-            cp, _, _ = data.solve(sp)
-            grads.append((_quantities(sp, cp, swing_omega) @ cp - values) / h)
+            cp, _, _ = data.solve(sp, strict)
+            grads.append((_quantities(sp, cp, swing_omega, strict) @ cp - values) / h)
         G = np.array(grads).T  # 3 x n_x
         var = var + np.einsum("ij,jk,ik->i", G, Vx, G)
     except (np.linalg.LinAlgError, ValueError):
         pass
     n_mem = rows.shape[1] - data.X.shape[1]
-    theta = coef[:n_mem]
+    T = _kernel_map(sections, strict)
+    theta = T @ coef[:n_mem]
     ReK = np.real(1j * OMEGA_GRID * (_basis(sections, 1j * OMEGA_GRID) @ theta))
     scale = max(float(np.max(np.abs(ReK))), 1e-12)
     passive = bool(np.min(ReK) >= -PASSIVITY_TOLERANCE * scale and values[1] > values[0] and values[0] > 0.0)
@@ -422,7 +513,20 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
     return FamilyFit(name, sections, float(resid @ resid), float(values[0]), float(values[1]), float(values[2]),
                      {"A66_inf": float(sig[0]), "A66_zero": float(sig[1]), "A66_swing": float(sig[2])},
                      passive, float(np.min(ReK)), theta, float(coef[n_mem + 1]), float(coef[n_mem + 2]),
-                     V[:n_mem, :n_mem])
+                     T @ V[:n_mem, :n_mem] @ T.T, strict, best.x.copy())
+
+
+def pack_sections(sections: list[tuple]) -> tuple[tuple[str, ...], np.ndarray]:
+    """The kinds and packed pole parameters of ``sections`` (the inverse of :func:`_unpack`)."""
+    kinds, x = [], []
+    for sec in sections:
+        kinds.append(sec[0])
+        if sec[0] == "r":
+            x.append(math.log(sec[1]))
+        else:
+            z = min(max(sec[2], 1e-6), 1.0 - 1e-6)
+            x += [math.log(sec[1]), math.log(z / (1.0 - z))]
+    return tuple(kinds), np.array(x)
 
 
 def _bounds(kinds: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -438,17 +542,32 @@ def _bounds(kinds: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     return np.array(lb), np.array(ub)
 
 
-def _cluster_inflation(data: MemoryData, resid: np.ndarray) -> float:
-    """How much correlated the residuals are within a window: the clustered variance of a
-    mean residual over the independent one (>= 1)."""
-    sums = np.bincount(data.window_of_row, weights=resid, minlength=data.n_windows)
-    n = np.bincount(data.window_of_row, minlength=data.n_windows)
-    indep = float(resid @ resid)
-    clustered = float(sums @ sums)
-    return max(1.0, clustered / max(indep, 1e-300) / max(float(np.mean(n)), 1.0) * 1.0) if indep > 0 else 1.0
+def _clustered_pole_covariance(data: MemoryData, J: np.ndarray, resid: np.ndarray) -> np.ndarray:
+    """Covariance of the packed pole parameters, clustered by window like the coefficients'
+    (:meth:`MemoryData.clustered_covariance`): ``J`` is the Jacobian of the projected residual (rows x
+    pole parameters) at the fit, whose residual is ``resid``. The integral form's rows within a window
+    are strongly correlated (each is a double integral over the same samples), so a variance from
+    ``s^2 (J'J)^-1`` would count every 20 ms row as new information and make the poles, and with them
+    A66(inf), look several times surer than the records allow."""
+    bread = np.linalg.pinv(J.T @ J)
+    scores = np.zeros((data.n_windows, J.shape[1]))
+    np.add.at(scores, data.window_of_row, J * resid[:, None])
+    g = data.n_windows
+    meat = scores.T @ scores * (g / max(g - 1, 1))
+    return bread @ meat @ bread
 
 
 # --- the hull's memory -------------------------------------------------------------------
+@dataclass(frozen=True)
+class PriorKernel:
+    """Poles of a memory kernel from outside the records (a BEM solve), for :func:`identify_memory`."""
+
+    name: str  # "bem"
+    sections: tuple  # ('r', a) / ('c', wn, z), rad/s
+    strict: bool  # without an instantaneous part (a potential-flow kernel)
+    source: str  # where it came from (the cache's path)
+
+
 @dataclass
 class MemoryIdentification:
     """What the records say about the water's memory (kg m^2, rad/s)."""
@@ -464,7 +583,8 @@ class MemoryIdentification:
     fits: list[FamilyFit] = field(default_factory=list)
     rss_none: float = math.nan
     free_s: float = 0.0
-    prior: str = "none (records alone)"
+    prior: str = "none"
+    prior_note: str = ""  # with a prior: its source and whether the records accepted it
 
     @property
     def identified(self) -> bool:
@@ -488,6 +608,8 @@ class MemoryIdentification:
                 "families_kept": [f.family for f in self.accepted],
                 "fits": [f.summary() for f in self.fits], "rss_memory_free": self.rss_none,
                 "prior": self.prior, "free_motion_s": self.free_s}
+            if self.prior_note:
+                out["memory_model"]["prior_note"] = self.prior_note
         else:
             out["memory_model"] = {"swing_omega_rad_s": self.swing_omega, "rss_memory_free": self.rss_none,
                                    "fits": [f.summary() for f in self.fits], "prior": self.prior,
@@ -514,8 +636,12 @@ def swing_frequency(data: MemoryData) -> float:
     return float(math.pi / np.median(halves))
 
 
-def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...]] | None = None) -> MemoryIdentification:
-    """The water's memory from a hull's records (free decays and reverse runs together)."""
+def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...]] | None = None,
+                    prior: PriorKernel | None = None) -> MemoryIdentification:
+    """The water's memory from a hull's records (free decays and reverse runs together). ``prior``: a
+    kernel's poles from elsewhere (the BEM cache, ``identify --prior bem``): fitted as one more family with
+    its poles fixed, and reported, with its own interval, where the records accept it (passive, within
+    :data:`FAMILY_RSS_TOLERANCE` of the best residual); else the records alone, and the JSON says why."""
     families = FAMILIES if families is None else families
     try:
         data = MemoryData(records)
@@ -530,15 +656,41 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
                                     "records; expected the transient that shows A66(inf)", w_s, free_s=data.free_s)
     rss_none = float(data.Yp @ data.Yp)
     fits = []
-    for name, kinds in families.items():
+    plain = {n: k for n, k in families.items() if not n.endswith(STRICT_SUFFIX)}
+    for name, kinds in plain.items():
         if len(kinds) > 1 and fits and min(f.rss for f in fits) >= MEMORY_RSS_RATIO * rss_none:
             break  # the one-section models explain nothing the memory-free one leaves: no memory (fast path)
         try:
             fits.append(fit_family(data, name, kinds, w_s))
         except MemoryNotIdentifiable:
             continue
+    # Each family without its instantaneous part, started from its own poles; only where it could be kept: its
+    # residual is at least the family's own, so a family already beyond the tolerance of the best passive one is
+    # skipped (as are all when no one-section model explained anything: the fast path above).
+    done = {f.family: f for f in fits}
+    best_plain = min((f.rss for f in fits if f.passive), default=math.inf)
+    if not fits or min(f.rss for f in fits) >= MEMORY_RSS_RATIO * rss_none:
+        best_plain = -math.inf  # no memory in the records: no variant can show one
+    for name, kinds in families.items():
+        own = done.get(name[:-len(STRICT_SUFFIX)]) if name.endswith(STRICT_SUFFIX) else None
+        if name in done or own is None or own.rss > FAMILY_RSS_TOLERANCE * best_plain:
+            continue
+        try:
+            fits.append(fit_family(data, name, kinds, w_s, start=own.x))
+        except MemoryNotIdentifiable:
+            continue
+    prior_fit = None
+    if prior is not None and best_plain > -math.inf:
+        kinds, x = pack_sections(list(prior.sections))
+        try:
+            prior_fit = fit_family(data, prior.name, kinds, w_s, strict=prior.strict, start=x, fixed=True)
+            fits.append(prior_fit)
+        except MemoryNotIdentifiable:
+            prior_fit = None
     passive = [f for f in fits if f.passive]
-    base = MemoryIdentification("none", w_s, fits=fits, rss_none=rss_none, free_s=data.free_s)
+    base = MemoryIdentification("none", w_s, fits=fits, rss_none=rss_none, free_s=data.free_s,
+                                prior="none" if prior is None else prior.name,
+                                prior_note="" if prior is None else f"{prior.source}: not used (no memory in the records)")
     if not passive:
         if fits and min(f.rss for f in fits) < MEMORY_RSS_RATIO * rss_none:
             base.status = ("not identifiable: the records show memory but no passive low-order model fits "
@@ -554,19 +706,27 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
                        "memory down (expected longer free motion: a free decay beside the reverse runs)")
         return base
     accepted = [f for f in passive if f.rss <= FAMILY_RSS_TOLERANCE * best.rss]
-    # the one reported: the simplest of those that fit (fewest poles, then the smaller residual)
-    best = min(accepted, key=lambda f: (_n_params(f), f.rss))
+    # the one reported: the simplest of those that fit (fewest pole parameters and free coefficients, then the
+    # smaller residual): a kernel without an instantaneous part where the records do not need one
+    best = min(accepted, key=lambda f: (f.n_params, f.rss))
+    note = ""
+    if prior is not None:
+        if prior_fit is not None and any(f is prior_fit for f in accepted):
+            best, accepted = prior_fit, [prior_fit]  # the prior's shape, which the records accept, pins the family
+            note = (f"{prior.source}: its poles kept (residual {prior_fit.rss / min(f.rss for f in passive):.2f} "
+                    "x the best passive family's); coefficients and A66 from the records")
+        else:
+            why = ("not passive with these records" if prior_fit is not None and not prior_fit.passive else
+                   f"residual {prior_fit.rss / min(f.rss for f in passive):.2f} x the best passive family's, over "
+                   f"{FAMILY_RSS_TOLERANCE}" if prior_fit is not None else "could not be fitted")
+            note = f"{prior.source}: rejected by the records ({why}); the records alone"
     ci = {}
     for key in ("A66_inf", "A66_zero", "A66_swing"):
         lo = min(getattr(f, _attr(key)) - Z95 * f.sigma[key] for f in accepted)
         hi = max(getattr(f, _attr(key)) + Z95 * f.sigma[key] for f in accepted)
         ci[key] = (float(lo), float(hi))
     return MemoryIdentification("identified", w_s, best.A_zero, best.A_inf, best.A_swing, ci, best, accepted, fits,
-                                rss_none, data.free_s)
-
-
-def _n_params(f: FamilyFit) -> int:
-    return sum(1 if sec[0] == "r" else 2 for sec in f.sections)
+                                rss_none, data.free_s, "none" if prior is None else prior.name, note)
 
 
 def _attr(key: str) -> str:

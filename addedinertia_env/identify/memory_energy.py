@@ -205,19 +205,21 @@ def combine(energy: float, energy_ci, fit: float, fit_ci) -> tuple[float, tuple[
     return value, (value - half, value + half)
 
 
-def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunRecord], prior: str | None = None,
-                fractions=FRACTIONS):
+def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunRecord], prior: str = "none",
+                bem_cache=None, fractions=FRACTIONS):
     """The energy method's :class:`~addedinertia_env.identify.common.Result` with the water's
     memory identified from ``all_records`` (decays and reverse runs) and corrected for:
     ``lambda66`` becomes A66(0) (:func:`combine`); the JSON adds ``A66_swing``, ``A66_inf`` (each with ``ci95``),
     the memory model, and the uncorrected value. Memory-free water (``memory: "none"``):
     the energy method's numbers unchanged. Not identifiable: the uncorrected value with its
-    interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`)."""
-    from addedinertia_env.identify.memory import identify_memory  # noqa: PLC0415
+    interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`). ``prior``: ``"none"`` (the
+    records alone) or ``"bem"`` (:mod:`~addedinertia_env.identify.memory_prior`), stated as ``prior``."""
+    from addedinertia_env.identify.memory_prior import identify_memory_with_prior  # noqa: PLC0415
 
-    mem = identify_memory(all_records)
+    mem = identify_memory_with_prior(all_records, prior, bem_cache)
     details = dict(result.details)
     details.update(mem.to_json())
+    details["prior"] = prior
     value, ci = result.lambda66, result.ci95
     if mem.identified:
         corrected = corrected_energy(reverse_records, details.get("per_run", []), details.get("per_run_sigma", []), mem,

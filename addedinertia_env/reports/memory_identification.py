@@ -3,6 +3,7 @@
 Two steps, so that the slow one can run where the CPU is:
 
     python -m addedinertia_env.reports.memory_identification run ROWS.jsonl LABEL=GLOB ...
+    python -m addedinertia_env.reports.memory_identification run-whole-record ROWS.jsonl LABEL=GLOB ...
     python -m addedinertia_env.reports.memory_identification render ROWS.jsonl [--answers PREFIX=answers.json ...]
 
 ``run`` identifies each hull's records together (``identify(records, "energy", memory=True)``:
@@ -52,6 +53,58 @@ def run(rows_path: str, specs: list[str]) -> None:
             print(label, round(row["cpu_s"], 1), res.get("lambda66"), res.get("memory"), file=sys.stderr)
 
 
+def run_whole_record(rows_path: str, specs: list[str]) -> None:
+    """The whole-record method on each record set of ``specs``, without the memory state (``memory="off"``)
+    and with it (the default); one JSON row per set (``"method": "whole-record"``) appended to ``rows_path``."""
+    from addedinertia_env.identify import identify  # noqa: PLC0415
+    from addedinertia_env.records.record import read_record  # noqa: PLC0415
+
+    keep = ("memory", "A66_inf", "verdict", "residual_excess", "adequate")
+    with open(rows_path, "a") as out:
+        for spec in specs:
+            label, _, pattern = spec.partition("=")
+            files = sorted(glob.glob(pattern))
+            recs = [read_record(f) for f in files]
+            row = {"label": label, "method": "whole-record", "files": files}
+            for mode in ("off", "auto"):
+                t0 = time.process_time()
+                try:
+                    res = identify(recs, "whole-record", memory=mode)
+                    row[mode] = {"lambda66": res.lambda66, "ci95": list(res.ci95),
+                                 **{k: res.details.get(k) for k in keep}}
+                except Exception as e:  # noqa: BLE001 - a refusal is a row too
+                    row[mode] = {"error": f"{type(e).__name__}: {e}"}
+                row[mode]["cpu_s"] = time.process_time() - t0
+            truth = recs[0].meta.get("truth") if recs else None
+            row["truth"] = {k: truth.get(k) for k in ("lambda66", "A66_swing", "A66_inf")} if truth else None
+            out.write(json.dumps(row) + "\n")
+            out.flush()
+            print(label, row["off"].get("lambda66"), row["auto"].get("lambda66"), row["auto"].get("memory"),
+                  file=sys.stderr)
+
+
+def render_whole_record(rows: list[dict], answers: dict[str, dict]) -> str:
+    """The whole-record method's lambda66 without and with the memory state, per hull (Markdown)."""
+    lines = ["| hull | water | memory found | lambda66 true (A66(0)) | without the memory state | with it | "
+             "interval covers (with) | residual / noise floor (without -> with) | A66(inf) (with) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        t = _truth(r, answers)
+        off, on = r["off"], r["auto"]
+        if t is None or "error" in off or "error" in on:
+            lines.append(f"| {r['label']} | - | {on.get('error') or off.get('error') or 'no truth'} | | | | | | |")
+            continue
+        a0 = t["lambda66"]
+        memory_water = t.get("A66_inf") is not None
+        lo, hi = on["ci95"]
+        e_inf = on["A66_inf"] / t["A66_inf"] - 1 if memory_water and on.get("A66_inf") is not None else None
+        lines.append(f"| {r['label']} | {'memory' if memory_water else 'memory-free'} | {on.get('memory')} | {a0:.4f} | "
+                     f"{_pct(off['lambda66'] / a0 - 1)} | {_pct(on['lambda66'] / a0 - 1)} | "
+                     f"{'yes' if lo <= a0 <= hi else 'no'} | {off.get('residual_excess', 0):.1f} -> "
+                     f"{on.get('residual_excess', 0):.1f} | {_pct(e_inf, '+.1f')} |")
+    return "\n".join(lines) + "\n"
+
+
 def _truth(row: dict, answers: dict[str, dict]) -> dict | None:
     if row.get("truth"):
         return row["truth"]
@@ -76,6 +129,8 @@ def render(rows_path: str, answers_specs: list[str]) -> str:
         data = json.loads(Path(path).read_text())
         answers[prefix] = data.get("cases", data)
     rows = [json.loads(line) for line in Path(rows_path).read_text().splitlines() if line.strip()]
+    whole = {r["label"]: r for r in rows if r.get("method") == "whole-record"}
+    rows = [r for r in rows if r.get("method") != "whole-record"]
     seen = {}
     for r in rows:  # the last row of a label wins (a rerun)
         seen[r["label"]] = r
@@ -123,7 +178,11 @@ def render(rows_path: str, answers_specs: list[str]) -> str:
         summary.append(f"| {g[0]} | {g[1]} | {len(v)} | {_pct(eb, '.3f')} | {_pct(ea, '.3f')} | "
                        f"{_pct(med(ef), '.3f') if ef else '-'} | {_pct(med(ei), '.1f') if ei else '-'} | "
                        f"{cov}/{len(v)} | {hw / ea if ea > 0 else float('inf'):.1f} |")
-    return "\n".join(summary) + "\n\nPer hull:\n\n" + "\n".join(lines) + "\n"
+    out = "\n".join(summary) + "\n\nPer hull:\n\n" + "\n".join(lines) + "\n"
+    if whole:
+        out += "\nThe whole-record method (``run-whole-record``), without and with the memory state:\n\n"
+        out += render_whole_record(list(whole.values()), answers)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -133,6 +192,9 @@ def main(argv: list[str] | None = None) -> int:
     r = sub.add_parser("run")
     r.add_argument("rows")
     r.add_argument("specs", nargs="+", metavar="LABEL=GLOB")
+    w = sub.add_parser("run-whole-record")
+    w.add_argument("rows")
+    w.add_argument("specs", nargs="+", metavar="LABEL=GLOB")
     d = sub.add_parser("render")
     d.add_argument("rows")
     d.add_argument("--answers", action="append", default=[], metavar="PREFIX=answers.json")
@@ -140,6 +202,8 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     if args.cmd == "run":
         run(args.rows, args.specs)
+    elif args.cmd == "run-whole-record":
+        run_whole_record(args.rows, args.specs)
     else:
         print(render(args.rows, args.answers))
     return 0
