@@ -107,7 +107,7 @@ hard-policy-dagger: $(STAMP)
 # The learned drive controller (docs/LEARNING.md, issue 28 item 6): random search on the drive suite's
 # ranked score (mean min(|e|, 10 %)), a gated linear correction on feedforward-pd at 100 Hz on the
 # batched engine, one seed, capped in CPU time; then its curves and the export (ONNX + card).
-DRIVE_SUITE ?= drive-v0
+DRIVE_SUITE ?= drive-v1
 DRIVE_ARS_ARGS ?= --seed 0 --generations 200 --cpu-minutes 8 --validate 64
 DRIVE_POLICIES ?= agents/policies/drive_ars.onnx
 drive-policy: $(STAMP)
@@ -145,11 +145,11 @@ leaderboard-hard:
 	  LEADERBOARD_HTML=docs/leaderboard_hard.html \
 	  LEARNED_POLICIES="agents/policies/reverse_stroke.onnx agents/policies/hard_residual.onnx agents/policies/hard_dagger.onnx"
 
-# docs/LEADERBOARD_drive.md: drive-v0, the suite where the drive's flaws make control decide
-# (configs/suites/drive-v0.yaml, docs/DRIVE.md); `make tune-drive` first.
+# docs/LEADERBOARD_drive.md: drive-v1, the suite where the drive's flaws make control decide
+# (configs/suites/drive-v1.yaml, docs/DRIVE.md); `make tune-drive` first.
 leaderboard-drive:
-	$(MAKE) leaderboard BENCH_SUITE=drive-v0 LEADERBOARD_DOC=docs/LEADERBOARD_drive.md \
-	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v0.html LEARNED_POLICIES="$(DRIVE_POLICIES)" \
+	$(MAKE) leaderboard BENCH_SUITE=drive-v1 LEADERBOARD_DOC=docs/LEADERBOARD_drive.md \
+	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v1.html LEARNED_POLICIES="$(DRIVE_POLICIES)" \
 	  BENCH_CONTROLLERS="oracle zero pd pid lqr feedforward-pd drive-aware"
 
 # The drive-aware entry's pre-spin on drive-v0's tuning split (configs/controllers/tuned-drive-v0.yaml).

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import sys
 
 from addedinertia_env.bench.runner import run_tasks
@@ -30,9 +31,14 @@ FLAWS = {
     "cogging 5:1 20 mN m x 24": DriveParams(gear_ratio=5.0, cogging_torque=0.02, cogging_periods=24.0),
     "driver 1 ms": DriveParams(driver_time_constant=1e-3),
     "driver 5 ms": DriveParams(driver_time_constant=5e-3),
+    # backlash (issue 28 step 1 of the second session): 1 deg at the flywheel, a 150 g cm^2 rotor
+    "backlash 5:1 1 deg": DriveParams(gear_ratio=5.0, backlash=math.radians(1.0), rotor_inertia=1.5e-5),
+    "gearhead 5:1 eta 0.95 drag 5 mN m": DriveParams(gear_ratio=5.0, gear_efficiency=0.95, gear_drag=0.005),
+    "gearhead 5:1 eta 0.92 drag 5 mN m backlash 1 deg": DriveParams(
+        gear_ratio=5.0, gear_efficiency=0.92, gear_drag=0.005, backlash=math.radians(1.0), rotor_inertia=1.5e-5),
 }
 SUPPLIES = {"supply 12 V": 12.0}
-CONTROLLERS = ("oracle", "zero", "pd", "pid", "lqr", "feedforward-pd")
+CONTROLLERS = ("oracle", "zero", "pd", "pid", "lqr", "feedforward-pd", "drive-aware")
 
 
 def tasks(seeds: list[int], flaws: list[str], controllers: list[str]) -> list[EpisodeTask]:
@@ -49,8 +55,11 @@ def tasks(seeds: list[int], flaws: list[str], controllers: list[str]) -> list[Ep
             else:
                 rig = rig.replace(motor=dataclasses.replace(rig.motor, u_max=SUPPLIES[flaw]))
             sc = dataclasses.replace(sc, rig=rig)
-            for c in controllers:
-                out.append(EpisodeTask(suite="drive-study", split=flaw, scenario=sc, preset="wigley-2m", controller=c))
+            for c in controllers:  # "name" or "name@knob=value,knob=value" (a knob's value other than tuned)
+                name, _, knobs = c.partition("@")
+                kwargs = {k: float(v) for k, v in (kv.split("=") for kv in knobs.split(",") if kv)}
+                out.append(EpisodeTask(suite="drive-study", split=flaw, scenario=sc, preset="wigley-2m",
+                                       controller=name, controller_kwargs=kwargs))
     return out
 
 
@@ -66,7 +75,7 @@ def main() -> None:
     seeds = list(range(a.first_seed, a.first_seed + a.seeds))
     rows = run_tasks(tasks(seeds, a.flaws, a.controllers), jobs=a.jobs,
                      on_row=lambda r: print(json.dumps({k: r.get(k) for k in (
-                         "controller", "split", "seed", "rel_error", "rel_error_corrected", "failure",
+                         "controller", "controller_kwargs", "split", "seed", "rel_error", "rel_error_corrected", "failure",
                          "tracking_rms_rad", "saturated_frac", "wall_s")}), flush=True))
     oracle = {(r["split"], r["seed"]): r["rel_error"] for r in rows if r["controller"] == "oracle"}
     for flaw in a.flaws:

@@ -12,7 +12,7 @@ from conftest import both_engines
 from addedinertia_env.foundation.config_io import ConfigError
 from addedinertia_env.sim import forces
 from addedinertia_env.sim.batched import BatchedRig
-from addedinertia_env.sim.drive import DriveParams
+from addedinertia_env.sim.drive import DriveParams, backlash_step
 from addedinertia_env.rig.known import KnownRig
 from addedinertia_env.sim.motor import MotorCommand
 from addedinertia_env.sim.mujoco_rig import MujocoRig
@@ -24,6 +24,8 @@ FLAWS = {
     "gear_friction": DriveParams(gear_ratio=5.0, gear_efficiency=0.85, gear_drag=0.02),
     "cogging": DriveParams(cogging_torque=0.02, cogging_periods=12.0, cogging_phase=0.3),
     "driver": DriveParams(driver_time_constant=0.004),
+    # 1 deg at the flywheel, a 45 mm motor's rotor (180 g cm^2) through 5:1
+    "backlash": DriveParams(gear_ratio=5.0, backlash=math.radians(1.0), rotor_inertia=1.8e-5),
 }
 
 
@@ -92,6 +94,55 @@ def test_cogging_is_conservative_and_mesh_friction_dissipates():
     assert e(s2, p0) < e(s0, p0) - 0.5 * 0.05 * 18.0 * 0.4  # the drag's work over ~0.4 s at ~18 rad/s
 
 
+def test_the_rotor_crosses_the_gap_as_a_held_torque_says_and_loses_its_work_in_the_impact():
+    """From one flank at rest, a held torque T takes the rotor (J at the flywheel) across a gap b in
+    sqrt(2 b J / T), transmits nothing on the way, and the impact takes all its work T b; the
+    flywheel gets the rotor's momentum sqrt(2 J T b). Pressing into a flank transmits all."""
+    b, J, T, h = math.radians(1.0), 4.5e-4, -0.5, 1e-3
+    t_cross = math.sqrt(2 * b * J / abs(T))
+    g, v, t, loss, impulse, engaged_time = b / 2, 0.0, 0.0, 0.0, 0.0, 0.0
+    while t < 3 * t_cross:
+        g, v, engaged, imp, lost = backlash_step(g, v, T, J, b, h)
+        loss += lost
+        impulse += imp
+        engaged_time += engaged * h
+        t += h
+    assert g == -b / 2 and v == 0.0
+    assert loss == pytest.approx(abs(T) * b, rel=1e-9)
+    assert impulse == pytest.approx(-math.sqrt(2 * J * abs(T) * b), rel=1e-9)
+    assert engaged_time == pytest.approx(t - t_cross, rel=1e-9)
+    assert backlash_step(-b / 2, 0.0, -0.3, J, b, h)[2:] == (1.0, 0.0, 0.0)  # pressing: all through
+    assert backlash_step(-b / 2, 0.0, 0.0, J, b, h)[2:] == (1.0, 0.0, 0.0)  # no torque: at rest on the flank
+    # arrays and an environment without a gap (width 0: the engaged drive)
+    g, v, e, _, _ = backlash_step(np.array([0.0, 0.0]), np.zeros(2), np.array([0.2, 0.2]), J, np.array([b, 0.0]), h)
+    assert e[1] == 1.0 and e[0] == 0.0 and g[0] > 0
+
+
+@pytest.mark.parametrize("substeps", [2, 4])
+def test_backlash_impacts_close_the_energy_balance(substeps):
+    """A +-2 A square wave through a 1 deg gap, braked hull: what the supply gives equals the
+    ohmic and magnetic losses, the flywheel's kinetic energy, its friction and the impact losses
+    (the work the current times the flywheel's angle does not show). Left out, the impacts are
+    the balance's whole gap; the residual is the held current's O(h), halving with the step."""
+    drive = FLAWS["backlash"]
+    p = _geared(drive).replace(physics_substeps=substeps)
+    rig = MujocoRig(p, seed=1)
+    rig.reset(omega0=2.0, brake=True)
+    for k in range(2000):
+        rig.step(MotorCommand("current", 2.0 if (k // 50) % 2 == 0 else -2.0))
+    s = rig.true_state()
+    m = p.motor
+    kinetic = 0.5 * m.J_flywheel * (s.omega**2 - 2.0**2) + 0.5 * drive.reflected_rotor_inertia * s.gap_rate**2
+    supplied = s.electric_energy - s.ohmic_loss - 0.5 * m.L * s.i**2
+    without_impacts = supplied - kinetic + s.dissipated_flywheel
+    assert s.impact_loss > 0.1  # 40 crossings of 1.6-8.7 mJ (the driver's current sags while the rotor runs free)
+    assert s.impact_loss > 20 * abs(s.motor_work - (supplied - s.backlash_work))  # the electric side closes
+    residual = without_impacts - s.impact_loss
+    assert abs(residual) < 0.06 * s.impact_loss / (substeps / 2), (residual, s.impact_loss)
+    # the method's bookkeeping, the current times the flywheel's angle, misses the impacts
+    assert abs(s.motor_work - (kinetic - s.dissipated_flywheel)) < 0.1 * s.impact_loss
+
+
 def test_driver_bandwidth_is_a_first_order_lag():
     """A current step through a driver with tau = 5 ms reaches 1 - 1/e of the step after about tau."""
     p = RigParams().replace(drive=DriveParams(driver_time_constant=0.005))
@@ -125,6 +176,10 @@ def test_a_drive_block_states_units_and_is_refused_by_name():
                          ({"gear_drag": "-0.02 N m"}, "gear_drag = -0.02: expected >= 0"),
                          ({"gear_efficiency": "120 %"}, "gear_efficiency"),
                          ({"backlash_typo": "1 deg"}, "unknown key(s) ['backlash_typo']"),
+                         ({"backlash": "-0.5 deg", "rotor_inertia": "180 g cm^2"},
+                          "DriveParams.backlash = -0.008726646259971648: expected >= 0"),
+                         ({"backlash": "1 deg"}, "DriveParams.rotor_inertia = 0.0: expected > 0"),
+                         ({"backlash": "0.5"}, "drive.backlash = '0.5': expected '<number> <unit>'"),
                          ({"supply": "5 V"}, "drive.supply = '5 V': expected more than R i_max = 7.5 V")]:
         with pytest.raises(ConfigError, match=None) as err:
             _with_drive(block)
@@ -159,7 +214,8 @@ def test_a_suite_draws_its_drive_with_units_and_keeps_the_flywheel_k_t(tmp_path)
     text = (suite_dir := tmp_path / "s.yaml")
     for block, words in [("{gear_drag: [0.005, 0.02]}", "missing unit"),
                          ("{gear_efficiency: ['80 %', '110 %']}", "gear_efficiency"),
-                         ("{backlash: ['1 deg', '2 deg']}", "unknown key 'backlash'"),
+                         ("{slack: ['1 deg', '2 deg']}", "unknown key 'slack'"),
+                         ("{backlash: ['-1 deg', '2 deg'], rotor_inertia: '100 g cm^2'}", "DriveParams.backlash = -0.017453292519943295: expected >= 0"),
                          ("{supply: ['5 V', '6 V']}", "expected more than R i_max = 7.5 V")]:
         text.write_text(f"name: t\nsplits: {{test: {{first_seed: 1, count: 2}}}}\ndrive: {block}\n")
         with pytest.raises(ConfigError) as err:
@@ -183,3 +239,17 @@ def test_a_geared_preset_runs_its_drive_and_its_lab_states_the_ratio():
     with pytest.raises(ConfigError, match="gear_ratio = 0.5"):
         lab_from_mapping({**{k: 1.0 for k in ("J_hull", "J_flywheel", "c_torsion", "k_t", "R", "L")},
                           "phi_neutral": 0.0, "gear_ratio": 0.5}, "lab.yaml")
+
+
+def test_drive_v1_draws_backlash_and_cogging_within_its_stated_ranges():
+    """drive-v1 (configs/suites/drive-v1.yaml): every tuning scenario's drive within the suite's ranges,
+    the backlash with a rotor to cross it, the gear ratio known in the record."""
+    from addedinertia_env.bench.suites import load_suite
+
+    suite = load_suite("drive-v1")
+    for sc in suite.scenarios("tuning")[:4]:
+        d = sc.rig.drive
+        assert 3.0 <= d.gear_ratio <= 8.0 and 0.88 <= d.gear_efficiency <= 0.96
+        assert math.radians(0.5) <= d.backlash <= math.radians(1.5) and 1e-5 <= d.rotor_inertia <= 2e-5
+        assert 3e-3 <= d.cogging_torque <= 10e-3 and d.cogging_periods == 24.0
+        assert sc.rig.known().to_block()["gear_ratio"] == pytest.approx(d.gear_ratio)

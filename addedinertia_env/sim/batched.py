@@ -55,6 +55,7 @@ from typing import Sequence
 import numpy as np
 
 from addedinertia_env.sim import forces
+from addedinertia_env.sim.drive import backlash_step
 from addedinertia_env.sim.integrator import rk4_step
 from addedinertia_env.sim.kernels import CONSTANTS, linear_substep, rig_sample
 from addedinertia_env.sim.batched_params import BatchedParams
@@ -205,6 +206,11 @@ class BatchedRig:
         self.brake = np.zeros(n, dtype=bool)
         self._all = np.ones(n, dtype=bool)  # every environment (driven / running)
         self._none = np.zeros(n, dtype=bool)
+        # the rotor in the gearbox's backlash (drive.backlash_step): gap (rad), its rate (rad/s), float64
+        self.gap = np.zeros(n)
+        self.gap_rate = np.zeros(n)
+        self.backlash_work = np.zeros(n)  # J, k_t i dgap
+        self.impact_loss = np.zeros(n)  # J
         if initial_reading:  # as MujocoRig: reset and read (takes the first noise sample)
             self.reset()
         else:
@@ -219,7 +225,8 @@ class BatchedRig:
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))  # c phi_n, N m
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)  # motor.terminal_voltage's, per sample
         self._constants = self._constant_table(p)
-        self._drive_flaws = forces.has_drive_torque(p) or forces.has_driver_lag(p)  # step-by-step path (kept per batch)
+        self._drive_flaws = (forces.has_drive_torque(p) or forces.has_driver_lag(p)
+                             or forces.has_backlash(p))  # step-by-step path (kept per batch)
         table = np.stack([substep_matrix(h, kind, *self._map_args(p)) for kind in range(4)])
         # (n, kind, out, in) in float64, then cast: one environment's maps contiguous (one
         # environment, index 0, when the physics is shared).
@@ -282,7 +289,7 @@ class BatchedRig:
         self._spring_offset = p.per_env(p.spring.c * forces.true_neutral(p))
         self._drive_decay = np.exp(-p.sample_dt * p.motor.R / p.motor.L)
         self._constants = self._constant_table(p)
-        self._drive_flaws = forces.has_drive_torque(p) or forces.has_driver_lag(p)
+        self._drive_flaws = forces.has_drive_torque(p) or forces.has_driver_lag(p) or forces.has_backlash(p)
         self.sensors.set_envs(idx, batch_keys(list(seeds), len(idx)))
 
     # --- the state, by name -----------------------------------------------------------
@@ -322,6 +329,8 @@ class BatchedRig:
         self.radiation_x[:, sel] = 0.0
         self._w_prev[sel] = 0.0
         self.t[sel] = 0.0
+        for a in (self.gap, self.gap_rate, self.backlash_work, self.impact_loss):
+            a[sel] = 0.0
         self.sensors.reset(idx)
         self.brake[sel] = False
         self.set_brake(brake, envs=idx)
@@ -406,6 +415,7 @@ class BatchedRig:
         memory = forces.has_radiation_memory(p)
         water = forces.has_water_memory(p)
         drive = forces.has_drive_torque(p)
+        backlash = forces.has_backlash(p)
         for _ in range(p.physics_substeps):
             # the held torques (forces.py, on arrays), then the linear step (kernels.linear_substep)
             w_mid = forces.centred_rate(X[W], self._w_prev)
@@ -419,6 +429,21 @@ class BatchedRig:
             f2 = forces.flywheel_friction_torque(X[OMEGA], p)
             if drive:  # the drive's own torque (cogging, gear friction), the current held over the step
                 f2 = f2 + forces.drive_torque(X[PSI], X[OMEGA], np.where(driven, X[I], 0.0), self._k_t_env, p)
+            if backlash:  # the rotor crosses the gap on the held torque; the flywheel feels what gets through
+                t_m = self._k_t_env * np.where(driven, X[I], 0.0)
+                g1, v1, engaged, impulse, loss = backlash_step(self.gap, self.gap_rate, t_m, forces.backlash_inertia(p),
+                                                               p.drive.backlash, h)
+                if paused is not None:
+                    g1, v1 = np.where(paused, self.gap, g1), np.where(paused, self.gap_rate, v1)
+                    engaged, impulse, loss = np.where(paused, 1.0, engaged), np.where(paused, 0.0, impulse), \
+                        np.where(paused, 0.0, loss)
+                f2 = f2 + t_m * (engaged - 1.0) + impulse / h
+                gap_rate = (g1 - self.gap) / h
+                self.gap[...], self.gap_rate[...] = g1, v1
+                self.impact_loss += loss
+                u_held = X[U].copy()
+                X[U] -= self._k_t_env * gap_rate  # the rotor's rate in the gap adds to the back-EMF
+                i_start = X[I].copy()
             if water:
                 dw = h * forces.water_rate_derivative(X[W], self.water_rate, p)
                 if paused is not None:
@@ -426,6 +451,16 @@ class BatchedRig:
                 self.water_rate += dw
             linear_substep(X, self._G_table, self.brake, driven, running, self._k_t_env, self._per_env(q_hull),
                            self._spring_offset, self._per_env(f2), self._w_prev, self.t, h)
+            if backlash:
+                on = driven & running
+                # the current's mean over the step from the exact exponential solution (motor.current_step)
+                m = p.motor
+                tau = np.asarray(m.L, float) / np.asarray(m.R, float)
+                e = np.exp(-h / tau)
+                i_ss = (X[I] - i_start * e) / (1.0 - e)
+                i_mean = i_ss + (i_start - i_ss) * tau / h * (1.0 - e)
+                self.backlash_work += np.where(on, self._k_t_env * i_mean * gap_rate * h, 0.0)
+                np.copyto(X[U], u_held, where=on)
 
     def _per_env(self, value) -> np.ndarray:
         """``value`` as a contiguous array of the batch's dtype and length ``n`` (no copy if it is one)."""
@@ -473,4 +508,6 @@ class BatchedRig:
         return {"t": float(self.t[k]), "phi": phi, "w": w, "psi": float(X[PSI, k]), "omega": omega,
                 "i": float(X[I, k]), "u": float(X[U, k]), "water_rate": float(self.water_rate[k]),
                 "energy": energy, "radiation_state": tuple(float(v) for v in self.radiation_x[:, k]),
-                "radiation_energy": float(forces.radiation_energy(self.radiation_x[:, k].astype(float), rig))}
+                "radiation_energy": float(forces.radiation_energy(self.radiation_x[:, k].astype(float), rig)),
+                "gap": float(self.gap[k]), "gap_rate": float(self.gap_rate[k]),
+                "backlash_work": float(self.backlash_work[k]), "impact_loss": float(self.impact_loss[k])}

@@ -31,7 +31,7 @@ from addedinertia_env.sim.params import RigParams
 from addedinertia_env.hydro.radiation import step_maps, truth_block
 
 __all__ = ["DRY_FRICTION_RATE_SCALE", "channel_delay", "cogging_energy", "drive_torque", "driver_lag", "gear_ratio",
-           "has_drive_torque", "has_driver_lag", "flywheel_friction_torque", "has_channel_delay",
+           "has_backlash", "has_drive_torque", "has_driver_lag", "flywheel_friction_torque", "has_channel_delay",
            "has_radiation_memory", "has_water_memory", "hull_armature", "hull_extra_torque", "radiation_energy",
            "radiation_memory_step", "radiation_state_size", "true_lambda66", "truth", "hydrodynamic_torque", "kinetic_energy", "potential_energy",
            "torque_constant_ratio", "true_neutral", "true_torque_constant", "water_rate_after_rest", "water_rate_derivative"]
@@ -81,6 +81,19 @@ def has_drive_torque(p: RigParams) -> bool:
         return False
     return bool(np.any(np.asarray(d.gear_efficiency) < 1.0) or np.any(np.asarray(d.gear_drag) > 0)
                 or np.any(np.asarray(d.cogging_torque) > 0))
+
+
+def has_backlash(p: RigParams) -> bool:
+    """Whether the gearbox has a gap (``drive.backlash`` > 0): the engines then run the rotor in the
+    gap (:func:`~.drive.backlash_step`) and its relative rate in the back-EMF."""
+    d = getattr(p, "drive", None)
+    return d is not None and bool(np.any(np.asarray(d.backlash) > 0))
+
+
+def backlash_inertia(p: RigParams):
+    """The rotor's inertia at the flywheel, ``N^2 J_rotor``, kg m^2 (scalar or per environment)."""
+    d = p.drive
+    return np.asarray(d.gear_ratio, dtype=float) ** 2 * np.asarray(d.rotor_inertia, dtype=float)
 
 
 def has_driver_lag(p: RigParams) -> bool:

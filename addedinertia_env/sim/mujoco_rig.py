@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 from addedinertia_env.sim import forces
+from addedinertia_env.sim.drive import backlash_scalar
 from addedinertia_env.sim.motor import MotorCommand, current_step, terminal_voltage
 from addedinertia_env.sim.params import RigParams
 from addedinertia_env.sim.sensors import Reading, Sensors
@@ -97,6 +98,11 @@ class TrueState:
     radiation_work: float = 0.0  # J, cumulative work of the hull on the water through the memory, integral mu dphi
     radiation_energy: float = 0.0  # J, energy the memory holds now (its storage function)
     radiation_torque: float = 0.0  # N m, the memory moment -mu on the hull over the last physics step
+    gap: float = 0.0  # rad, the rotor's angle (at the flywheel) minus the flywheel's in the gearbox's backlash
+    gap_rate: float = 0.0  # rad/s, its rate
+    backlash_work: float = 0.0  # J, cumulative work of the motor on the rotor's motion in the gap, k_t i dgap
+    impact_loss: float = 0.0  # J, cumulative kinetic energy lost when the rotor hits a flank
+    gap_torque_work: float = 0.0  # J, cumulative work on the flywheel of what the gap withholds and delivers late
 
 
 class MujocoRig(SimulatedRigBase):
@@ -141,6 +147,8 @@ class MujocoRig(SimulatedRigBase):
         self.radiation_x = np.zeros(forces.radiation_state_size(self.params))  # rad, memory state
         self.radiation_work = self.radiation_torque = 0.0
         self._w_prev = 0.0  # hull rate one physics step ago (forces.centred_rate)
+        self.gap = self.gap_rate = 0.0  # rad, rad/s: the rotor mid-gap at rest (drive.backlash_step)
+        self.backlash_work = self.impact_loss = self.gap_torque_work = 0.0
         self.sensors.reset()
         self.set_brake(brake)
         return self._read()
@@ -164,6 +172,8 @@ class MujocoRig(SimulatedRigBase):
         u = terminal_voltage(cmd, self.i, omega, R=m.R, L=m.L, k_e=self.k_t, u_max=m.u_max,
                              i_max=m.i_max, sample_dt=p.sensors.dt, lag=self._driver_lag)
         drive = forces.has_drive_torque(p)
+        backlash = forces.has_backlash(p)
+        j_rotor = float(forces.backlash_inertia(p)) if backlash else 0.0  # kg m^2 at the flywheel
         for _ in range(p.physics_substeps):
             phi, w = d.qpos[self._hull_qpos], d.qvel[self._hull_dof]
             psi0, omega = d.qpos[self._fly_qpos], d.qvel[self._fly_dof]
@@ -173,19 +183,30 @@ class MujocoRig(SimulatedRigBase):
             q_fly = float(forces.flywheel_friction_torque(omega, p))
             if drive:  # the drive's own torque (cogging, gear friction), with the current held over the step
                 q_fly += float(forces.drive_torque(psi0, omega, 0.0 if passive else self.i, self.k_t, p))
+            q_gap = 0.0  # N m, what the gap withholds from (and delivers late to) the flywheel
+            gap_rate = 0.0  # rad/s, the rotor's mean rate in the gap over the step (adds to the back-EMF)
+            if backlash:  # the rotor crosses the gap on the held torque; the flywheel feels what gets through
+                t_m = self.k_t * (0.0 if passive else self.i)
+                g1, v1, engaged, impulse, loss = backlash_scalar(self.gap, self.gap_rate, t_m, j_rotor,
+                                                                 p.drive.backlash, h)
+                q_gap = t_m * (engaged - 1.0) + impulse / h
+                gap_rate = (g1 - self.gap) / h
+                self.gap, self.gap_rate = g1, v1
+                self.impact_loss += loss
             q_rad = 0.0
             if memory:
                 self.radiation_x, mu = forces.radiation_memory_step(self.radiation_x, w_mid, p)
                 q_rad = -float(mu)
             d.qfrc_applied[self._hull_dof] = q_hull + q_rad
-            d.qfrc_applied[self._fly_dof] = q_fly
+            d.qfrc_applied[self._fly_dof] = q_fly + q_gap
             if passive:
                 i1 = i_mean = 0.0
                 u = self.k_t * omega
             else:
                 omega = self._mean_flywheel_rate(omega, i_guess=current_step(
-                    self.i, u, omega, h, R=m.R, L=m.L, k_e=self.k_t)[1], h=h)
+                    self.i, u, omega + gap_rate, h, R=m.R, L=m.L, k_e=self.k_t)[1], h=h) + gap_rate
                 i1, i_mean = current_step(self.i, u, omega, h, R=m.R, L=m.L, k_e=self.k_t)
+                self.backlash_work += self.k_t * i_mean * gap_rate * h
             torque = self.k_t * i_mean
             d.ctrl[self._motor] = torque
             self.water_rate += h * float(forces.water_rate_derivative(w, self.water_rate, p))
@@ -197,7 +218,8 @@ class MujocoRig(SimulatedRigBase):
             self.radiation_work -= q_rad * dphi
             self.radiation_torque = q_rad
             self.dissipated_flywheel += q_fly * dpsi
-            self.reaction_work_hull -= (torque + q_fly) * dphi
+            self.gap_torque_work += q_gap * dpsi
+            self.reaction_work_hull -= (torque + q_fly + q_gap) * dphi
             self.current_angle += i_mean * dphi
             if not passive:
                 # Exact integrals over the step with u held: int(u i) = u * mean(i);
@@ -227,7 +249,9 @@ class MujocoRig(SimulatedRigBase):
                          radiation_state=tuple(float(v) for v in self.radiation_x),
                          radiation_work=self.radiation_work,
                          radiation_energy=float(forces.radiation_energy(self.radiation_x, p)),
-                         radiation_torque=self.radiation_torque)
+                         radiation_torque=self.radiation_torque, gap=self.gap, gap_rate=self.gap_rate,
+                         backlash_work=self.backlash_work, impact_loss=self.impact_loss,
+                         gap_torque_work=self.gap_torque_work)
 
     # --- internals ------------------------------------------------------------------
     def _mean_flywheel_rate(self, omega0: float, i_guess: float, h: float) -> float:
