@@ -87,6 +87,15 @@ class GatedLinearPolicy:
         return np.clip(self.features(obs) @ th, -1.0, 1.0).astype(np.float32)
 
 
+def running_params(base: str) -> dict[str, Any]:
+    """The parameters ``base`` runs with when built by name (configs/controllers/tuned.yaml or its defaults),
+    pinned so that a later re-tune does not change the base under a trained correction."""
+    from agents import make_controller  # noqa: PLC0415
+
+    params = getattr(make_controller(base), "params", {}) or {}
+    return {k: (v.item() if hasattr(v, "item") else v) for k, v in params.items()}
+
+
 def run_thetas(suite, seeds, make_base, policy: GatedLinearPolicy, theta_rows: np.ndarray, use_policy: np.ndarray,
                scale: float, action_repeat: int):
     """One batch: slot ``j`` runs the base plus the policy with ``theta_rows[j]`` (``use_policy[j]``) or the
@@ -130,7 +139,7 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
 
     out.mkdir(parents=True, exist_ok=True)
     suite = load_suite(suite_name)
-    pinned = base_params(suite, base)
+    pinned = base_params(suite, base) or running_params(base)  # the suite's tuned gains, else those it runs with
     make_base = base_factory(base, pinned)
     rng = np.random.default_rng(seed)
     cpu0, wall0 = time.process_time(), time.perf_counter()
