@@ -223,6 +223,32 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
     return write_card()
 
 
+def finish(out: Path, validate: int = 64, log=print) -> dict[str, Any]:
+    """Validate the policy of a run stopped before its end (``policy.npz`` and the card of its last
+    generation) as :func:`train` does at its end, and add the validation and its cost to the card."""
+    from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
+
+    card = json.loads((out / "training_card.json").read_text())
+    if card.get("validation"):
+        raise ValueError(f"{out}: the run is validated already (training_card.json has a validation)")
+    cpu0 = time.process_time()
+    suite = load_suite(card["suite"])
+    make_base = base_factory(card["base"], card["base_params"])
+    vseeds = list(range(VALIDATION_FIRST, VALIDATION_FIRST + validate))
+    validation = evaluate(suite, vseeds, make_base, load_policy(out), card["scale"], card["action_repeat"])
+    cost = card["cost"]
+    cost["env_steps"] += validation.pop("agent_steps")
+    cost["episodes"] += 2 * validate
+    cost["cpu_s"] = round(cost["cpu_s"] + time.process_time() - cpu0, 1)
+    cost["cpu_minutes"] = round(cost["cpu_s"] / 60.0, 2)
+    card["validation"] = validation
+    card["stopped"] = "training stopped by hand after its last generation; validated by --finish"
+    atomic_write_text(out / "training_card.json", json.dumps(card, indent=2) + "\n")
+    log(f"validation ({validate} scenarios from {VALIDATION_FIRST}): base {100 * validation['base_score']:.3f} % "
+        f"policy {100 * validation['policy_score']:.3f} % (paired {100 * validation['mean_diff']:+.3f} %)")
+    return card
+
+
 def load_policy(run: Path) -> GatedLinearPolicy:
     """The trained policy of run folder ``run`` (``policy.npz``)."""
     data = np.load(run / "policy.npz")
@@ -288,8 +314,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--action-repeat", type=int, default=10, help="rig samples per action (10: 100 Hz)")
     p.add_argument("--out", type=Path, required=True, help="run folder (curve.jsonl, policy.npz, card)")
     p.add_argument("--onnx", type=Path, help="also export the final policy here (with its .json card)")
+    p.add_argument("--finish", action="store_true", help="do not train: validate the run in --out that was stopped "
+                                                         "before its end (then export with --onnx)")
     args = p.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    if args.finish:
+        finish(args.out, validate=args.validate, log=lambda m: print(m, flush=True))
+        if args.onnx:
+            card = export_onnx(args.out, args.onnx)
+            print(f"wrote {args.onnx} ({card['size_bytes']} bytes, parity {card['parity_max_abs_diff']:.2e})")
+        return 0
     train(args.out, suite_name=args.suite, base=args.base, seed=args.seed, scale=args.scale,
           generations=args.generations, scenarios=args.scenarios, directions=args.directions, top=args.top,
           step=args.step, noise=args.noise, cpu_minutes=args.cpu_minutes, action_repeat=args.action_repeat,
