@@ -150,11 +150,17 @@ leaderboard-hard:
 leaderboard-drive:
 	$(MAKE) leaderboard BENCH_SUITE=drive-v1 LEADERBOARD_DOC=docs/LEADERBOARD_drive.md \
 	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v1.html LEARNED_POLICIES="$(DRIVE_POLICIES)" \
-	  BENCH_CONTROLLERS="oracle zero pd pid lqr feedforward-pd drive-aware"
+	  BENCH_CONTROLLERS="$(DRIVE_CONTROLLERS)"
 
-# The drive-aware entry's pre-spin on drive-v0's tuning split (configs/controllers/tuned-drive-v0.yaml).
+# Every tunable classical entry on drive-v1's tuning split with one budget
+# (configs/controllers/tuned-drive-v1.yaml; `pd` is the untuned bare baseline).
+DRIVE_CONTROLLERS ?= oracle zero pd pid lqr feedforward-pd drive-aware backlash-inversion pid-antiwindup
+DRIVE_TUNED ?= backlash-inversion drive-aware pid-antiwindup feedforward-pd pid lqr
 tune-drive: $(STAMP)
-	$(BIN)/addedinertia bench tune --suite drive-v0 --controller drive-aware --candidates 8 --scenarios 8 --seed 0
+	for c in $(DRIVE_TUNED); do \
+	  $(BIN)/addedinertia bench tune --suite drive-v1 --controller $$c --candidates 8 --scenarios 8 --seed 0 \
+	    --jobs $(BENCH_JOBS) --no-progress || exit 1; \
+	done
 
 # Re-tune every classical controller on hard-v0's tuning split with one budget
 # (configs/controllers/tuned-hard-v0.yaml; about 25 min on 2 shared cores).

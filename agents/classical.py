@@ -17,6 +17,8 @@ CLASSICAL: dict[str, str] = {
     "ilc": "agents.ilc:ILC",
     "mpc": "agents.mpc:MPC",
     "drive-aware": "agents.drive_aware:DriveAwarePD",
+    "backlash-inversion": "agents.backlash_inversion:BacklashInversionPD",
+    "pid-antiwindup": "agents.voltage_antiwindup:VoltageAntiWindupPID",
 }
 
 
