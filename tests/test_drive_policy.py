@@ -17,7 +17,7 @@ from addedinertia_env.learning.score_ars import GatedLinearPolicy, episode_score
 
 ROOT = Path(__file__).resolve().parents[1]
 POLICY = ROOT / "agents" / "policies" / "drive_ars.onnx"
-GEARED = "wigley-2m-geared"  # a drive inside drive-v0's ranges (configs/rigs/wigley-2m-geared.yaml)
+GEARED = "wigley-2m-drive-v1"  # every flaw of drive-v1 (configs/rigs/wigley-2m-drive-v1.yaml)
 N = len(OBSERVATION_FIELDS)
 
 
