@@ -40,7 +40,7 @@ class StrokeController(Controller):
     KNOBS: dict[str, tuple[float, float, str]] = {}  # name -> (low, high, "log" | "lin"), for tuning
 
     def __init__(self, tuned: bool = True, **overrides: Any):
-        self.params = resolve_params(self.name if tuned else None, self.DEFAULTS, overrides)
+        self.params = resolve_params(getattr(self, "tuned_as", self.name) if tuned else None, self.DEFAULTS, overrides)
         for key, value in self.params.items():
             setattr(self, key, value)
 

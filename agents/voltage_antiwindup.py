@@ -8,6 +8,8 @@ stops integrating only at the current limit ``i_max``; this entry also clamps it
 to what the supply can drive now (with ``headroom``) and stops integrating whenever it
 clamps (conditional integration), so the integral never winds up while the back-EMF eats
 the voltage late in a fast pre-spun stroke. Known constants only (``u_max``, ``R``, ``k_t``).
+Its loop gains are :class:`~agents.pid.PID`'s tuned ones (``tuned_as = "pid"``), so where
+the supply's reach stays above the current limit it is that PID, sample for sample.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ class VoltageAntiWindupPID(PID):
     """:class:`~agents.pid.PID` that clamps to the supply's reach and integrates only inside it (module doc)."""
 
     name = "pid-antiwindup"
+    tuned_as = "pid"  # the same loop: PID's tuned gains (configs/controllers/tuned.yaml)
     DEFAULTS: dict[str, Any] = {**PID.DEFAULTS, "headroom": 0.95}
     KNOBS = dict(PID.KNOBS)
 
