@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
+.PHONY: pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger drive-policy demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -104,6 +104,18 @@ hard-policy-dagger: $(STAMP)
 	  --validate 48 --onnx agents/policies/hard_dagger.onnx --figure docs/figures/learning_hard_dagger.png \
 	  --summary docs/figures/learning_hard_dagger.json
 
+# The learned drive controller (docs/LEARNING.md, issue 28 item 6): random search on the drive suite's
+# ranked score (mean min(|e|, 10 %)), a gated linear correction on feedforward-pd at 100 Hz on the
+# batched engine, one seed, capped in CPU time; then its curves and the export (ONNX + card).
+DRIVE_SUITE ?= drive-v1
+DRIVE_ARS_ARGS ?= --seed 0 --generations 200 --cpu-minutes 8 --validate 64
+DRIVE_POLICIES ?= agents/policies/drive_ars.onnx
+drive-policy: $(STAMP)
+	nice -n 10 $(BIN)/python -m addedinertia_env.learning.score_ars --suite $(DRIVE_SUITE) $(DRIVE_ARS_ARGS) \
+	  --out out/train/score-ars-$(DRIVE_SUITE) --onnx agents/policies/drive_ars.onnx
+	$(BIN)/python -m addedinertia_env.reports.score_ars_curves --runs out/train/score-ars-$(DRIVE_SUITE) \
+	  --figure docs/figures/learning_drive_ars.png --summary docs/figures/learning_drive_ars.json
+
 accuracy-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md
 
@@ -137,7 +149,7 @@ leaderboard-hard:
 # (configs/suites/drive-v1.yaml, docs/DRIVE.md); `make tune-drive` first.
 leaderboard-drive:
 	$(MAKE) leaderboard BENCH_SUITE=drive-v1 LEADERBOARD_DOC=docs/LEADERBOARD_drive.md \
-	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v1.html LEARNED_POLICIES= \
+	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v1.html LEARNED_POLICIES="$(DRIVE_POLICIES)" \
 	  BENCH_CONTROLLERS="$(DRIVE_CONTROLLERS)"
 
 # Every tunable classical entry on drive-v1's tuning split with one budget

@@ -17,8 +17,8 @@ from addedinertia_env.records.record import RunRecord
 from addedinertia_env.rig.interface import Rig
 from addedinertia_env.sim.mujoco_rig import MujocoRig
 from addedinertia_env.experiment.scenarios import Scenario, build_rig, load_ranges
-from addedinertia_env.evaluation.scoring import REWARD, score_episode, truth_lambda66
-from addedinertia_env.experiment.task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
+from addedinertia_env.evaluation.scoring import reward_score, score_episode, truth_lambda66
+from addedinertia_env.experiment.task import OBS_LIMIT, SCORE_ONLY, ReverseStrokeTask, RewardWeights
 from addedinertia_env.envs.config import EnvConfig
 from addedinertia_env.envs.render import PlotRenderer, RigRenderer
 
@@ -106,7 +106,11 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
         current (or voltage) limit; ``accuracy = -w min(abs(rel_error) / 1 %, 10)``
         once, at the last step (a failed estimate costs the cap, 10). Defaults
         ``tracking=1, energy=0.1, limits=1, accuracy=1``. The episode's return does not
-        depend on ``action_repeat``.
+        depend on ``action_repeat``. On a benchmark suite (``suite=``) the accuracy term
+        scores the ranked identification (the energy method as written), so it is minus
+        the episode's leaderboard score in percent (bench/score.py: ``min(|e|, 10 %)``, a
+        failure at the cap), and the default weights are that term alone
+        (``tracking=0, energy=0, limits=0, accuracy=1``; docs/ENVIRONMENT.md).
 
     Starting State
         Scenario (rig, sensors, ``alpha``, ``hold_s``) drawn from the preset and
@@ -164,13 +168,16 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
                 raise ValueError(f"ReverseStrokeEnv option {name}={value!r}: expected an integer number of pixels in [16, 4096]")
         if rig_factory is not None and not callable(rig_factory):
             raise ValueError(f"ReverseStrokeEnv option rig_factory={rig_factory!r}: expected a callable scenario -> rig")
+        # on a suite the default reward is the ranked score alone (SCORE_ONLY; docs/ENVIRONMENT.md)
+        default_weights = SCORE_ONLY if suite is not None else RewardWeights()
         self.config = EnvConfig(preset=preset, randomize=randomize, ranges=ranges or {}, fixed=fixed or {},
                                 sensor_quality=sensor_quality, hold_s=hold_s, alpha=alpha,
                                 scenario_seed=scenario_seed, action_repeat=action_repeat,
-                                control_mode=control_mode, reward_weights=reward_weights or RewardWeights())
+                                control_mode=control_mode, reward_weights=reward_weights or default_weights)
         self.render_mode = render_mode
         self.rig_factory = rig_factory or simulated_rig
         self.suite, self.suite_split = None, suite_split
+        self.score_method = reward_score(suite)  # the ranked score on a suite (issue 28), else the corrected one
         if suite is not None:  # scenarios of a benchmark suite (configs/suites/), e.g. hard-v0
             from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
@@ -327,8 +334,9 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
     # --- internals --------------------------------------------------------------------
     def _score(self) -> dict[str, Any]:
         """The benchmark numbers of the finished episode: the one scoring
-        (:func:`addedinertia_env.evaluation.scoring.score_episode`, the corrected score)."""
-        return score_episode([self.record()], REWARD).info()
+        (:func:`addedinertia_env.evaluation.scoring.score_episode`; the corrected score, or the
+        ranked one on a suite: :func:`~addedinertia_env.evaluation.scoring.reward_score`)."""
+        return score_episode([self.record()], self.score_method).info()
 
     def _title(self) -> str:
         s = self.scenario

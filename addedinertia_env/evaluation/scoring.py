@@ -43,7 +43,15 @@ SCORES: dict[str, dict[str, bool | str]] = {  # name -> identify()'s options of 
     CORRECTED: {"asymmetry_correction": True},
 }
 RANKED = AS_WRITTEN  # what the leaderboard ranks (bench/runner.py SCORE_METHOD)
-REWARD = CORRECTED  # what the environment's accuracy term rewards
+REWARD = CORRECTED  # what the environment's accuracy term rewards (outside a benchmark suite)
+SUITE_REWARD = RANKED  # on a benchmark suite's scenarios it rewards what the leaderboard ranks (issue 28)
+
+
+def reward_score(suite) -> str:
+    """The score whose error the environment's accuracy term rewards: on a benchmark suite
+    (``suite`` not None) the ranked one (:data:`RANKED`, so that the terminal reward is the
+    episode's leaderboard score, bench/score.py), else :data:`REWARD`."""
+    return SUITE_REWARD if suite is not None else REWARD
 
 
 def _check_score(score: str) -> dict[str, bool | str]:

@@ -127,6 +127,10 @@ class RewardWeights:
 
 
 TERM_NAMES = tuple(f.name for f in fields(RewardWeights))
+# The default weights on a benchmark suite's scenarios (issue 28): the terminal accuracy term
+# alone, so that an episode's return is minus its ranked score in percent (bench/score.py:
+# min(|e|, 10 %), a failure at the cap); no shaping (docs/ENVIRONMENT.md measures why).
+SCORE_ONLY = RewardWeights(tracking=0.0, energy=0.0, limits=0.0, accuracy=1.0)
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,8 @@ class BatchResult:
     energy_J: np.ndarray  # J, integral of |u i| over hold and reverse
     agent_steps: int  # controller calls summed over the episodes
     samples: int  # rig samples stepped, all slots (free strokes included)
+    tracking_sq: np.ndarray = field(default_factory=lambda: np.zeros(0))  # rad^2, sum over the reverse stroke's samples
+    limit_samples: np.ndarray = field(default_factory=lambda: np.zeros(0))  # samples at the drive's limit
     observations: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.float32))  # (steps, n_obs), if kept
     labels: "TeacherLabels | None" = None  # with ``teacher_labels=True``
 
@@ -88,7 +90,7 @@ class _SlotTruth:
         if forces.has_radiation_memory(self.params) and "radiation_torque" not in s:
             raise ValueError(f"scenario {self.pool.scenarios[self.k].name}: radiation memory, whose torque the "
                              "batched rig's true_state does not report; the oracle cannot run here")
-        return _State(**{key: s[key] for key in ("t", "phi", "w", "water_rate")},
+        return _State(**{key: s[key] for key in ("t", "phi", "w", "water_rate", "psi", "omega", "i")},
                       radiation_torque=float(s.get("radiation_torque", 0.0)))
 
 
@@ -99,6 +101,9 @@ class _State:
     w: float
     water_rate: float
     radiation_torque: float = 0.0  # N m, 0 without radiation memory
+    psi: float = 0.0  # rad, flywheel angle relative to the hull (the drive's torques: cogging)
+    omega: float = 0.0  # rad/s, flywheel rate relative to the hull (gear friction and drag)
+    i: float = 0.0  # A, the motor current now (the driver's lag)
 
 
 def slot_context(pool: ExperimentPool, k: int, action_repeat: int) -> ControllerContext:
@@ -170,6 +175,7 @@ def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep, la
     obs = observe(pool, slots)
     kept: list[np.ndarray] = []
     steps = 0
+    tracking_sq, limit_samples = np.zeros(n), np.zeros(n)  # the environment's shaping terms' totals
     while controlled.any():
         live = np.nonzero(controlled)[0]
         action = np.zeros(n)
@@ -195,6 +201,9 @@ def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep, la
         for _ in range(repeat):
             out = pool.sample(value, controlled)
             samples += int(controlled.sum())
+            if out:  # the increments of the slots driven in this sample (the others' are not set)
+                tracking_sq += np.where(controlled, out["tracking_sq"], 0.0)
+                limit_samples += np.where(controlled, out["limit"], 0)
             if out and len(out["ended"]):
                 controlled[out["ended"]] = False
             if not controlled.any():
@@ -214,4 +223,4 @@ def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep, la
                                base_action=cat["base"].astype(float), teacher_action=cat["teacher"].astype(float),
                                slot=cat["slot"].astype(int), followed_teacher=cat["followed"].astype(bool))
     return BatchResult(seeds=list(seeds), rel_error=rel, energy_J=pool.energy.copy(), agent_steps=steps,
-                       samples=samples, observations=observations, labels=labels)
+                       samples=samples, tracking_sq=tracking_sq, limit_samples=limit_samples, observations=observations, labels=labels)

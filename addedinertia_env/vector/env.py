@@ -52,8 +52,8 @@ from gymnasium.vector.utils import batch_space
 from addedinertia_env.envs.config import EnvConfig
 from addedinertia_env.identify.common import prepare as prepare_identification
 from addedinertia_env.experiment.scenarios import load_ranges
-from addedinertia_env.evaluation.scoring import REWARD, Estimate, estimate, score_episode
-from addedinertia_env.experiment.task import OBS_LIMIT, ReverseStrokeTask, RewardWeights
+from addedinertia_env.evaluation.scoring import REWARD, Estimate, estimate, reward_score, score_episode
+from addedinertia_env.experiment.task import OBS_LIMIT, SCORE_ONLY, ReverseStrokeTask, RewardWeights
 from addedinertia_env.vector.observe import observe
 from addedinertia_env.vector.pool import ENDED, READY, SETTLE, FREE, EMPTY, ExperimentPool
 
@@ -68,14 +68,15 @@ SPARE_BATCH_DIVISOR = 32  # spares start in batches of n_spare / this (fewer, la
 METRIC_KEYS = ("lambda66_est", "lambda66_true", "rel_error", "energy_J", "tracking_rms_rad", "saturated_frac")
 
 
-def estimate_lambda66(record) -> Estimate:
+def estimate_lambda66(record, score: str = REWARD) -> Estimate:
     """The estimate of one ended episode, as the single environment scores it
-    (:func:`addedinertia_env.evaluation.scoring.estimate`, the corrected score): lambda66 kg m^2 and its
-    95 % interval, or nan and the failure when the identification fails. Runs on one BLAS
+    (:func:`addedinertia_env.evaluation.scoring.estimate` with ``score``: the corrected score, or the
+    environment's :attr:`ReverseStrokeVectorEnv.score_method`, the ranked one on a suite): lambda66 kg m^2
+    and its 95 % interval, or nan and the failure when the identification fails. Runs on one BLAS
     thread; any process may compute it (the sharded env sends records to whichever worker
     has the least to do)."""
     with _BLAS.limit(limits=1, user_api="blas"):
-        return estimate([record], REWARD)
+        return estimate([record], score)
 
 
 @dataclass
@@ -131,7 +132,8 @@ class ReverseStrokeVectorEnv(VectorEnv):
             raise ValueError(f"ReverseStrokeVectorEnv option spare_fraction={spare_fraction!r}: expected a number "
                              "in [0.1, 4] (spare slots per environment)")
         env_kwargs.pop("max_episode_steps", None)  # from the registration; an episode ends well before it
-        weights = env_kwargs.pop("reward_weights", None) or RewardWeights()
+        self.score_method = reward_score(suite)  # the ranked score on a suite (issue 28), else the corrected one
+        weights = env_kwargs.pop("reward_weights", None) or (SCORE_ONLY if suite is not None else RewardWeights())
         self.config = EnvConfig(reward_weights=weights, **env_kwargs)
         if not isinstance(score_episodes, bool):
             raise ValueError(f"ReverseStrokeVectorEnv option score_episodes={score_episodes!r}: expected True or False")
@@ -292,7 +294,7 @@ class ReverseStrokeVectorEnv(VectorEnv):
 
     def _step(self, actions):
         pending = self._advance(actions)  # step() holds the one-BLAS-thread limit for all three parts
-        return self._finish(pending, [estimate([r], REWARD) for r in pending.records])
+        return self._finish(pending, [estimate([r], self.score_method) for r in pending.records])
 
     def advance(self, actions, defer_spares: bool = False) -> "PendingStep":
         """The first half of :meth:`step`: every environment's samples, up to the identification of
@@ -415,7 +417,8 @@ class ReverseStrokeVectorEnv(VectorEnv):
         for j, e in enumerate(envs):
             k = int(self.env_slot[e])
             record = records[j]
-            score = score_episode([record], REWARD, references=[pool.reference(k)], estimated=estimates[j])
+            score = score_episode([record], self.score_method, references=[pool.reference(k)],
+                                  estimated=estimates[j])
             if score.failed:
                 out["failure"][e] = score.failure
             for key in METRIC_KEYS:

@@ -147,10 +147,10 @@ def _settle(conn, env: ReverseStrokeVectorEnv, pending, export: list[int], n_imp
     estimates: list = [None] * len(records)
     for i, record in enumerate(records):
         if i not in moved:
-            estimates[i] = estimate_lambda66(record)
+            estimates[i] = estimate_lambda66(record, env.score_method)
     clock.lap("identify")
     if n_import:
-        results = [estimate_lambda66(r) for r in foreign]
+        results = [estimate_lambda66(r, env.score_method) for r in foreign]
         clock.lap("identify")
         conn.send(("ok", results))
         clock.lap("transfer")
@@ -383,10 +383,10 @@ class ShardedVectorEnv(VectorEnv):
         estimates: list = [None] * len(pending.records)
         for i, record in enumerate(pending.records):
             if i not in moved:
-                estimates[i] = estimate_lambda66(record)
+                estimates[i] = estimate_lambda66(record, self.local.score_method)
         back = {k: [None] * len(v) for k, v in exports.items()}
         for src, pos in imports.get(0, []):
-            back[src][pos] = estimate_lambda66(sent[src][pos])
+            back[src][pos] = estimate_lambda66(sent[src][pos], self.local.score_method)
         clock.lap("identify")
         importers = [self._conns[k - 1] for k in imports if k]
         if importers:
