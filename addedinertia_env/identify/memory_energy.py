@@ -48,9 +48,12 @@ class RunMemoryWork:
     dW_basis: np.ndarray  # angles x memory coefficients: (W_rev - W_fwd) per unit coefficient
 
 
-def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
+def run_memory_work(rec: RunRecord, fit: FamilyFit, angles: np.ndarray | None = None,
+                    keep_all: bool = False) -> RunMemoryWork | None:
     """The memory works of ``fit``'s basis at the energy method's boundary angles of one
-    reverse-symmetric run (None when the run has no forward and reverse stroke)."""
+    reverse-symmetric run (None when the run has no forward and reverse stroke). ``angles``: the
+    boundary angles (rad) the energy method used (default: its dense range from this run's own rest
+    angle); ``keep_all``: every angle is kept, nan where a stroke does not pass it."""
     dt = 1.0 / rec.known.sample_rate
     t = np.asarray(rec.t, float)
     grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-6)) + 1)
@@ -72,6 +75,9 @@ def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
     f = np.linspace(FRACTIONS[0], FRACTIONS[1], N_ANGLES)
     weights = hann_weights(f, FRACTIONS[0], FRACTIONS[1])
     phi1 = phi_n + f * (rest - phi_n)
+    if angles is not None:
+        phi1 = np.asarray(angles, float)
+        weights = np.ones_like(phi1)
     # the basis' memory moments and their works along the measured motion
     cols = []
     from scipy import signal  # noqa: PLC0415
@@ -101,6 +107,8 @@ def run_memory_work(rec: RunRecord, fit: FamilyFit) -> RunMemoryWork | None:
     keep = np.array(keep)
     if not keep.any():
         return None
+    if keep_all:
+        return RunMemoryWork(rec.name, phi1, weights, np.array(KE), np.array(dW))
     return RunMemoryWork(rec.name, phi1[keep], weights[keep], np.array(KE)[keep], np.array(dW)[keep])
 
 
@@ -142,10 +150,80 @@ class CorrectedEstimate:
     bias: float
 
 
-def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sigma: list[float],
-                     memory: MemoryIdentification) -> CorrectedEstimate | None:
-    """lambda66 = A66(0) from the energy method's per-run values corrected by each accepted
-    family's memory bias; the interval is the union over the families."""
+def corrected_energy(records: list[RunRecord], details: dict, memory: MemoryIdentification) -> CorrectedEstimate | None:
+    """lambda66 = A66(0) from the energy method's per-angle values (``details``: the energy result's, with its
+    ``intervals`` and ``per_run_sigma_parts``) corrected angle by angle by each accepted family's memory bias;
+    the interval is the union over the families.
+
+    The bias at each angle is the memory's work over the energy method's *own* kinetic denominator (its
+    crossing rates), so a rate error scales the balance and its memory term together, as in water without
+    memory. Each run's budget is the energy method's (rates, current, torque scale, dissipation law) with
+    its trend term taken on the *corrected* values (the uncorrected ones follow the memory's work across the
+    angles, which is what the correction removes); the runs are pooled on that (Birge ratio), and the
+    memory coefficients' share, common to every run, is added once."""
+    from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
+    from addedinertia_env.identify.energy_pooling import _trend_excess  # noqa: PLC0415
+
+    intervals, parts_list = details.get("intervals"), details.get("per_run_sigma_parts")
+    if not intervals or not parts_list or any(p is None for p in parts_list):
+        return _corrected_from_runs(records, details.get("per_run", []), details.get("per_run_sigma", []), memory)
+    by_run: dict[str, list] = {}
+    for iv in intervals:
+        if not iv.get("rejected"):
+            by_run.setdefault(iv["run"], []).append(iv)
+    runs = [(rec, by_run[rec.name], parts) for rec, parts in zip([r for r in records if r.name in by_run], parts_list)]
+    out = {}
+    lo_all, hi_all = math.inf, -math.inf
+    best = None
+    for fit in memory.accepted:
+        g0 = np.real(_basis(fit.sections, 0.0))
+        vals, sigs, grads, biases = [], [], [], []
+        for rec, ivs, parts in runs:
+            phi1 = np.array([iv["phi1"] for iv in ivs])
+            work = run_memory_work(rec, fit, phi1, keep_all=True)
+            if work is None:
+                continue
+            KE = np.array([0.5 * (iv["w1f"] ** 2 + iv["w1r"] ** 2) for iv in ivs])
+            per_coef = work.dW_basis / KE[:, None] - g0  # angles x coefficients
+            ok = np.all(np.isfinite(per_coef), axis=1)
+            g = np.array([iv["weight"] for iv in ivs])[ok]
+            if not ok.any() or g.sum() <= 0:
+                continue
+            g = g / g.sum()
+            bias = per_coef[ok] @ fit.theta
+            corrected = np.array([iv["lambda66"] for iv in ivs])[ok] - bias
+            s_ind = np.array([iv["sigma_independent"] for iv in ivs])[ok]
+            trend = _trend_excess(phi1[ok], corrected, s_ind, g, parts.get("slope_noise", 0.0))
+            vals.append(float(g @ corrected))
+            sigs.append(math.sqrt(parts["rate"] ** 2 + parts["current"] ** 2 + parts["common"] ** 2 + trend**2))
+            grads.append(g @ per_coef[ok])
+            biases.append(float(g @ bias))
+        if not vals:
+            continue
+        value, lo, hi = pooled_interval(np.array(vals), np.array(sigs))
+        # the memory model's share: its coefficients' covariance through the runs' pooled gradient
+        wts = 1.0 / np.maximum(np.array(sigs), 1e-300) ** 2
+        grad = (wts[:, None] * np.array(grads)).sum(axis=0) / wts.sum()
+        common = float(np.sqrt(max(grad @ fit.cov_theta @ grad, 0.0))) if fit.cov_theta is not None else 0.0
+        half = math.hypot(0.5 * (hi - lo), Z95 * common)
+        lo, hi = value - half, value + half
+        out[fit.family] = {"lambda66": value, "ci95": [lo, hi], "bias": float(np.mean(biases))}
+        lo_all, hi_all = min(lo_all, lo), max(hi_all, hi)
+        if fit is memory.best:
+            best = (value, float(np.mean(biases)))
+    if best is None:
+        return None
+    return CorrectedEstimate(best[0], (lo_all, hi_all), out, best[1])
+
+
+Z95 = 1.959963984540054  # two-sided 95 % point of the normal
+
+
+def _corrected_from_runs(records: list[RunRecord], per_run: list[float], per_run_sigma: list[float],
+                         memory: MemoryIdentification) -> CorrectedEstimate | None:
+    """:func:`corrected_energy` from the runs' values alone (an energy result made without its per-angle
+    intervals, ``interval_details=False``): each run's Hann-weighted value corrected by the family's bias
+    at the run's own dense angles; the interval is the union over the families."""
     from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
 
     out = {}
@@ -210,7 +288,7 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
     details.update(mem.to_json())
     value, ci = result.lambda66, result.ci95
     if mem.identified:
-        corrected = corrected_energy(reverse_records, details.get("per_run", []), details.get("per_run_sigma", []), mem)
+        corrected = corrected_energy(reverse_records, details, mem)
         if corrected is not None:
             details["lambda66_uncorrected"] = value
             details["lambda66_uncorrected_ci95"] = list(ci)
