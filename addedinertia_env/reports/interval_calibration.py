@@ -9,10 +9,10 @@ This report measures both, per water, over many simulated hulls and the other la
     python -m addedinertia_env.reports.interval_calibration render ROWS.jsonl [--before OLD.jsonl]
         [--out docs/INTERVALS.md]
 
-``run`` simulates, for each preset (``wigley-2m``, ``spheroid-7``), water (``cummins``:
-radiation memory, ``constant``: none), controller (``lqr``, ``pd``) and seed, one hull's
-records (two reverse-symmetric runs, twist 0.10 and 0.06 rad, and one free decay; the
-decay is shared by the controllers) into ``DIR`` (kept: a rerun resumes), and identifies
+``run`` simulates, for each water (``cummins``: radiation memory, ``constant``: none), preset
+(``wigley-2m``, ``spheroid-7``) and seed, one hull drawn from the preset by the seed (the
+benchmark's scenarios), run by ``lqr`` or ``pd`` (alternating): two reverse-symmetric runs
+(the drawn twist and 0.6 of it) and one free decay, into ``DIR`` (kept: a rerun resumes), and identifies
 each set as a user would (``identify(records, "energy", memory=True)``); every foreign
 case's reverse runs are identified one at a time with the case's free decays beside them.
 One JSON line per run goes to ``ROWS`` (labels already there are skipped), with the
@@ -48,6 +48,10 @@ ENERGY_TRANSPARENT_CAUSES = {"none", "sensor_delay", "torque_constant", "bearing
 Z95 = 1.959963984540054  # two-sided 95 % point of the normal
 CALIBRATED_RATIO = Z95 / 0.6744897501960817  # half-width / median |error| of a calibrated Gaussian interval
 BEGIN, END = "<!-- interval-calibration:begin -->", "<!-- interval-calibration:end -->"
+COMMAND = ("python -m addedinertia_env.reports.interval_calibration run ROWS.jsonl --sets SETS --seeds 12 \\\n"
+           "    --foreign PATH/foreign-lab.tar.xz --foreign PATH/foreign-lab-2.tar.xz\n"
+           "python -m addedinertia_env.reports.interval_calibration render ROWS.jsonl --before BEFORE.jsonl "
+           "--out docs/INTERVALS.md")
 
 
 # --- the statistics -------------------------------------------------------------------------------
@@ -90,34 +94,41 @@ def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
 
 # --- the runs -------------------------------------------------------------------------------------
 def hull_specs(seeds: int) -> list[dict]:
-    """Every simulated hull set: preset x water x controller x seed (1..``seeds``)."""
-    return [{"preset": p, "hydrodynamics": h, "controller": c, "seed": s}
-            for h in WATERS for p in PRESETS for s in range(1, seeds + 1) for c in CONTROLLERS]
+    """Every simulated hull: water x preset x seed (1..``seeds``), the controller alternating with the seed.
+
+    Each seed draws its own hull from the preset (:func:`~addedinertia_env.experiment.scenarios.make_scenario`:
+    lambda66 / J_hull, period, damping, flywheel, torque constant, twist, hold, sensor quality). A preset's
+    fixed hull would not do: its seeds redraw the sensor noise but not the passive free stroke, whose
+    encoder quantisation pattern (the energy method's largest error) is then the same in every run."""
+    return [{"preset": p, "hydrodynamics": h, "controller": CONTROLLERS[s % len(CONTROLLERS)], "seed": s}
+            for h in WATERS for p in PRESETS for s in range(1, seeds + 1)]
 
 
 def label_of(spec: dict) -> str:
-    return f"{'cum' if spec['hydrodynamics'] == 'cummins' else 'con'}-{spec['preset']}-{spec['controller']}-s{spec['seed']}"
+    return f"{'cum' if spec['hydrodynamics'] == 'cummins' else 'con'}-{spec['preset']}-{spec['controller']}-h{spec['seed']}"
 
 
 def simulate_set(spec: dict, root: Path) -> list[Path]:
-    """The records of one hull set under ``root`` (kept when already there): two reverse runs and one decay."""
-    from addedinertia_env.apps.simulate import simulate_to_dir  # noqa: PLC0415
-    from addedinertia_env.experiment.protocol import plan_from_preset  # noqa: PLC0415
-    from addedinertia_env.sim.presets import load_preset, rig_from_mapping  # noqa: PLC0415
+    """The records of one drawn hull under ``root`` (kept when already there): two reverse runs (the
+    scenario's twist and 0.6 of it) and one free decay, each with its own sensor noise."""
+    import dataclasses  # noqa: PLC0415
 
-    data = load_preset(spec["preset"])
-    rig = rig_from_mapping(data, hydrodynamics=spec["hydrodynamics"])
-    base = root / spec["hydrodynamics"] / spec["preset"] / f"s{spec['seed']}"
-    n = spec["seed"]
-    jobs = [(base / spec["controller"] / "rev10", "reverse-symmetric", 0.10, n),
-            (base / spec["controller"] / "rev06", "reverse-symmetric", 0.06, n + 100),
-            (base / "decay", "free-decay", 0.10, n + 200)]
+    from addedinertia_env.apps.simulate import simulate_to_dir  # noqa: PLC0415
+    from addedinertia_env.experiment.scenarios import make_scenario  # noqa: PLC0415
+
+    sc = make_scenario(spec["seed"], spec["preset"], hydrodynamics=spec["hydrodynamics"])
+    base = root / spec["hydrodynamics"] / spec["preset"] / f"h{spec['seed']}"
+    n = 1000 * spec["seed"]
+    alpha = sc.plan.alpha
+    jobs = [(base / "rev-a", "reverse-symmetric", sc.plan, n + 1),
+            (base / "rev-b", "reverse-symmetric", dataclasses.replace(sc.plan, alpha=0.6 * alpha), n + 2),
+            (base / "decay", "free-decay", sc.plan, n + 3)]
     paths = []
-    for out, kind, alpha, seed in jobs:
-        signature = {"rig": spec["preset"], "hydrodynamics": spec["hydrodynamics"], "kind": kind, "alpha": alpha,
-                     "seed": seed, "controller": spec["controller"] if kind != "free-decay" else None}
-        paths += simulate_to_dir(rig, out, controller=spec["controller"], plan=plan_from_preset(data, alpha=alpha),
-                                 seed=seed, kind=kind, signature=signature)
+    for out, kind, plan, seed in jobs:
+        signature = {"rig": spec["preset"], "scenario_seed": spec["seed"], "hydrodynamics": spec["hydrodynamics"],
+                     "kind": kind, "alpha": plan.alpha, "seed": seed, "controller": spec["controller"]}
+        paths += simulate_to_dir(sc.rig, out, controller=spec["controller"], plan=plan, seed=seed, kind=kind,
+                                 signature=signature)
     return paths
 
 
@@ -170,9 +181,10 @@ def foreign_rows(archive: Path, done: set[str]):
                 yield row
 
 
-def run(rows_path: str, sets: str, seeds: int, foreign: list[str]) -> None:
+def run(rows_path: str, sets: str, seeds: int, foreign: list[str], waters: tuple[str, ...] = tuple(WATERS)) -> None:
     """Append one row per run not yet in ``rows_path`` (simulating the hull sets under ``sets`` as needed)."""
     done = set()
+    Path(rows_path).parent.mkdir(parents=True, exist_ok=True)
     if Path(rows_path).exists():
         done = {json.loads(line)["label"] for line in Path(rows_path).read_text().splitlines() if line.strip()}
     from addedinertia_env.foundation.machine import machine_line  # noqa: PLC0415
@@ -188,7 +200,7 @@ def run(rows_path: str, sets: str, seeds: int, foreign: list[str]) -> None:
 
         for spec in hull_specs(seeds):
             label = label_of(spec)
-            if label in done:
+            if label in done or spec["hydrodynamics"] not in waters:
                 continue
             t0 = time.process_time()
             files = simulate_set(spec, Path(sets))
@@ -223,6 +235,7 @@ def scored(rows: list[dict]) -> dict[str, list[tuple[str, float, float]]]:
         err = res["lambda66"] / a0 - 1
         half = 0.5 * (hi - lo) / a0
         sub = r["label"].rsplit("-", 2)[0] if r["label"].startswith(("cum-", "con-")) else r["label"].split("-case")[0]
+        sub = sub.replace("cum-", "").replace("con-", "")
         for key in (g, f"{g}: {sub}"):
             out.setdefault(key, []).append((r["label"], err, half))
     return out
@@ -255,8 +268,20 @@ def table(rows: list[dict], before: list[dict] | None = None) -> str:
         lines[1] += "---|"
         lines = [ln if ln.count("|") == lines[0].count("|") else ln + " - |" for ln in lines]
     cpu = [r["cpu_s"] for r in rows]
-    note = (f"\n{len(rows)} runs, {refused} refused; identify: median {statistics.median(cpu):.1f} CPU-s per run"
-            if cpu else "")
+    note = (f"\n{len(rows)} runs, {refused} refused (their reasons are in the rows); identify: median "
+            f"{statistics.median(cpu):.1f} CPU-s per run" if cpu else "")
+    left = {}
+    for r in rows:
+        if group_of(r) is None and "error" not in r["result"]:
+            a0 = r["truth"]["lambda66"]
+            lo, hi = r["result"]["ci95"]
+            e = r["result"]["lambda66"] / a0 - 1
+            left.setdefault(r["truth"]["cause"], []).append((e, lo <= a0 <= hi))
+    if left:
+        note += ("\n\nLeft out (another lab's hidden effects that bias the model-free balance by design; `discover` "
+                 "names them): " + "; ".join(f"`{c}` {len(v)} runs, errors {min(x for x, _ in v) * 100:+.2f} to "
+                                           f"{max(x for x, _ in v) * 100:+.2f} %, covered {sum(k for _, k in v)}"
+                                           for c, v in sorted(left.items())) + ".")
     return "\n".join(lines) + note + "\n"
 
 
@@ -288,20 +313,22 @@ def main(argv: list[str] | None = None) -> int:
     r = sub.add_parser("run")
     r.add_argument("rows")
     r.add_argument("--sets", required=True, help="folder for the simulated records (kept; a rerun resumes)")
-    r.add_argument("--seeds", type=int, default=9, help="seeds per preset, water and controller")
+    r.add_argument("--seeds", type=int, default=18, help="drawn hulls per preset and water")
     r.add_argument("--foreign", action="append", default=[], metavar="ARCHIVE.tar.xz")
+    r.add_argument("--water", action="append", choices=list(WATERS), default=None,
+                   help="only this simulated water (repeatable; default: both)")
     d = sub.add_parser("render")
     d.add_argument("rows")
     d.add_argument("--before", default=None, help="rows made by earlier code, for the before column")
     d.add_argument("--out", default=None, help="doc to write the block into (between its markers)")
-    d.add_argument("--command", default="python -m addedinertia_env.reports.interval_calibration ...")
+    d.add_argument("--command", default=COMMAND, help="the command line the doc names")
     args = ap.parse_args(argv)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     if args.cmd == "run":
         if args.seeds < 1:
             print(f"--seeds {args.seeds}: expected at least 1", file=sys.stderr)
             return 2
-        run(args.rows, args.sets, args.seeds, args.foreign)
+        run(args.rows, args.sets, args.seeds, args.foreign, tuple(args.water or WATERS))
     else:
         print(render(args.rows, args.before, args.out, args.command))
     return 0
