@@ -152,3 +152,20 @@ def test_memory_and_memory_free_hulls_are_covered_by_intervals_sized_to_their_er
     c = ic.calibration([r["result"]["lambda66"] / r["truth"]["lambda66"] - 1 for r in rows],
                        [0.5 * (r["result"]["ci95"][1] - r["result"]["ci95"][0]) / r["truth"]["lambda66"] for r in rows])
     assert c.covered == 2
+
+
+def test_scatter_about_the_line_enters_the_average_as_its_own_correlation_says():
+    from addedinertia_env.identify.energy_pooling import _trend_excess, hann_weights
+
+    phi = np.linspace(0.01, 0.05, 41)
+    g = hann_weights(np.linspace(0.25, 0.75, 41), 0.25, 0.75)
+    g = g / g.sum()
+    rng = np.random.default_rng(5)
+    s = np.zeros(41)
+    white = [_trend_excess(phi, 10.0 + rng.normal(0, 0.01, 41), s, g, s_slope=1e9) ** 2 for _ in range(400)]
+    # white scatter: the weighted mean's variance sigma^2 sum(g^2) (the line's two parameters take a little)
+    assert np.mean(white) == pytest.approx(1e-4 * float(g @ g), rel=0.25)
+    alternating = 10.0 + 0.01 * (-1.0) ** np.arange(41)  # neighbours cancel in the average
+    assert _trend_excess(phi, alternating, s, g, s_slope=1e9) < 0.3 * math.sqrt(1e-4 * float(g @ g))
+    # the part the modelled rate noise already holds is not counted twice
+    assert _trend_excess(phi, 10.0 + rng.normal(0, 0.01, 41), s, g, s_slope=1e9, s_rate=1.0) == 0.0

@@ -197,14 +197,13 @@ def _dense_estimate(balance: "RunBalance", g: np.ndarray, lam: np.ndarray, phi1:
     s_rate = noise_of(g)
     s_cur = float(g @ np.array(s_current))
     s_com = float(g @ np.array(s_common))
-    # Angles further apart than the rate windows see independent noise: their scatter about
-    # a smooth trend beyond what the rate noise allows is a sign of unmodelled structure,
-    # and the interval is widened by it (a Birge ratio on the trend residuals). The trend's
-    # slope is itself a combination of the angles' values: its own rate noise (the same
-    # kernels, weighted by the slope's least-squares weights) is not structure.
+    # What the angles' values do beyond the modelled noise is taken from the values themselves:
+    # their scatter about a line enters the average as its autocovariance says (neighbouring
+    # angles share rate windows), and the line's slope, less its own rate noise (the same
+    # kernels with the slope's least-squares weights), is structure (_trend_excess).
     p = np.array(phi1)
     s_slope = noise_of(_slope_weights(p)) if len(lam) >= 6 else 0.0
-    s_trend = _trend_excess(p, lam, np.array(s_independent), g, s_slope)
+    s_trend = _trend_excess(p, lam, np.array(s_independent), g, s_slope, s_rate)
     parts = {"rate": s_rate, "current": s_cur, "common": s_com, "trend": s_trend, "slope_noise": s_slope}
     return value, float(np.sqrt(s_rate**2 + s_cur**2 + s_com**2 + s_trend**2)), parts
 
@@ -216,18 +215,36 @@ def _slope_weights(phi1: np.ndarray) -> np.ndarray:
     return d / ss if ss > 0 else np.zeros_like(d)
 
 
-def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarray, s_slope: float = 0.0) -> float:
-    """Spread of the per-angle estimates ``lam`` (kg m^2, at angles ``phi1``, noise ``s``) about a straight
-    line in phi1 beyond their own noise, kg m^2; ``s_slope``: the slope's own noise (kg m^2 per rad), whose
-    square is taken off the slope's before it counts as structure."""
+TREND_LAGS = 5  # angles: the Bartlett window of the residuals' autocovariance (41 angles over half the stroke)
+
+
+def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarray, s_slope: float = 0.0,
+                  s_rate: float = 0.0) -> float:
+    """What the per-angle estimates ``lam`` (kg m^2, at angles ``phi1``, weights ``g``) add to the run's
+    1-sigma beyond the modelled rate noise ``s_rate`` (kg m^2), kg m^2: two parts.
+
+    * Scatter about a straight line in phi1: the variance of its ``g``-weighted mean estimated from the
+      residuals themselves (their autocovariance over :data:`TREND_LAGS` neighbours, Bartlett-weighted:
+      a heteroskedasticity-and-autocorrelation-consistent estimate), less ``s_rate**2`` (the part the
+      rate kernels already hold). Point-to-point scatter averages out over the angles as its own
+      correlation says, not as a fixed number of independent blocks.
+    * The line's slope, less its own noise ``s_slope`` (kg m^2 per rad): the estimate then depends on
+      where the boundary is taken, and a quarter of the end-to-end change is kept.
+
+    ``s`` (the per-angle noise) is kept for the callers' signature; the residuals' own scatter replaces it."""
     if len(lam) < 6:
         return 0.0
     coef = line_fit(phi1, lam)
     resid = lam - ((0.0 * phi1 + coef[0]) * phi1 + coef[1])  # np.polyval(coef, phi1), Horner from zero
-    excess = float(np.sum(g * (resid**2 - s**2)))
+    u = g * resid
+    n = len(u)
+    var = float(u @ u)
+    for k in range(1, min(TREND_LAGS, n - 1) + 1):
+        var += 2.0 * (1.0 - k / (TREND_LAGS + 1.0)) * float(u[k:] @ u[:-k])
+    scatter = math.sqrt(max(var - s_rate**2, 0.0))
     # The mean over the range equals the line's value at the weighted centre; a slope means
     # the estimate depends on where the boundary is taken: a quarter of the end-to-end change
     # is kept as uncertainty.
     slope = math.sqrt(max(float(coef[0]) ** 2 - s_slope**2, 0.0))
     slope_part = 0.25 * slope * float(phi1.max() - phi1.min())  # np.ptp's two reductions
-    return float(np.hypot(np.sqrt(max(excess, 0.0)) / np.sqrt(max(len(lam) / 8.0, 1.0)), slope_part))
+    return float(np.hypot(scatter, slope_part))
