@@ -167,5 +167,5 @@ def test_scatter_about_the_line_enters_the_average_as_its_own_correlation_says()
     assert np.mean(white) == pytest.approx(1e-4 * float(g @ g), rel=0.25)
     alternating = 10.0 + 0.01 * (-1.0) ** np.arange(41)  # neighbours cancel in the average
     assert _trend_excess(phi, alternating, s, g, s_slope=1e9) < 0.3 * math.sqrt(1e-4 * float(g @ g))
-    # the part the modelled rate noise already holds is not counted twice
-    assert _trend_excess(phi, 10.0 + rng.normal(0, 0.01, 41), s, g, s_slope=1e9, s_rate=1.0) == 0.0
+    # scatter the modelled per-angle noise explains is not counted twice
+    assert _trend_excess(phi, 10.0 + rng.normal(0, 0.01, 41), np.full(41, 0.02), g, s_slope=1e9) == 0.0

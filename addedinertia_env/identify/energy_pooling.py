@@ -197,13 +197,13 @@ def _dense_estimate(balance: "RunBalance", g: np.ndarray, lam: np.ndarray, phi1:
     s_rate = noise_of(g)
     s_cur = float(g @ np.array(s_current))
     s_com = float(g @ np.array(s_common))
-    # What the angles' values do beyond the modelled noise is taken from the values themselves:
-    # their scatter about a line enters the average as its autocovariance says (neighbouring
-    # angles share rate windows), and the line's slope, less its own rate noise (the same
-    # kernels with the slope's least-squares weights), is structure (_trend_excess).
+    # What the angles' values do beyond their modelled noise is taken from the values themselves:
+    # their scatter about a line enters the average as its autocovariance says, and the line's
+    # slope, less its own rate noise (the same kernels with the slope's least-squares weights),
+    # is structure (_trend_excess).
     p = np.array(phi1)
     s_slope = noise_of(_slope_weights(p)) if len(lam) >= 6 else 0.0
-    s_trend = _trend_excess(p, lam, np.array(s_independent), g, s_slope, s_rate)
+    s_trend = _trend_excess(p, lam, np.array(s_independent), g, s_slope)
     parts = {"rate": s_rate, "current": s_cur, "common": s_com, "trend": s_trend, "slope_noise": s_slope}
     return value, float(np.sqrt(s_rate**2 + s_cur**2 + s_com**2 + s_trend**2)), parts
 
@@ -218,20 +218,18 @@ def _slope_weights(phi1: np.ndarray) -> np.ndarray:
 TREND_LAGS = 5  # angles: the Bartlett window of the residuals' autocovariance (41 angles over half the stroke)
 
 
-def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarray, s_slope: float = 0.0,
-                  s_rate: float = 0.0) -> float:
-    """What the per-angle estimates ``lam`` (kg m^2, at angles ``phi1``, weights ``g``) add to the run's
-    1-sigma beyond the modelled rate noise ``s_rate`` (kg m^2), kg m^2: two parts.
+def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarray, s_slope: float = 0.0) -> float:
+    """What the per-angle estimates ``lam`` (kg m^2, at angles ``phi1``, weights ``g``, modelled per-angle
+    noise ``s``) add to the run's 1-sigma beyond that noise, kg m^2: two parts.
 
-    * Scatter about a straight line in phi1: the variance of its ``g``-weighted mean estimated from the
-      residuals themselves (their autocovariance over :data:`TREND_LAGS` neighbours, Bartlett-weighted:
-      a heteroskedasticity-and-autocorrelation-consistent estimate), less ``s_rate**2`` (the part the
-      rate kernels already hold). Point-to-point scatter averages out over the angles as its own
-      correlation says, not as a fixed number of independent blocks.
+    * Scatter about a straight line in phi1 beyond ``s``: the variance of the residuals' ``g``-weighted
+      mean, estimated from the residuals themselves (their autocovariance over :data:`TREND_LAGS`
+      neighbours, Bartlett-weighted: a heteroskedasticity-and-autocorrelation-consistent estimate),
+      times the fraction of their weighted mean square that ``s`` does not explain. Point-to-point
+      scatter averages out over the angles as its own correlation says, not as a fixed number of
+      independent blocks; scatter the modelled noise explains is already in the rate and current parts.
     * The line's slope, less its own noise ``s_slope`` (kg m^2 per rad): the estimate then depends on
-      where the boundary is taken, and a quarter of the end-to-end change is kept.
-
-    ``s`` (the per-angle noise) is kept for the callers' signature; the residuals' own scatter replaces it."""
+      where the boundary is taken, and a quarter of the end-to-end change is kept."""
     if len(lam) < 6:
         return 0.0
     coef = line_fit(phi1, lam)
@@ -241,7 +239,9 @@ def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarra
     var = float(u @ u)
     for k in range(1, min(TREND_LAGS, n - 1) + 1):
         var += 2.0 * (1.0 - k / (TREND_LAGS + 1.0)) * float(u[k:] @ u[:-k])
-    scatter = math.sqrt(max(var - s_rate**2, 0.0))
+    mean_square = float(np.sum(g * resid**2))
+    unexplained = max(1.0 - float(np.sum(g * s**2)) / mean_square, 0.0) if mean_square > 0 else 0.0
+    scatter = math.sqrt(max(var, 0.0) * unexplained)
     # The mean over the range equals the line's value at the weighted centre; a slope means
     # the estimate depends on where the boundary is taken: a quarter of the end-to-end change
     # is kept as uncertainty.

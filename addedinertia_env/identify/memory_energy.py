@@ -193,7 +193,7 @@ def corrected_energy(records: list[RunRecord], details: dict, memory: MemoryIden
             bias = per_coef[ok] @ fit.theta
             corrected = np.array([iv["lambda66"] for iv in ivs])[ok] - bias
             s_ind = np.array([iv["sigma_independent"] for iv in ivs])[ok]
-            trend = _trend_excess(phi1[ok], corrected, s_ind, g, parts.get("slope_noise", 0.0), parts["rate"])
+            trend = _trend_excess(phi1[ok], corrected, s_ind, g, parts.get("slope_noise", 0.0))
             vals.append(float(g @ corrected))
             sigs.append(math.sqrt(parts["rate"] ** 2 + parts["current"] ** 2 + parts["common"] ** 2 + trend**2))
             grads.append(g @ per_coef[ok])
