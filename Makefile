@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger drive-policy demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
+.PHONY: interval-table pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger drive-policy demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -179,6 +179,13 @@ foreign-lab-table: $(STAMP)
 	@test -n "$(FOREIGN_LAB)" || { echo "make foreign-lab-table: give the archive: FOREIGN_LAB=PATH/foreign-lab.tar.xz" >&2; exit 2; }
 	$(BIN)/python -m addedinertia_env.reports.foreign_lab --data $(FOREIGN_LAB) --out docs/DISCOVERY.md
 	$(if $(FOREIGN_LAB_2),$(BIN)/python -m addedinertia_env.reports.foreign_lab --data $(FOREIGN_LAB_2) --out docs/DISCOVERY.md)
+
+# Interval calibration (docs/INTERVALS.md, issue 26): 24 drawn hulls per water (about an hour of CPU on
+# 2 cores), plus the other labs' runs when their archives are given; the rows are kept in out/ (a rerun resumes).
+interval-table: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.interval_calibration run out/intervals/rows.jsonl --sets out/intervals/sets \
+		--seeds 12 $(if $(FOREIGN_LAB),--foreign $(FOREIGN_LAB)) $(if $(FOREIGN_LAB_2),--foreign $(FOREIGN_LAB_2))
+	$(BIN)/python -m addedinertia_env.reports.interval_calibration render out/intervals/rows.jsonl --out docs/INTERVALS.md
 
 # Every generated reference table and figure in docs/ from one command: `make docs` (hours on
 # 2 cores: the leaderboards, the accuracy and detection tables, the learning curves). The

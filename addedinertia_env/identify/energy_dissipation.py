@@ -55,7 +55,28 @@ def forward_damping_law(rec: RunRecord, free: slice, k2: int, J_total: float, c:
         return None
     if d2 < 0:  # refit linear only
         d1, d2 = float(rounded_lstsq(X[:, :1], y, rcond=None)[0][0]), 0.0
-    return {"J": J_total, "d1": max(d1, 0.0), "d2": d2}
+        cov = np.zeros((2, 2))
+        cov[:1, :1] = _block_covariance(X[:, :1], y - X[:, 0] * d1, win)
+    else:
+        cov = _block_covariance(X, y - X @ np.array([d1, d2]), win)
+    return {"J": J_total, "d1": max(d1, 0.0), "d2": d2, "cov": cov}
+
+
+def _block_covariance(X: np.ndarray, resid: np.ndarray, block: int) -> np.ndarray:
+    """Covariance of least-squares coefficients of ``X`` with residuals ``resid`` that are correlated over
+    ``block`` samples (the rate filter's window): the sandwich form with the scores summed per block of
+    ``2 block`` samples (nan when fewer than three blocks)."""
+    n = len(resid)
+    size = 2 * block
+    g = n // size
+    if g < 3:
+        return np.full((X.shape[1], X.shape[1]), np.nan)
+    bread = np.linalg.pinv(X.T @ X)
+    idx = np.minimum(np.arange(n) // size, g - 1)
+    scores = np.zeros((g, X.shape[1]))
+    np.add.at(scores, idx, X * resid[:, None])
+    meat = scores.T @ scores * (g / (g - 1))
+    return bread @ meat @ bread
 
 
 class DissipationMismatch:
@@ -85,10 +106,26 @@ class DissipationMismatch:
         # Cumulative integral from the stop phi2 back to each grid angle, along the stroke direction.
         cum = np.concatenate([[0.0], np.cumsum(0.5 * (dD[1:] + dD[:-1]) * np.diff(self.grid))])
         self.cum, self.phi2, self.direction = cum, phi2, direction
+        # the same integral per unit d1 and per unit d2: the law's coefficients' covariance gives dW's
+        parts = []
+        for dx in (vr - vf, vr * vr - vf * vf):
+            parts.append(np.concatenate([[0.0], np.cumsum(0.5 * (dx[1:] + dx[:-1]) * np.diff(self.grid))]))
+        self.parts = np.stack(parts)
+        cov = law.get("cov")
+        self.cov = cov if cov is not None and np.all(np.isfinite(cov)) else None
 
     def __call__(self, phi1):
-        """(dW, sigma) at the angle(s) ``phi1``, J: floats for a float, arrays for an array."""
+        """(dW, sigma) at the angle(s) ``phi1``, J: floats for a float, arrays for an array.
+
+        ``sigma`` is the damping law's own uncertainty (its two coefficients' covariance, the residuals
+        clustered over the rate filter's window) carried through the integral; where the fit gave none
+        (a stroke too short for three blocks), half of ``dW``."""
         dW = self.direction * (np.interp(self.phi2, self.grid, self.cum) - np.interp(phi1, self.grid, self.cum))
+        if self.cov is not None:
+            g = np.stack([np.interp(self.phi2, self.grid, p) - np.interp(phi1, self.grid, p) for p in self.parts])
+            sigma = np.sqrt(np.maximum(np.einsum("i...,ij,j...->...", g, self.cov, g), 0.0))
+        else:
+            sigma = 0.5 * np.abs(dW)
         if np.ndim(dW) == 0:
-            return float(dW), 0.5 * abs(float(dW))
-        return dW, 0.5 * np.abs(dW)
+            return float(dW), float(sigma)
+        return dW, sigma

@@ -7,6 +7,7 @@ Part of the energy method (:mod:`addedinertia_env.identify.energy`), which pools
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -39,6 +40,10 @@ class RunEstimate:
     sigma: float
     intervals: list[Interval]
     counts: tuple[int, int] | None = None  # (usable, all) angles when ``intervals`` is not kept
+    # the 1-sigma parts (kg m^2): "rate", "current", "common", "trend", and "slope_noise" (kg m^2 per rad,
+    # the rate noise of the per-angle values' slope): what a correction of the per-angle values needs to
+    # rebuild the budget (identify/memory_energy.py)
+    parts: dict | None = None
 
 
 def run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool,
@@ -130,7 +135,7 @@ def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> RunEs
     for gk, k in zip(g, ok):
         intervals[k].weight = float(gk)
     used = [intervals[k] for k in ok]
-    value, sigma = _dense_estimate(balance, g, lam, [iv.phi1 for iv in used], [iv.lambda66 for iv in used],
+    value, sigma, parts = _dense_estimate(balance, g, lam, [iv.phi1 for iv in used], [iv.lambda66 for iv in used],
                                    [iv.w1f for iv in used], [iv.w1r for iv in used],
                                    [iv.terms["s_current"] for iv in used], [iv.sigma_common for iv in used],
                                    [iv.sigma_independent for iv in used],
@@ -138,7 +143,7 @@ def _combine(balance: "RunBalance", intervals: list[Interval], weights) -> RunEs
     for iv in used:  # the kernels are bulky; keep the JSON small
         iv.terms.pop("rate_kernel_f", None)
         iv.terms.pop("rate_kernel_r", None)
-    return RunEstimate(value, sigma, intervals)
+    return RunEstimate(value, sigma, intervals, parts=parts)
 
 
 def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) -> RunEstimate:
@@ -168,43 +173,78 @@ def _dense_from_columns(balance: "RunBalance", cols: dict, weights: np.ndarray) 
 
     fits = np.empty(2 * len(rows), dtype=np.int64)  # the used angles' forward and reverse fits, in turn
     fits[0::2], fits[1::2] = 2 * rows, 2 * rows + 1
-    value, sigma = _dense_estimate(balance, g, lam, cols["phi1"][good[rows]].tolist(), lam_list,
+    value, sigma, parts = _dense_estimate(balance, g, lam, cols["phi1"][good[rows]].tolist(), lam_list,
                                    pick("w1f"), pick("w1r"), pick("s_current"), pick("s_common"),
                                    pick("s_independent"), None, None, (cols["windows"], fits))
-    return RunEstimate(value, sigma, [], counts)
+    return RunEstimate(value, sigma, [], counts, parts)
 
 
 def _dense_estimate(balance: "RunBalance", g: np.ndarray, lam: np.ndarray, phi1: list, lam_list: list,
                     w1f: list, w1r: list, s_current: list, s_common: list, s_independent: list,
-                    kernels_f: list | None, kernels_r: list | None, windows=None) -> tuple[float, float]:
+                    kernels_f: list | None, kernels_r: list | None, windows=None) -> tuple[float, float, dict]:
     """The Hann-weighted lambda66 of a run and its 1-sigma (kg m^2) from its usable angles: normalised
     weights ``g``, per-angle values ``lam`` (array) and, per angle, ``phi1``, ``lam_list`` (the same values
     as Python floats), rates, uncertainty parts and rate kernels ``(indices, weights)``; or, instead of
-    the kernels' lists, ``windows``: ``(crossing_fits' windows, the used fits in order)``."""
+    the kernels' lists, ``windows``: ``(crossing_fits' windows, the used fits in order)``; and the 1-sigma
+    parts (:attr:`RunEstimate.parts`)."""
     value = float(g @ lam)
-    if windows is not None:
-        s_rate = balance.rate_sigma_of_windows(g, lam_list, w1f, w1r, *windows)
-    else:
-        s_rate = balance.rate_sigma(g, lam_list, w1f, w1r, kernels_f, kernels_r)
+
+    def noise_of(weights):  # the rate noise of a linear combination of the angles' values
+        if windows is not None:
+            return balance.rate_sigma_of_windows(weights, lam_list, w1f, w1r, *windows)
+        return balance.rate_sigma(weights, lam_list, w1f, w1r, kernels_f, kernels_r)
+
+    s_rate = noise_of(g)
     s_cur = float(g @ np.array(s_current))
     s_com = float(g @ np.array(s_common))
-    # Angles further apart than the rate windows see independent noise: their scatter about
-    # a smooth trend beyond what the rate noise allows is a sign of unmodelled structure,
-    # and the interval is widened by it (a Birge ratio on the trend residuals).
-    s_trend = _trend_excess(np.array(phi1), lam, np.array(s_independent), g)
-    return value, float(np.sqrt(s_rate**2 + s_cur**2 + s_com**2 + s_trend**2))
+    # What the angles' values do beyond their modelled noise is taken from the values themselves:
+    # their scatter about a line enters the average as its autocovariance says, and the line's
+    # slope, less its own rate noise (the same kernels with the slope's least-squares weights),
+    # is structure (_trend_excess).
+    p = np.array(phi1)
+    s_slope = noise_of(_slope_weights(p)) if len(lam) >= 6 else 0.0
+    s_trend = _trend_excess(p, lam, np.array(s_independent), g, s_slope)
+    parts = {"rate": s_rate, "current": s_cur, "common": s_com, "trend": s_trend, "slope_noise": s_slope}
+    return value, float(np.sqrt(s_rate**2 + s_cur**2 + s_com**2 + s_trend**2)), parts
 
 
-def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarray) -> float:
-    """Spread of the per-angle estimates ``lam`` (kg m^2, at angles ``phi1``, noise ``s``) about a straight
-    line in phi1 beyond their own noise, kg m^2."""
+def _slope_weights(phi1: np.ndarray) -> np.ndarray:
+    """Weights ``c`` with ``c @ lam`` the least-squares slope of ``lam`` over ``phi1``."""
+    d = phi1 - phi1.mean()
+    ss = float(d @ d)
+    return d / ss if ss > 0 else np.zeros_like(d)
+
+
+TREND_LAGS = 5  # angles: the Bartlett window of the residuals' autocovariance (41 angles over half the stroke)
+
+
+def _trend_excess(phi1: np.ndarray, lam: np.ndarray, s: np.ndarray, g: np.ndarray, s_slope: float = 0.0) -> float:
+    """What the per-angle estimates ``lam`` (kg m^2, at angles ``phi1``, weights ``g``, modelled per-angle
+    noise ``s``) add to the run's 1-sigma beyond that noise, kg m^2: two parts.
+
+    * Scatter about a straight line in phi1 beyond ``s``: the variance of the residuals' ``g``-weighted
+      mean, estimated from the residuals themselves (their autocovariance over :data:`TREND_LAGS`
+      neighbours, Bartlett-weighted: a heteroskedasticity-and-autocorrelation-consistent estimate),
+      times the fraction of their weighted mean square that ``s`` does not explain. Point-to-point
+      scatter averages out over the angles as its own correlation says, not as a fixed number of
+      independent blocks; scatter the modelled noise explains is already in the rate and current parts.
+    * The line's slope, less its own noise ``s_slope`` (kg m^2 per rad): the estimate then depends on
+      where the boundary is taken, and a quarter of the end-to-end change is kept."""
     if len(lam) < 6:
         return 0.0
     coef = line_fit(phi1, lam)
     resid = lam - ((0.0 * phi1 + coef[0]) * phi1 + coef[1])  # np.polyval(coef, phi1), Horner from zero
-    excess = float(np.sum(g * (resid**2 - s**2)))
+    u = g * resid
+    n = len(u)
+    var = float(u @ u)
+    for k in range(1, min(TREND_LAGS, n - 1) + 1):
+        var += 2.0 * (1.0 - k / (TREND_LAGS + 1.0)) * float(u[k:] @ u[:-k])
+    mean_square = float(np.sum(g * resid**2))
+    unexplained = max(1.0 - float(np.sum(g * s**2)) / mean_square, 0.0) if mean_square > 0 else 0.0
+    scatter = math.sqrt(max(var, 0.0) * unexplained)
     # The mean over the range equals the line's value at the weighted centre; a slope means
     # the estimate depends on where the boundary is taken: a quarter of the end-to-end change
     # is kept as uncertainty.
-    slope_part = 0.25 * abs(coef[0]) * float(phi1.max() - phi1.min())  # np.ptp's two reductions
-    return float(np.hypot(np.sqrt(max(excess, 0.0)) / np.sqrt(max(len(lam) / 8.0, 1.0)), slope_part))
+    slope = math.sqrt(max(float(coef[0]) ** 2 - s_slope**2, 0.0))
+    slope_part = 0.25 * slope * float(phi1.max() - phi1.min())  # np.ptp's two reductions
+    return float(np.hypot(scatter, slope_part))

@@ -48,10 +48,13 @@ class RunMemoryWork:
     dW_basis: np.ndarray  # angles x memory coefficients: (W_rev - W_fwd) per unit coefficient
 
 
-def run_memory_work(rec: RunRecord, fit: FamilyFit, fractions=FRACTIONS) -> RunMemoryWork | None:
+def run_memory_work(rec: RunRecord, fit: FamilyFit, angles: np.ndarray | None = None,
+                    keep_all: bool = False, fractions=FRACTIONS) -> RunMemoryWork | None:
     """The memory works of ``fit``'s basis at the energy method's boundary angles of one
-    reverse-symmetric run (None when the run has no forward and reverse stroke);
-    ``fractions``: the energy method's ``(lo, hi)`` range of boundary angles."""
+    reverse-symmetric run (None when the run has no forward and reverse stroke). ``angles``: the
+    boundary angles (rad) the energy method used (default: its dense range from this run's own rest
+    angle over ``fractions``, the energy method's ``(lo, hi)`` range); ``keep_all``: every angle is
+    kept, nan where a stroke does not pass it."""
     dt = 1.0 / rec.known.sample_rate
     t = np.asarray(rec.t, float)
     grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-6)) + 1)
@@ -74,6 +77,9 @@ def run_memory_work(rec: RunRecord, fit: FamilyFit, fractions=FRACTIONS) -> RunM
     f = np.linspace(lo, hi, N_ANGLES)
     weights = hann_weights(f, lo, hi)
     phi1 = phi_n + f * (rest - phi_n)
+    if angles is not None:
+        phi1 = np.asarray(angles, float)
+        weights = np.ones_like(phi1)
     # the basis' memory moments and their works along the measured motion
     cols = []
     from scipy import signal  # noqa: PLC0415
@@ -103,6 +109,8 @@ def run_memory_work(rec: RunRecord, fit: FamilyFit, fractions=FRACTIONS) -> RunM
     keep = np.array(keep)
     if not keep.any():
         return None
+    if keep_all:
+        return RunMemoryWork(rec.name, phi1, weights, np.array(KE), np.array(dW))
     return RunMemoryWork(rec.name, phi1[keep], weights[keep], np.array(KE)[keep], np.array(dW)[keep])
 
 
@@ -151,10 +159,82 @@ class CorrectedEstimate:
     bias: float
 
 
-def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sigma: list[float],
-                     memory: MemoryIdentification, fractions=FRACTIONS) -> CorrectedEstimate | None:
-    """lambda66 = A66(0) from the energy method's per-run values corrected by each accepted
-    family's memory bias; the interval is the union over the families."""
+def corrected_energy(records: list[RunRecord], details: dict, memory: MemoryIdentification,
+                     fractions=FRACTIONS) -> CorrectedEstimate | None:
+    """lambda66 = A66(0) from the energy method's per-angle values (``details``: the energy result's, with its
+    ``intervals`` and ``per_run_sigma_parts``) corrected angle by angle by each accepted family's memory bias;
+    the interval is the union over the families.
+
+    The bias at each angle is the memory's work over the energy method's *own* kinetic denominator (its
+    crossing rates), so a rate error scales the balance and its memory term together, as in water without
+    memory. Each run's budget is the energy method's (rates, current, torque scale, dissipation law) with
+    its trend term taken on the *corrected* values (the uncorrected ones follow the memory's work across the
+    angles, which is what the correction removes); the runs are pooled on that (Birge ratio), and the
+    memory coefficients' share, common to every run, is added once."""
+    from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
+    from addedinertia_env.identify.energy_pooling import _trend_excess  # noqa: PLC0415
+
+    intervals, parts_list = details.get("intervals"), details.get("per_run_sigma_parts")
+    if not intervals or not parts_list or any(p is None for p in parts_list):
+        return _corrected_from_runs(records, details.get("per_run", []), details.get("per_run_sigma", []), memory,
+                                    fractions)
+    by_run: dict[str, list] = {}
+    for iv in intervals:
+        if not iv.get("rejected"):
+            by_run.setdefault(iv["run"], []).append(iv)
+    runs = [(rec, by_run[rec.name], parts) for rec, parts in zip([r for r in records if r.name in by_run], parts_list)]
+    out = {}
+    lo_all, hi_all = math.inf, -math.inf
+    best = None
+    for fit in memory.accepted:
+        g0 = np.real(_basis(fit.sections, 0.0))
+        vals, sigs, grads, biases = [], [], [], []
+        for rec, ivs, parts in runs:
+            phi1 = np.array([iv["phi1"] for iv in ivs])
+            work = run_memory_work(rec, fit, phi1, keep_all=True)
+            if work is None:
+                continue
+            KE = np.array([0.5 * (iv["w1f"] ** 2 + iv["w1r"] ** 2) for iv in ivs])
+            per_coef = work.dW_basis / KE[:, None] - g0  # angles x coefficients
+            ok = np.all(np.isfinite(per_coef), axis=1)
+            g = np.array([iv["weight"] for iv in ivs])[ok]
+            if not ok.any() or g.sum() <= 0:
+                continue
+            g = g / g.sum()
+            bias = per_coef[ok] @ fit.theta
+            corrected = np.array([iv["lambda66"] for iv in ivs])[ok] - bias
+            s_ind = np.array([iv["sigma_independent"] for iv in ivs])[ok]
+            trend = _trend_excess(phi1[ok], corrected, s_ind, g, parts.get("slope_noise", 0.0))
+            vals.append(float(g @ corrected))
+            sigs.append(math.sqrt(parts["rate"] ** 2 + parts["current"] ** 2 + parts["common"] ** 2 + trend**2))
+            grads.append(g @ per_coef[ok])
+            biases.append(float(g @ bias))
+        if not vals:
+            continue
+        value, lo, hi = pooled_interval(np.array(vals), np.array(sigs))
+        # the memory model's share: its coefficients' covariance through the runs' pooled gradient
+        wts = 1.0 / np.maximum(np.array(sigs), 1e-300) ** 2
+        grad = (wts[:, None] * np.array(grads)).sum(axis=0) / wts.sum()
+        common = float(np.sqrt(max(grad @ fit.cov_theta @ grad, 0.0))) if fit.cov_theta is not None else 0.0
+        half = math.hypot(0.5 * (hi - lo), Z95 * common)
+        lo, hi = value - half, value + half
+        out[fit.family] = {"lambda66": value, "ci95": [lo, hi], "bias": float(np.mean(biases))}
+        lo_all, hi_all = min(lo_all, lo), max(hi_all, hi)
+        if fit is memory.best:
+            best = (value, float(np.mean(biases)))
+    if best is None:
+        return None
+    return CorrectedEstimate(best[0], (lo_all, hi_all), out, best[1])
+
+
+Z95 = 1.959963984540054  # two-sided 95 % point of the normal
+
+
+def _corrected_from_runs(records: list[RunRecord], per_run: list[float], per_run_sigma: list[float],
+                         memory: MemoryIdentification, fractions=FRACTIONS) -> CorrectedEstimate | None:
+    """:func:`corrected_energy` from the runs' values alone (an energy result made without its per-angle
+    intervals, ``interval_details=False``): each run's Hann-weighted value corrected by the family's bias
+    at the run's own dense angles; the interval is the union over the families."""
     from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
 
     out = {}
@@ -163,7 +243,7 @@ def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sig
     for fit in memory.accepted:
         vals, sigs, biases = [], [], []
         for rec, v, s in zip(records, per_run, per_run_sigma):
-            work = run_memory_work(rec, fit, fractions)
+            work = run_memory_work(rec, fit, fractions=fractions)
             if work is None or not np.isfinite(v):
                 continue
             b, grad = family_bias(work, fit)
@@ -189,20 +269,19 @@ def corrected_energy(records: list[RunRecord], per_run: list[float], per_run_sig
 
 
 def combine(energy: float, energy_ci, fit: float, fit_ci) -> tuple[float, tuple[float, float]]:
-    """A66(0) from the two estimates the records give under the identified memory: the energy
-    method corrected (the balance at the boundary angles) and the memory fit's own
-    ``A66(inf) + sum theta_i G_i(0)`` (the whole records' equation): their inverse-variance
-    mean, the interval widened by the Birge ratio when they disagree beyond their intervals
-    (:func:`~addedinertia_env.identify.common.pooled_interval`), and at least to +-1.96 x half
-    their difference."""
-    from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
+    """A66(0) from the two estimates the records give under the identified memory: the memory fit's own
+    ``A66(inf) + sum theta_i G_i(0)`` (the whole records' equation, every unbraked sample of every
+    record) is the value; the energy method corrected (the balance at the boundary angles, through the
+    same identified model) is its check: their disagreement is a method error neither interval holds,
+    counted as two standard deviations of it (the interval is at least +-1.96 x half their difference).
 
-    sig = [max(0.5 * (energy_ci[1] - energy_ci[0]), 1e-12) / 1.96, max(0.5 * (fit_ci[1] - fit_ci[0]), 1e-12) / 1.96]
-    value, lo, hi = pooled_interval(np.array([energy, fit]), np.array(sig))
-    # their disagreement is a method error neither interval holds (the fit's discretisation,
-    # the energy method's rate fits): counted as two standard deviations of it
-    half = max(0.5 * (hi - lo), 1.96 * 0.5 * abs(energy - fit))
-    return value, (value - half, value + half)
+    Not their inverse-variance mean: the corrected balance's budget holds its rates, current, torque
+    scale and the memory coefficients' covariance, but not the error of the model's *work* between
+    the strokes (after a 15 s hold on another lab's records it is 0.26-0.31 % off while its interval
+    says +-0.1 %, docs/INTERVALS.md), so a mean would pull the value off by a quarter of that."""
+    half_fit = max(fit - fit_ci[0], fit_ci[1] - fit)  # (the union over the families need not be centred)
+    half = max(half_fit, 1.96 * 0.5 * abs(energy - fit))
+    return float(fit), (float(fit) - half, float(fit) + half)
 
 
 def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunRecord], prior: str = "none",
@@ -222,8 +301,7 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
     details["prior"] = prior
     value, ci = result.lambda66, result.ci95
     if mem.identified:
-        corrected = corrected_energy(reverse_records, details.get("per_run", []), details.get("per_run_sigma", []), mem,
-                                     fractions)
+        corrected = corrected_energy(reverse_records, details, mem, fractions)
         if corrected is not None:
             details["lambda66_uncorrected"] = value
             details["lambda66_uncorrected_ci95"] = list(ci)
