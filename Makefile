@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: interval-table pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger drive-policy demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
+.PHONY: interval-table pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger drive-policy docs-drive demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -116,6 +116,14 @@ drive-policy: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.score_ars_curves --runs out/train/score-ars-$(DRIVE_SUITE) \
 	  --figure docs/figures/learning_drive_ars.png --summary docs/figures/learning_drive_ars.json
 
+# docs/ENVIRONMENT.md's reward alignment on drive-v0, and docs/LEARNING.md's drive curves: the shipped
+# drive-v1 run (make drive-policy) beside a drive-v0 comparison run of the same trainer.
+docs-drive: $(STAMP)
+	$(BIN)/python -m addedinertia_env.reports.reward_alignment --suite drive-v0 --scenarios 32 --json out/reward_alignment_drive-v0.json
+	nice -n 10 $(BIN)/python -m addedinertia_env.learning.score_ars --suite drive-v0 --seed 0 --cpu-minutes 4 --generations 200 \
+	  --validate 64 --out out/train/score-ars-drive-v0-s0
+	$(BIN)/python -m addedinertia_env.reports.score_ars_curves --runs out/train/score-ars-drive-v1 out/train/score-ars-drive-v0-s0 --figure docs/figures/learning_drive_ars.png --summary docs/figures/learning_drive_ars.json
+
 accuracy-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md
 
@@ -193,7 +201,7 @@ interval-table: $(STAMP)
 # do that, and rewrite agents/policies/). `make docs-quick` regenerates the tables that take
 # minutes. With FOREIGN_LAB=PATH the tables made from the developers' foreign-lab set are
 # regenerated too (docs/DISCOVERY.md's, docs/ENERGY_METHOD.md's section).
-docs: docs-quick docs-reports docs-accuracy detection-table pair-table perf leaderboard leaderboard-realistic leaderboard-hard docs-learning
+docs: docs-quick docs-reports docs-accuracy detection-table pair-table perf leaderboard leaderboard-realistic leaderboard-hard docs-learning leaderboard-drive drive-policy docs-drive
 	$(if $(FOREIGN_LAB),$(MAKE) foreign-lab-table FOREIGN_LAB=$(FOREIGN_LAB) FOREIGN_LAB_2=$(FOREIGN_LAB_2))
 
 docs-quick: docs-environment

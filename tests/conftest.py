@@ -78,8 +78,12 @@ def oracle_record():
 
 @pytest.fixture(scope="session")
 def realistic_record() -> tuple[RunRecord, RigParams]:
-    """wigley-2m with realistic sensors and the default controller, seed 1."""
+    """wigley-2m with realistic sensors and the default controller, seed 1, held 2 s at the reversal
+    (the long hold of the first protocol: room for a gap in the hold, a gentle pre-spin)."""
+    import dataclasses  # noqa: PLC0415
+
     params, plan = preset_rig("wigley-2m")
+    plan = dataclasses.replace(plan, hold_s=2.0)
     return simulate_run(params, "feedforward-pd", plan, seed=REALISTIC_SEED, run_id="realistic"), params
 
 

@@ -39,7 +39,7 @@ VARIANTS = {
     "python -m addedinertia_env.reports.radiation_memory --seeds 1 --controller lqr": "a one-seed comparison in the "
                                                                                       "text, not the table's command",
 }
-PLACEHOLDER = ("NAME", "FILE")
+PLACEHOLDER = ("NAME", "FILE", "ROWS.jsonl", "SETS")  # words a reader replaces (a file of theirs)
 
 
 def _dry_run() -> str:

@@ -1,4 +1,4 @@
-"""A66(inf) from the records, the BEM prior, memory on by default, the whole-record memory state (issue 26).
+"""A66(inf) from the records, the BEM prior, memory="auto", the whole-record memory state (issue 26).
 
 Fast: the state space the whole-record fit integrates is the kernel the memory fit identified
 (frequency responses compared); the Tustin sections equal scipy's; a kernel without an
@@ -84,18 +84,18 @@ def spheroid_memory(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_a66_inf_within_5_percent_and_memory_on_by_default(spheroid_memory):
+def test_a66_inf_within_5_percent_with_memory_auto(spheroid_memory):
     from addedinertia_env.identify import identify
 
     _, recs = spheroid_memory
     truth = recs[0].meta["truth"]
-    res = identify(recs, "energy")  # memory="auto" is the default
+    res = identify(recs, "energy", memory="auto")  # the CLI's default
     d = res.details
     assert d["prior"] == "none" and d["memory_model"]["prior"] == "none"
     assert d["memory"].endswith("-sp")  # potential-flow water: no instantaneous part needed
     assert abs(d["A66_inf"] / truth["A66_inf"] - 1.0) < 0.05, (d["A66_inf"], truth["A66_inf"])
     assert abs(res.lambda66 / truth["lambda66"] - 1.0) < 1e-3
-    off = identify(recs, "energy", memory="off")
+    off = identify(recs, "energy")  # off by default in Python
     assert "memory" not in off.details and off.lambda66 == d["lambda66_uncorrected"]
 
 
