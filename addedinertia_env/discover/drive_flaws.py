@@ -1,0 +1,307 @@
+"""Discovery's words for the drive's flaws (issue 28), judged on the flywheel's own balance.
+
+The flywheel's balance ``J_f theta'' = s k_t i(t - lag) - M_f + T_drive`` (``theta = phi + psi``,
+``M_f`` the rig block's rotor friction) holds no water, so whatever the hull does, a drive
+torque the current does not show leaves its own fingerprint there (docs/DISCOVERY.md,
+"The drive's flaws"). Over the end of the hold and the reverse stroke of every
+reverse-symmetric run (where the motor drives) the balance is fitted, twice integrated (the
+residual is then the encoders' own noise, in rad), with columns for
+
+* ``mesh_loss``: a gearhead's mesh friction ``-c |k_t i| sgn(Omega)``, Coulomb friction that
+  grows with the transmitted torque (``c = 1 - efficiency``). It takes torque when the motor
+  drives the flywheel and gives it when the motor brakes it, so it is told from a torque
+  constant off its data sheet (which scales both alike) only where the run has both; a plan
+  with one quadrant leaves ``c`` with a large standard error, and nothing is named;
+* ``gear_drag``: a drag ``-d sgn(Omega)`` beyond the rig block's rotor friction (a gearhead's
+  no-load running torque);
+* ``cogging``: a torque ``A sin(m psi + phase)`` periodic in the rotor's angle, ``m = n N``
+  for ``n`` cycles per motor turn (integer, the lcm of slots and poles) through the record's
+  gear ratio ``N``; absent from the current. It is searched over ``n`` =
+  :data:`COGGING_PERIODS` with the slow part of the balance (whatever does not repeat with
+  the rotor's angle) taken out by a cubic spline in time with knots every
+  :data:`SPLINE_KNOT_S`; named where the best ``n``'s fit, summed over the runs, stands
+  above the residual noise by a chi-square test at family-wise false-alarm rate
+  :data:`COGGING_FALSE_ALARM`.
+
+A word is named where every run that can judge it agrees (the same sign, clear of its
+smallest size and of its standard error; for cogging, the runs together). Never reads
+``truth``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from addedinertia_env.records.record import RunRecord
+
+NAMES = ("mesh_loss", "gear_drag", "cogging")
+
+# Smallest sizes named (docs/DISCOVERY.md says why; docs/DRIVE.md gives the bias each causes).
+MIN_MESH = 0.03  # -, 1 - mesh efficiency: a precision planetary stage loses at most about 3 %
+MIN_DRAG = 0.004  # N m at the flywheel beyond the rig block's rotor friction (2 x wigley-2m's stated 2 mN m)
+MAX_LOSS_RMS = 1e-3  # rad: a balance the losses leave worse than this is not theirs (as the energy calibration's)
+MIN_Z = 5.0  # size / its standard error (inflated for the residuals' correlation)
+COGGING_PERIODS = range(4, 121)  # cycles per motor turn searched (lcm of slots and poles: 6 to 72 on small motors)
+MIN_COGGING = 0.005  # N m at the flywheel: the cogging amplitude named (about 0.5 % of lambda66, docs/DRIVE.md)
+COGGING_SE = 2.0  # and the amplitude must be clear of it by this many standard errors
+COGGING_FALSE_ALARM = 1e-4  # family-wise, over every n searched, with the residuals white after the spline
+WHITENING_ORDER = 20  # lags of the autoregressive model whose prediction error whitens the residuals
+SPLINE_KNOT_S = 0.1  # s, the knot spacing of the slow part taken out before the cogging search
+MIN_COGGING_CYCLES = 3.0  # the rotor must turn through this many cycles of a period for it to be judged
+HOLD_SPAN_S = 2.0  # s of the hold before the release that the balance covers (a pre-spin lives there)
+LAGS_S = np.arange(-2e-3, 12e-3 + 1e-9, 5e-4)  # the current channel's lag grid (as the energy calibration's)
+
+
+@dataclass
+class Span:
+    """One run's flywheel balance over the end of the hold and the reverse stroke."""
+
+    name: str
+    t: np.ndarray  # s
+    target: np.ndarray  # rad: theta + the stated rotor friction twice integrated over J_f
+    psi: np.ndarray  # rad, smoothed flywheel angle relative to the hull
+    omega: np.ndarray  # rad/s
+    i_full: np.ndarray  # A, the whole record's current (offset removed), for the lag
+    t_full: np.ndarray  # s
+    half_dt: np.ndarray
+    J_f: float
+    k_t: float  # N m/A at the flywheel
+    gear_ratio: float
+
+    def twice(self, x: np.ndarray) -> np.ndarray:
+        """``x`` (rows along the last axis) integrated twice from the span's start, over ``J_f``."""
+        from addedinertia_env.identify.series_kernels import twice_integrated  # noqa: PLC0415
+
+        return twice_integrated(np.atleast_2d(np.asarray(x, float)), self.half_dt).reshape(np.shape(x)) / self.J_f
+
+    def current(self, lag: float) -> np.ndarray:
+        """The logged current at ``t + lag``, A."""
+        return np.interp(self.t + lag, self.t_full, self.i_full)
+
+
+def span(rec: RunRecord) -> Span | str:
+    """The flywheel balance of ``rec`` (a reverse-symmetric run), or why there is none."""
+    from addedinertia_env.identify.common import IdentificationError  # noqa: PLC0415
+    from addedinertia_env.identify.energy_balance import RunBalance  # noqa: PLC0415
+    from addedinertia_env.identify.series_kernels import calibration_target  # noqa: PLC0415
+    from addedinertia_env.records.series_stats import median_step  # noqa: PLC0415
+    from addedinertia_env.sim.friction import ROTOR_FRICTION_RATE_SCALE  # noqa: PLC0415
+
+    if rec.experiment.get("kind") != "reverse-symmetric":
+        return "not a reverse-symmetric run"
+    try:
+        b = RunBalance(rec.without_truth(), "reaction", False)
+    except (IdentificationError, ValueError) as e:
+        return f"no flywheel balance: {e}"
+    dt = float(median_step(b.t))
+    a = max(b.k3 - int(round(HOLD_SPAN_S / dt)), b.hold_start) + 1
+    e = b.rev.stop - 1 - int(math.ceil(LAGS_S[-1] / dt)) - 2
+    if e - a < 400:
+        return f"{e - a + 1} samples of hold and reverse stroke: too few to judge the drive"
+    tt = b.t[a:e + 1]
+    psi_s = b.psi_s[a:e + 1]
+    target, half = calibration_target(tt, (b.phi + b.psi)[a:e + 1], psi_s, float(b.f_visc), float(b.f_coul),
+                                      float(b.J_f), ROTOR_FRICTION_RATE_SCALE)
+    omega = np.gradient(b.psi_s, b.t)[a:e + 1]
+    return Span(name=rec.name, t=tt, target=target, psi=psi_s, omega=omega, i_full=b.i, t_full=b.t,
+                half_dt=half, J_f=float(b.J_f), k_t=float(b.k_t), gear_ratio=float(rec.known.gear_ratio))
+
+
+def _sign(omega: np.ndarray) -> np.ndarray:
+    from addedinertia_env.sim.friction import ROTOR_FRICTION_RATE_SCALE  # noqa: PLC0415
+
+    return np.tanh(omega / ROTOR_FRICTION_RATE_SCALE)
+
+
+def _inflation(r: np.ndarray) -> float:
+    """The standard errors' inflation for residuals correlated from sample to sample, ``sqrt((1 + rho) / (1 - rho))``."""
+    rho = float(np.clip((r[1:] @ r[:-1]) / max(float(r @ r), 1e-300), 0.0, 0.99))
+    return math.sqrt((1.0 + rho) / (1.0 - rho))
+
+
+def _lstsq(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Coefficients, residuals and the coefficients' standard errors (white residuals, inflated)."""
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    As = A / scale
+    c, *_ = np.linalg.lstsq(As, y, rcond=None)
+    r = y - As @ c
+    dof = max(len(y) - A.shape[1], 1)
+    s2 = float(r @ r) / dof
+    try:
+        cov = np.linalg.pinv(As.T @ As)
+    except np.linalg.LinAlgError:
+        cov = np.full((A.shape[1], A.shape[1]), np.inf)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0) * s2) * _inflation(r)
+    return c / scale, r, se / scale
+
+
+def loss_fit(s: Span, cogging: tuple[float, ...] = ()) -> dict[str, Any]:
+    """The balance fitted with a torque scale, the current's lag (grid), ``mesh_loss`` and
+    ``gear_drag`` (and, where given, cogging at the spatial frequencies ``cogging`` rad^-1)."""
+    sg = _sign(s.omega)
+    drag_col = -s.twice(sg)
+    extra = []
+    for m in cogging:
+        extra += [s.twice(np.sin(m * s.psi)), s.twice(np.cos(m * s.psi))]
+    one, ramp = np.ones_like(s.t), s.t - s.t[0]
+    best = None
+    for lag in LAGS_S:
+        i = s.current(lag)
+        A = np.column_stack([one, ramp, s.k_t * s.twice(i), -s.k_t * s.twice(np.abs(i) * sg), drag_col, *extra])
+        c, r, se = _lstsq(A, s.target)
+        rss = float(r @ r)
+        if best is None or rss < best[0]:
+            best = (rss, lag, c, se, r)
+    rss, lag, c, se, r = best
+    # the mesh and drag columns by themselves tell whether both quadrants were seen: the quadrant
+    # where the current drives the flywheel and the one where it brakes it
+    i = s.current(lag)
+    drive = np.mean(i * s.omega > 0)
+    return {"run": s.name, "lag_s": lag, "torque_scale": float(c[2]), "mesh": float(c[3]), "mesh_se": float(se[3]),
+            "drag": float(c[4]), "drag_se": float(se[4]), "rms_rad": math.sqrt(rss / len(r)),
+            "driving_fraction": float(drive)}
+
+
+def _spline_basis(t: np.ndarray, knot: float) -> np.ndarray:
+    from scipy.interpolate import BSpline  # noqa: PLC0415
+
+    n = max(1, int(math.ceil((t[-1] - t[0]) / knot)))
+    k = np.linspace(t[0], t[-1], n + 1)
+    k = np.concatenate([[k[0]] * 3, k, [k[-1]] * 3])
+    return BSpline.design_matrix(np.clip(t, k[0], k[-1]), k, 3).toarray()
+
+
+def _whitener(r: np.ndarray, order: int):
+    """The prediction-error filter of an autoregressive model of ``r`` (Yule-Walker, ``order`` lags):
+    applied to the residuals and to every column, it makes the least squares generalised."""
+    from scipy.linalg import solve_toeplitz  # noqa: PLC0415
+    from scipy.signal import lfilter  # noqa: PLC0415
+
+    r = r - r.mean()
+    n = len(r)
+    acf = np.array([r[: n - k] @ r[k:] for k in range(order + 1)]) / n
+    if acf[0] <= 0:
+        return lambda x: x
+    a = solve_toeplitz(acf[:-1], acf[1:])
+    filt = np.concatenate([[1.0], -a])
+    return lambda x: lfilter(filt, [1.0], x, axis=0)[order:]
+
+
+def cogging_scan(s: Span, lag: float) -> dict[str, Any]:
+    """For every ``n`` of :data:`COGGING_PERIODS`: the drop of the residual sum of squares when
+    ``sin, cos(n N psi)`` join the slow part (a spline in time), the scale and the losses, in
+    units of the residual variance, so chi-square with 2 degrees of freedom where there is no
+    cogging; and the fitted amplitude and its standard error (N m at the flywheel).
+
+    The residuals are not white (a controller's chatter that the current channel does not quite
+    show, the encoders' quantisation at a slow rate): every column and the residual are first
+    passed through the prediction-error filter of an autoregressive model of the residual
+    (order :data:`WHITENING_ORDER`), so the test is a generalised least squares one; without
+    it a broad excess of the residual at 5-20 Hz reads as cogging at every high ``n``."""
+    i = s.current(lag)
+    sg = _sign(s.omega)
+    base = np.column_stack([_spline_basis(s.t, SPLINE_KNOT_S), s.k_t * s.twice(i),
+                            -s.k_t * s.twice(np.abs(i) * sg), -s.twice(sg)])
+    Q, _ = np.linalg.qr(base / np.linalg.norm(base, axis=0).clip(1e-300))
+    y0 = s.target - Q @ (Q.T @ s.target)
+    white = _whitener(y0, WHITENING_ORDER)
+    Bw = white(base)
+    Qw, _ = np.linalg.qr(Bw / np.linalg.norm(Bw, axis=0).clip(1e-300))
+    yw = white(s.target)
+    y = yw - Qw @ (Qw.T @ yw)
+    n_dof = len(y) - base.shape[1] - 2
+    s2 = float(y @ y) / n_dof
+    turns = float(np.ptp(s.psi)) * s.gear_ratio / (2 * math.pi)  # motor turns covered
+    drops, amps = {}, {}
+    for n in COGGING_PERIODS:
+        if turns * n < MIN_COGGING_CYCLES:
+            continue
+        m = n * s.gear_ratio
+        C = white(np.column_stack([s.twice(np.sin(m * s.psi)), s.twice(np.cos(m * s.psi))]))
+        C = C - Qw @ (Qw.T @ C)
+        G = C.T @ C
+        try:
+            c = np.linalg.solve(G, C.T @ y)
+            var = float(np.trace(np.linalg.inv(G))) / 2.0 * s2
+        except np.linalg.LinAlgError:
+            continue
+        fitted = C @ c
+        drops[n] = float(fitted @ fitted) / s2
+        amps[n] = (float(np.hypot(*c)), math.sqrt(max(var, 0.0)))
+    return {"run": s.name, "drops": drops, "amplitudes": amps, "motor_turns": turns}
+
+
+def candidate(records: list[RunRecord]) -> dict[str, Any]:
+    """The drive's words on ``records``: ``named`` (a list, maybe empty), the evidence per run and word."""
+    from scipy.stats import chi2  # noqa: PLC0415
+
+    spans, skipped = [], []
+    for rec in records:
+        s = span(rec)
+        (skipped.append({"run": rec.name, "why": s}) if isinstance(s, str) else spans.append(s))
+    out: dict[str, Any] = {"named": [], "runs": [], "skipped": skipped, "why": {}}
+    if not spans:
+        out["why"] = {w: "no reverse-symmetric run with a flywheel balance" for w in NAMES}
+        return out
+    losses = [loss_fit(s) for s in spans]
+    scans = [cogging_scan(s, f["lag_s"]) for s, f in zip(spans, losses)]
+
+    # cogging: the runs' drops summed per n (chi-square with 2 K degrees of freedom without cogging)
+    ns = sorted(set().union(*(sc["drops"] for sc in scans)))
+    cog: dict[str, Any] = {"named": False}
+    if ns:
+        total = {n: sum(sc["drops"].get(n, 0.0) for sc in scans) for n in ns}
+        k = {n: sum(1 for sc in scans if n in sc["drops"]) for n in ns}
+        p = {n: float(chi2.sf(total[n], 2 * k[n])) * len(ns) for n in ns}
+        n_best = min(ns, key=lambda n: p[n])
+        # the runs' amplitudes at the best n, weighted by their variances
+        a_se = np.array([sc["amplitudes"][n_best] for sc in scans if n_best in sc["amplitudes"]])
+        w = 1.0 / np.maximum(a_se[:, 1], 1e-300) ** 2
+        amp, amp_se = float(np.sum(w * a_se[:, 0]) / np.sum(w)), float(1.0 / math.sqrt(np.sum(w)))
+        cog.update(periods_per_motor_turn=n_best, p_family=min(1.0, p[n_best]), chi2=total[n_best],
+                   runs=k[n_best], amplitude_flywheel_Nm=amp, amplitude_se_Nm=amp_se,
+                   amplitude_motor_Nm=amp / spans[0].gear_ratio)
+        clear = amp - COGGING_SE * amp_se
+        cog["named"] = bool(p[n_best] < COGGING_FALSE_ALARM and clear >= MIN_COGGING)
+        if cog["named"]:
+            cog["why"] = (f"a torque periodic in the rotor angle, {n_best} cycles per motor turn, "
+                          f"{amp * 1e3:.1f} +- {amp_se * 1e3:.1f} mN m at the flywheel (family-wise p = {p[n_best]:.1e})")
+        elif p[n_best] >= COGGING_FALSE_ALARM:
+            cog["why"] = (f"no torque periodic in the rotor angle stands out of the noise (best: {n_best} per motor "
+                          f"turn, family-wise p = {min(1.0, p[n_best]):.2g} >= {COGGING_FALSE_ALARM:g})")
+        else:
+            cog["why"] = (f"{n_best} cycles per motor turn stand out (p = {p[n_best]:.1e}), but "
+                          f"{amp * 1e3:.1f} +- {amp_se * 1e3:.1f} mN m is not clear of {MIN_COGGING * 1e3:g} mN m "
+                          f"by {COGGING_SE:g} standard errors")
+    else:
+        cog["why"] = f"the rotor turned through fewer than {MIN_COGGING_CYCLES:g} cycles of any period searched"
+    if cog["named"]:  # the losses are fitted again with the cogging in the balance
+        m = cog["periods_per_motor_turn"] * spans[0].gear_ratio
+        losses = [loss_fit(s, (m,)) for s in spans]
+
+    words = {"cogging": cog}
+    for word, key, min_size, unit in (("mesh_loss", "mesh", MIN_MESH, ""), ("gear_drag", "drag", MIN_DRAG, " N m")):
+        sizes = np.array([f[key] for f in losses])
+        z = sizes / np.array([max(f[key + "_se"], 1e-300) for f in losses])
+        rms = max(f["rms_rad"] for f in losses)
+        named = bool(np.all(sizes >= min_size) and np.all(z >= MIN_Z) and rms <= MAX_LOSS_RMS)
+        ev = {"named": named, "sizes": sizes.tolist(), "z": z.tolist(), "min_size": min_size, "rms_rad": rms}
+        if named:
+            ev["why"] = f"every run: {key} {sizes.min():.4g}..{sizes.max():.4g}{unit} >= {min_size:g}, z >= {z.min():.0f}"
+        elif rms > MAX_LOSS_RMS:
+            ev["why"] = (f"the losses leave {rms:.2g} rad rms of the flywheel's balance (over {MAX_LOSS_RMS:g}): "
+                         "something else acts on the flywheel, so their sizes are not read")
+        else:
+            ev["why"] = (f"{key} {sizes.min():.4g}..{sizes.max():.4g}{unit} (z {z.min():.1f}..{z.max():.1f}): "
+                         f"not every run clear of {min_size:g} and of {MIN_Z:g} standard errors")
+        words[word] = ev
+    out["runs"] = losses
+    out["words"] = words
+    out["named"] = [w for w in NAMES if words[w]["named"]]
+    out["why"] = {w: words[w]["why"] for w in NAMES}
+    return out
