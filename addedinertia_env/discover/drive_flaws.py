@@ -163,7 +163,7 @@ def loss_fit(s: Span, cogging: tuple[float, ...] = ()) -> dict[str, Any]:
     # where the current drives the flywheel and the one where it brakes it
     i = s.current(lag)
     drive = np.mean(i * s.omega > 0)
-    return {"run": s.name, "lag_s": lag, "torque_scale": float(c[2]), "mesh": float(c[3]), "mesh_se": float(se[3]),
+    return {"run": s.name, "lag_s": float(lag), "torque_scale": float(c[2]), "mesh": float(c[3]), "mesh_se": float(se[3]),
             "drag": float(c[4]), "drag_se": float(se[4]), "rms_rad": math.sqrt(rss / len(r)),
             "driving_fraction": float(drive)}
 
@@ -220,7 +220,7 @@ def cogging_scan(s: Span, lag: float) -> dict[str, Any]:
     turns = float(np.ptp(s.psi)) * s.gear_ratio / (2 * math.pi)  # motor turns covered
     dt = np.gradient(s.t)
     dpsi = np.abs(s.omega) * dt
-    raw, amp = {}, {}
+    cols, raw, amp = {}, {}, {}
     for n in COGGING_PERIODS:
         m = n * s.gear_ratio
         # only where a cycle spans MIN_SAMPLES_PER_CYCLE samples: faster, the sampled angle
@@ -238,11 +238,31 @@ def cogging_scan(s: Span, lag: float) -> dict[str, Any]:
         except np.linalg.LinAlgError:
             continue
         fitted = C @ c
+        cols[float(n)] = C
         raw[float(n)] = float(fitted @ fitted) / s2
         amp[float(n)] = (float(np.hypot(*c)), math.sqrt(max(var, 0.0)))
-    drops = {n: raw[float(n)] for n in COGGING_PERIODS if float(n) in raw}
-    amps = {n: amp[float(n)] for n in drops}
-    return {"run": s.name, "drops": drops, "amplitudes": amps, "motor_turns": turns}
+    # the null's own scale: the median drop over every period searched, over the median of chi-square 2
+    # (2 ln 2); never below the white one. What the whitening leaves of the residuals' colour and of their transients
+    # lifts every period alike, and is taken out here.
+    # The median is taken with the strongest period's fit taken out of the residuals: a real cogging
+    # leaks into every period (where the rotor creeps, every period's column is slow alike).
+    excess = 1.0
+    if len(raw) >= 20:
+        top = max(raw, key=raw.get)
+        Qn, _ = np.linalg.qr(cols[top])
+        yn = y - Qn @ (Qn.T @ y)
+        rest = []
+        for k, Ck in cols.items():
+            if k == top:
+                continue
+            Ck = Ck - Qn @ (Qn.T @ Ck)
+            ck, *_ = np.linalg.lstsq(Ck, yn, rcond=None)
+            f = Ck @ ck
+            rest.append(float(f @ f) / s2)
+        excess = max(1.0, float(np.median(rest)) / (2.0 * math.log(2.0)))
+    drops = {n: raw[float(n)] / excess for n in COGGING_PERIODS if float(n) in raw}
+    amps = {n: (amp[float(n)][0], amp[float(n)][1] * math.sqrt(excess)) for n in drops}
+    return {"run": s.name, "drops": drops, "amplitudes": amps, "motor_turns": turns, "noise_excess": excess}
 
 
 def candidate(records: list[RunRecord]) -> dict[str, Any]:
@@ -324,4 +344,44 @@ def candidate(records: list[RunRecord]) -> dict[str, Any]:
     out["words"] = words
     out["named"] = [w for w in NAMES if words[w]["named"]]
     out["why"] = {w: words[w]["why"] for w in NAMES}
+    return out
+
+
+def merge(cause: str, causes: list[str], evidence: dict[str, Any] | None) -> tuple[str, list[str]]:
+    """The verdict with the drive's words added after the others (the hull's effects and the water's
+    memory move lambda66 through the hull's own equation; the drive's through the motor's work). Where
+    nothing else was named (``none``, ``unexplained``), the first drive word becomes the cause.
+
+    A gearhead's loss takes a share of the motor's torque, which the gray-box model (no drive in
+    it) reads as a torque constant off its data sheet, or as a lag: where ``mesh_loss`` or
+    ``gear_drag`` is named, ``torque_constant`` and ``sensor_delay`` are kept only where the
+    flywheel's balance *with the drive's losses in it* still says so (:func:`flywheel_words`)."""
+    words = [w for w in (evidence or {}).get("named", []) if w not in causes]
+    if not words:
+        return cause, causes
+    kept = list(causes)
+    if {"mesh_loss", "gear_drag"} & set(words):
+        confirmed = flywheel_words(evidence)
+        kept = [c for c in kept if c not in ("torque_constant", "sensor_delay") or c in confirmed]
+    if cause not in kept:
+        cause = kept[0] if kept else "none"
+    if cause in ("none", "unexplained") or not kept:
+        return words[0], kept + words
+    return cause, kept + words
+
+
+def flywheel_words(evidence: dict[str, Any]) -> list[str]:
+    """``torque_constant`` where every run's torque scale fitted beside the drive's losses is off 1
+    by the effect's smallest size on the same side, ``sensor_delay`` likewise for the current's lag
+    (as :func:`.radiation_memory.flywheel_effects`, with the losses in the balance)."""
+    from addedinertia_env.sim.effects import registry  # noqa: PLC0415
+
+    runs = evidence.get("runs") or []
+    out = []
+    for word, key, neutral in (("torque_constant", "torque_scale", 1.0), ("sensor_delay", "lag_s", 0.0)):
+        if word not in registry.effect_names() or not runs:
+            continue
+        off = np.array([r[key] for r in runs]) - neutral
+        if np.all(np.abs(off) >= registry.get(word).min_size) and (np.all(off > 0) or np.all(off < 0)):
+            out.append(word)
     return out
