@@ -38,7 +38,7 @@ import numpy as np
 
 from addedinertia_env.records.record import RunRecord
 
-NAMES = ("mesh_loss", "gear_drag", "cogging")
+NAMES = ("mesh_loss", "gear_drag", "cogging", "backlash")
 
 # Smallest sizes named (docs/DISCOVERY.md says why; docs/DRIVE.md gives the bias each causes).
 MIN_MESH = 0.03  # -, 1 - mesh efficiency: a precision planetary stage loses at most about 3 %
@@ -54,6 +54,13 @@ SPLINE_KNOT_S = 0.1  # s, the knot spacing of the slow part taken out before the
 MIN_COGGING_CYCLES = 3.0  # the rotor must turn through this many cycles of a period for it to be judged
 MIN_SAMPLES_PER_CYCLE = 8  # a cogging cycle is judged only where it spans this many samples
 HOLD_SPAN_S = 2.0  # s of the hold before the release that the balance covers (a pre-spin lives there)
+MIN_BACKLASH = math.radians(0.2)  # rad at the flywheel: "reduced backlash" heads have 0.15-0.5 deg (docs/DRIVE.md)
+BACKLASH_SAME = 1e-3  # the reversals' widths must agree (chi-square of their spread) at this level
+WINDING_TOLERANCE = 0.25  # the fitted k_e within 25 % of the rig block's k_t, R within 50 %: else the voltage is not read
+BACKLASH_Z = 3.0  # the width / its standard error (a gap is never negative: one-sided)
+REVERSAL_HOLD_S = 0.02  # s the current keeps one sign on each side of a reversal that is judged
+REVERSAL_MIN_CURRENT = 0.05  # A above the current's noise (3 sigma) for a sign to count
+REVERSAL_WINDOW_S = 0.03  # s after the new sign is held over which the crossing's back-EMF is summed
 LAGS_S = np.arange(-2e-3, 12e-3 + 1e-9, 5e-4)  # the current channel's lag grid (as the energy calibration's)
 
 
@@ -265,6 +272,83 @@ def cogging_scan(s: Span, lag: float) -> dict[str, Any]:
     return {"run": s.name, "drops": drops, "amplitudes": amps, "motor_turns": turns, "noise_excess": excess}
 
 
+def backlash_fit(rec: RunRecord) -> dict[str, Any] | str:
+    """The gearbox's gap crossed at each torque reversal of ``rec``, read from the motor's voltage.
+
+    While the rotor crosses the gap it turns relative to the flywheel, so the winding's back-EMF
+    is ``k_t (Omega + gap')``, not ``k_t Omega``: the voltage's residual from
+    ``u = R i + L i' + k_t Omega + offset`` (coefficients fitted on the hold and reverse stroke
+    away from the reversals, so a resistance or inductance off the rig block does not enter; with
+    ``Omega`` taken at the lag that fits best, for a voltage channel that lags the encoders),
+    integrated over a reversal and divided by ``k_t``, is the angle the rotor travelled in the
+    gap: the gap's width, signed with the new torque. A reversal is a change of sign of the
+    current held for :data:`REVERSAL_HOLD_S` on both sides (the plan's crossings; chatter within
+    that time moves the rotor back and forth and is not counted). Returns the per-reversal
+    widths (rad at the flywheel) with their standard errors, or why the run cannot tell."""
+    from addedinertia_env.identify.common import IdentificationError  # noqa: PLC0415
+    from addedinertia_env.identify.energy_balance import RunBalance  # noqa: PLC0415
+
+    if rec.experiment.get("kind") != "reverse-symmetric":
+        return "not a reverse-symmetric run"
+    if "u" not in rec.samples:
+        return "no voltage channel"
+    try:
+        b = RunBalance(rec.without_truth(), "reaction", False)
+    except (IdentificationError, ValueError) as e:
+        return f"no flywheel balance: {e}"
+    a, e = b.hold_start, b.rev.stop
+    t, i, u = b.t[a:e], b.i[a:e], np.asarray(rec["u"][a:e], float)
+    if len(t) < 200:
+        return "too short a hold and reverse stroke"
+    dt = float(np.median(np.diff(t)))
+    om, di = np.gradient(b.psi_s[a:e], t), np.gradient(i, t)
+    w = max(3, int(round(REVERSAL_HOLD_S / dt)))
+    im = np.convolve(i, np.ones(w) / w, mode="same")
+    thr = 3.0 * b.noise_i + REVERSAL_MIN_CURRENT
+    sgn = np.where(im > thr, 1, np.where(im < -thr, -1, 0))
+    held, start = [], 0  # (first, last + 1, sign) of each stretch held for w samples
+    for j in range(1, len(sgn) + 1):
+        if j == len(sgn) or sgn[j] != sgn[start]:
+            if sgn[start] != 0 and j - start >= w:
+                held.append((start, j, int(sgn[start])))
+            start = j
+    pre, post = int(round(0.005 / dt)), int(round(REVERSAL_WINDOW_S / dt))
+    windows = [(max(e0 - pre, 0), min(s1 + post, len(t)), g1)
+               for (s0, e0, g0), (s1, e1, g1) in zip(held, held[1:]) if g0 != g1]
+    if not windows:
+        return "no torque reversal held on both sides: the gap is never crossed"
+    keep = np.ones(len(t), bool)
+    for c0, c1, _ in windows:
+        keep[c0:c1] = False
+    u_max = rec.known.u_max
+    if u_max:
+        keep &= np.abs(u) < 0.98 * u_max  # at the supply, the voltage is not the winding's
+    if keep.sum() < 100:
+        return "too few samples away from the reversals to fit the winding"
+    # a voltage channel that lags the encoders by d (sensor_delay) reads k_t Omega(t - d): the lag is
+    # fitted on the grid LAGS_S (else k_t (Omega(t - d) - Omega(t)) changes sign with the torque, as
+    # the gap's travel does)
+    best = None
+    for lag in LAGS_S[LAGS_S >= 0.0]:  # a channel lags, never leads
+        A = np.column_stack([i, di, np.interp(t - lag, t, om), np.ones_like(t)])
+        coef, *_ = np.linalg.lstsq(A[keep], u[keep], rcond=None)
+        rk = u[keep] - A[keep] @ coef
+        if best is None or float(rk @ rk) < best[0]:
+            best = (float(rk @ rk), lag, A, coef)
+    _, lag, A, coef = best
+    k_t = float(b.k_t)
+    if not (abs(coef[2] / k_t - 1) <= WINDING_TOLERANCE and abs(coef[0] / float(b.R) - 1) <= 2 * WINDING_TOLERANCE):
+        return (f"the voltage does not follow the winding's law u = R i + L i' + k_t Omega (fitted R {coef[0]:.3g} "
+                f"ohm, k_e {coef[2]:.3g} V s/rad, lag {lag * 1e3:.1f} ms; the rig block: R {float(b.R):.3g}, k_t "
+                f"{k_t:.3g}): the back-EMF cannot be read")
+    r = u - A @ coef
+    sr = float(np.std(r[keep])) * _inflation(r[keep])
+    widths = [float(g * np.sum(r[c0:c1]) * dt / k_t) for c0, c1, g in windows]
+    ses = [sr * math.sqrt(c1 - c0) * dt / k_t for c0, c1, _ in windows]
+    return {"run": rec.name, "widths_rad": widths, "se_rad": ses, "winding": {"R": float(coef[0]), "L": float(coef[1]),
+            "k_e": float(coef[2]), "lag_s": float(lag)}}
+
+
 def candidate(records: list[RunRecord]) -> dict[str, Any]:
     """The drive's words on ``records``: ``named`` (a list, maybe empty), the evidence per run and word."""
     from scipy.stats import chi2  # noqa: PLC0415
@@ -340,6 +424,31 @@ def candidate(records: list[RunRecord]) -> dict[str, Any]:
             ev["why"] = (f"{key} {sizes.min():.4g}..{sizes.max():.4g}{unit} (z {z.min():.1f}..{z.max():.1f}): "
                          f"not every run clear of {min_size:g} and of {MIN_Z:g} standard errors")
         words[word] = ev
+    fits = [backlash_fit(r) for r in records]
+    widths = [(w, se) for f in fits if isinstance(f, dict) for w, se in zip(f["widths_rad"], f["se_rad"])]
+    bl: dict[str, Any] = {"named": False, "reversals": len(widths),
+                          "runs": [f if isinstance(f, dict) else {"why": f} for f in fits]}
+    if widths:
+        x = np.array(widths)
+        wgt = 1.0 / np.maximum(x[:, 1], 1e-12) ** 2
+        width, se = float(np.sum(wgt * x[:, 0]) / np.sum(wgt)), float(1.0 / math.sqrt(np.sum(wgt)))
+        bl.update(width_rad=width, width_deg=math.degrees(width), se_rad=se)
+        from scipy.stats import chi2 as _chi2  # noqa: PLC0415
+
+        # one gap: every reversal crosses the same width (within its standard error)
+        spread = float(np.sum(wgt * (x[:, 0] - width) ** 2))
+        p_same = float(_chi2.sf(spread, len(x) - 1)) if len(x) > 1 else 1.0
+        bl.update(p_same_width=p_same)
+        bl["named"] = bool(width >= MIN_BACKLASH and width >= BACKLASH_Z * se and p_same >= BACKLASH_SAME)
+        bl["why"] = (f"the rotor crosses a gap of {math.degrees(width):.2f} +- {math.degrees(se):.2f} deg at the "
+                     f"flywheel at {len(widths)} torque reversals (the back-EMF of its travel)"
+                     if bl["named"] else f"the reversals cross different widths (p = {p_same:.1g}): not one gap"
+                     if p_same < BACKLASH_SAME else f"gap {math.degrees(width):.2f} +- {math.degrees(se):.2f} deg over "
+                     f"{len(widths)} reversals: not clear of {math.degrees(MIN_BACKLASH):g} deg and of {BACKLASH_Z:g} "
+                     "standard errors")
+    else:
+        bl["why"] = "no run can tell: " + "; ".join(sorted({f for f in fits if isinstance(f, str)}))
+    words["backlash"] = bl
     out["runs"] = losses
     out["words"] = words
     out["named"] = [w for w in NAMES if words[w]["named"]]
