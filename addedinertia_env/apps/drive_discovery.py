@@ -18,8 +18,10 @@ import numpy as np
 from addedinertia_env.records.record import RunRecord
 from addedinertia_env.sim.drive import DriveParams
 
-# the word discovery should name for each hidden flaw ("none": nothing)
-FLAWS = ("none", "mesh_loss", "gear_drag", "cogging")
+# the word discovery should name for each hidden flaw ("none": nothing); backlash where the
+# simulator has it (DriveParams.backlash, drivephys' model)
+HAS_BACKLASH = "backlash" in {f.name for f in dataclasses.fields(DriveParams)}
+FLAWS = ("none", "mesh_loss", "gear_drag", "cogging") + (("backlash",) if HAS_BACKLASH else ())
 
 
 def draw_drive(flaw: str, seed: int) -> DriveParams:
@@ -35,6 +37,9 @@ def draw_drive(flaw: str, seed: int) -> DriveParams:
         return DriveParams(gear_ratio=ratio, gear_efficiency=float(rng.uniform(0.81, 0.90)), driver_time_constant=tau)
     if flaw == "gear_drag":
         return DriveParams(gear_ratio=ratio, gear_drag=float(rng.uniform(0.005, 0.020)), driver_time_constant=tau)
+    if flaw == "backlash":  # drive-v1's ranges: 0.5-1.5 deg, a 100-200 g cm^2 rotor (docs/DRIVE.md)
+        return DriveParams(gear_ratio=ratio, backlash=float(np.radians(rng.uniform(0.5, 1.5))),
+                           rotor_inertia=float(rng.uniform(1e-5, 2e-5)), driver_time_constant=tau)
     # cogging: 5-25 mN m peak at the motor shaft (1-4 % of a small servo motor's rated torque), the
     # lcm of slots and poles of common motors (6 slots 4 poles: 12; 9/6: 18; 12/8: 24; 12/10: 60), on
     # a direct drive or through a gearhead
@@ -44,8 +49,10 @@ def draw_drive(flaw: str, seed: int) -> DriveParams:
                        cogging_phase=float(rng.uniform(0, 2 * np.pi)), driver_time_constant=tau)
 
 
-def simulate_drive_dataset(flaw: str, seed: int, controller: str | None = None) -> list[RunRecord]:
-    """The standard discovery dataset's runs on a drive with ``flaw`` drawn from ``seed`` (no hidden effect)."""
+def simulate_drive_dataset(flaw: str, seed: int, controller: str | None = None,
+                           drive: DriveParams | None = None) -> list[RunRecord]:
+    """The standard discovery dataset's runs on a drive with ``flaw`` drawn from ``seed`` (no hidden
+    effect); ``drive``: this drive instead (``flaw`` is then only a label)."""
     from addedinertia_env.apps.discovery_dataset import DatasetSpec  # noqa: PLC0415
     from addedinertia_env.apps.simulate import simulate_run  # noqa: PLC0415 - heavy import (MuJoCo, agents)
     from addedinertia_env.experiment.protocol import plan_from_preset  # noqa: PLC0415
@@ -54,7 +61,7 @@ def simulate_drive_dataset(flaw: str, seed: int, controller: str | None = None) 
     spec = DatasetSpec() if controller is None else DatasetSpec(controller=controller)
     data = load_preset(spec.rig)
     rig = rig_from_mapping(data)
-    drive = draw_drive(flaw, seed)
+    drive = drive if drive is not None else draw_drive(flaw, seed)
     rig = rig.replace(drive=drive, motor=dataclasses.replace(rig.motor, k_t=rig.motor.k_t / drive.gear_ratio))
     records = []
     noise_seeds = np.random.SeedSequence([seed, 28, 1]).spawn(len(spec.runs))
