@@ -118,6 +118,7 @@ class Diagnosis:
     thresholds: Thresholds
     causes: list[str] = field(default_factory=list)  # every effect named, in the order they joined; [] for none
     radiation_memory: dict | None = None  # the radiation_memory candidate's evidence (discover/radiation_memory.py)
+    drive_flaws: dict | None = None  # the drive's words' evidence (discover/drive_flaws.py)
     lambda66_shift: dict = field(default_factory=dict)  # effect -> lambda66(final) - lambda66(final without it)
     wall_s: float = 0.0
 
@@ -181,9 +182,10 @@ class Diagnosis:
         """lambda66 and residuals of the nominal model, of each named effect alone and of the final combination."""
         from addedinertia_env.discover.selection import canonical  # noqa: PLC0415
 
-        rows = [("nominal", ())] + [(e, (e,)) for e in self.causes]
-        if len(self.causes) > 1:
-            rows.append(("+".join(self.causes), canonical(self.causes)))
+        gray = [e for e in self.causes if e in self.selection.effects]  # the others have no gray-box fit
+        rows = [("nominal", ())] + [(e, (e,)) for e in gray]
+        if len(gray) > 1:
+            rows.append(("+".join(gray), canonical(gray)))
         out = []
         for name, key in rows:
             fit = self.selection.fits[canonical(key)]
@@ -216,7 +218,7 @@ class Diagnosis:
                 "skipped": list(self.data.skipped), "release_lag_s": self.data.release_lag,
                 "current_sampling": dict(self.data.current_mode_report),
                 "thresholds": {k: v for k, v in self.thresholds.__dict__.items()}, "wall_s": self.wall_s,
-                "radiation_memory": self.radiation_memory}
+                "radiation_memory": self.radiation_memory, "drive_flaws": self.drive_flaws}
 
 
 def _rms(x: np.ndarray) -> float:
@@ -229,12 +231,14 @@ def _structured(fit: Fit, th: Thresholds) -> bool:
 
 
 def discover(records: list[RunRecord], thresholds: Thresholds | None = None, heldout: bool = True,
-             progress=None, pairs: bool = True, current_mode: str | None = None, radiation: bool = True) -> Diagnosis:
+             progress=None, pairs: bool = True, current_mode: str | None = None, radiation: bool = True,
+             drive: bool = True) -> Diagnosis:
     """Diagnose ``records`` (free decays and reverse-symmetric runs of one rig); see the module docstring.
 
     ``pairs``: allow more than one effect (``False``: at most one). ``current_mode``: how
     the logged current is read (default: the rig block, else estimated; see :mod:`.prepare`).
     ``radiation``: also test for radiation memory (:mod:`.radiation_memory`), outside the gray-box model.
+    ``drive``: also judge the drive's flaws on the flywheel's own balance (:mod:`.drive_flaws`).
     """
     import time  # noqa: PLC0415
 
@@ -263,8 +267,14 @@ def discover(records: list[RunRecord], thresholds: Thresholds | None = None, hel
 
         memory = radiation_memory.candidate(records)
         cause, causes = radiation_memory.merge(cause, causes, memory)
+    flaws = None
+    if drive:  # the drive's torques that the current does not show (discover/drive_flaws.py)
+        from addedinertia_env.discover import drive_flaws  # noqa: PLC0415
+
+        flaws = drive_flaws.candidate(records)
+        cause, causes = drive_flaws.merge(cause, causes, flaws)
     return Diagnosis(cause=cause, data=data, selection=sel, thresholds=th, causes=causes, lambda66_shift=shift,
-                     wall_s=time.perf_counter() - t0, radiation_memory=memory)
+                     wall_s=time.perf_counter() - t0, radiation_memory=memory, drive_flaws=flaws)
 
 
 def best_release_lag(data: Prepared, fit: Fit) -> float:
