@@ -9,10 +9,11 @@ from __future__ import annotations
 
 # Smoothing rate of the rotor's dry friction in the energy method, rad/s.
 # Bounded on both sides by what the flywheel's rate estimate can tell:
-# * far below the rate the smoothed flywheel angle resolves: one count of the 14-bit motor encoder
-#   (2 pi / 16384 = 3.8e-4 rad) over the 0.2 s work-smoothing window (energy_work.WORK_SMOOTHING_S)
-#   is 1.9e-3 rad/s; at a twentieth of that, any rate the record resolves gets the full Coulomb
-#   torque (tanh(19) = 1 to 1e-16), as a dry bearing gives it, whatever law smoothed it in the rig;
+# * far below the rate the smoothed flywheel angle resolves: one count of the motor encoder over
+#   the 0.2 s work-smoothing window (energy_work.WORK_SMOOTHING_S) is 1.9e-3 rad/s for the presets'
+#   14-bit encoder (2 pi / 16384 = 3.8e-4 rad), 4.8e-4 rad/s for the 16-bit one of the "good"
+#   sensors; any rate a record resolves then gets the full Coulomb torque (tanh(4.8) = 0.9999,
+#   tanh(19) = 1 to 1e-16), as a dry bearing gives it, whatever law smoothed it in the rig;
 # * far above the rounding noise of a flywheel at rest: the encoder reads a constant there, and
 #   the rate from the smoothed angle is zero or rounding noise (eps |psi| / dt, about 1e-11 rad/s
 #   for angles of tens of rad at 1 kHz), whose sign a BLAS kernel's rounding picks; seven decades
