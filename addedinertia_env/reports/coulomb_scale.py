@@ -60,7 +60,9 @@ def _kernels() -> tuple[str, str]:
 
 
 def corpus(env_episodes: int, hard_seeds: int, data: list[Path], tmp: Path) -> tuple[dict, dict]:
-    """Records by name, and the true lambda66 of the hard-v0 ones (scoring only)."""
+    """Records by name, and the true lambda66 (kg m^2) of the hard-v0 ones (scoring only): ``env_episodes``
+    batched-env episodes, the trainers' batch on ``hard_seeds`` hard-v0 training seeds (base pid and the
+    oracle), and the reverse-symmetric runs of each archive in ``data`` (unpacked under ``tmp``)."""
     from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
     from addedinertia_env.learning import paired_batch  # noqa: PLC0415
     from addedinertia_env.learning.ars_residual import base_factory, base_params  # noqa: PLC0415
@@ -124,6 +126,7 @@ def _rel(x, y) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Command line (module doc): print the table of docs/RELIABILITY.md section 2b; exit status 0."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scales", type=float, nargs="+", default=[1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-9],
                     help="smoothing rates to compare, rad/s (the smallest is the sign-like reference)")
