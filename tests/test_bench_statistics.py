@@ -102,6 +102,17 @@ def test_iqm_interval_and_probability_of_improvement():
     assert _one_run_improvement(x[0], y[0]) == pytest.approx(metrics.probability_of_improvement(x, y))
 
 
+def test_an_iqm_interval_over_failures_is_unbounded_not_nan():
+    # 7 failures of 30 (as many as the IQM trims; more in many resamples): rliable's percentile between two
+    # infinite resampled IQMs is nan; the interval is then open above, and reads so
+    m = {"fails": np.concatenate([np.linspace(0.001, 0.01, 23), np.full(7, np.inf)])[None, :]}
+    v, lo, hi = iqm_with_ci(m, reps=500)["fails"]
+    assert np.isfinite(v) and np.isfinite(lo) and lo <= v
+    assert hi == math.inf
+    m = {"ok": np.linspace(0.001, 0.01, 30)[None, :]}
+    assert all(np.isfinite(iqm_with_ci(m, reps=200)["ok"]))  # no failure, a bounded interval
+
+
 def test_the_markdown_leaderboard_has_rliables_aggregates_and_profiles(tmp_path):
     f, _ = _rows_file(tmp_path)
     md = tmp_path / "lb.md"

@@ -22,7 +22,7 @@ from addedinertia_env.identify import energy, energy_balance, energy_calibration
 from addedinertia_env.identify.common import _valid_convolution, savgol
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
 from addedinertia_env.identify.savgol_taps import conv_taps
-from addedinertia_env.sim.friction import ROTOR_FRICTION_RATE_SCALE
+from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE
 from addedinertia_env.vector.env import ReverseStrokeVectorEnv
 
 SHORT = dict(hold_s=0.5, fixed={"period_s": 3.0}, action_repeat=10)
@@ -165,7 +165,7 @@ def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul):
     """The flywheel calibration's lag search with one least-squares fit per lag (rss per lag)."""
     tt, th = t[a:b + 1], theta[a:b + 1]
     om = np.gradient(psi[a:b + 1], tt)
-    friction = f_visc * om + f_coul * np.tanh(om / ROTOR_FRICTION_RATE_SCALE)  # the rotor's smoothed dry friction
+    friction = f_visc * om + f_coul * np.tanh(om / ROTOR_COULOMB_RATE_SCALE)  # the energy method's smoothed rotor dry friction
 
     def twice(x):
         c1 = np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(tt))])

@@ -25,6 +25,9 @@ NOT_IN_MAKE_DOCS = {
                                                       "the commands are in docs/RADIATION_MEMORY.md",
     "addedinertia_env.reports.momentum_check": "reads the developers' foreign-lab archives (--data PATH), which are "
                                                "not part of the project: a clone has none to read",
+    "addedinertia_env.reports.coulomb_scale": "the measurement behind the energy method's Coulomb smoothing rate "
+                                              "(docs/RELIABILITY.md section 2b), with the developers' foreign-lab "
+                                              "archives (--data), which a clone has none of",
     "addedinertia_env.reports.digests": "a check that numbers are unchanged across a refactoring "
                                         "(docs/ARCHITECTURE.md), not a table of the docs",
     "addedinertia_env.reports.ars_curves": "needs the training runs of `make hard-policy` (it exports a shipped policy)",

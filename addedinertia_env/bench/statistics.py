@@ -162,7 +162,14 @@ def iqm_with_ci(matrices: dict[str, np.ndarray], reps: int = RLIABLE_REPS,
     point, ci = _quiet(lambda: rly.get_interval_estimates(
         finite, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps, confidence_interval_size=LEVEL,
         task_bootstrap=True), seed)
-    return {k: (float(point[k][0]), float(ci[k][0, 0]), float(ci[k][1, 0])) for k in finite}
+    return {k: (float(point[k][0]), *(_unbounded(float(c), finite[k]) for c in ci[k][:, 0])) for k in finite}
+
+
+def _unbounded(end: float, matrix: np.ndarray) -> float:
+    """An interval end of a matrix holding failures (infinite errors): where enough resamples hold more
+    failures than the IQM trims, their IQMs are infinite, and the percentile interpolated between two of
+    them is nan (inf - inf); the end is then infinite (the interval unbounded above)."""
+    return float("inf") if math.isnan(end) and np.isinf(matrix).any() else end
 
 
 def improvement_over(matrices: dict[str, np.ndarray], reference: str, reps: int = RLIABLE_REPS,

@@ -15,7 +15,7 @@ import numpy as np
 
 from addedinertia_env.experiment.metrics import current_at_limit
 from addedinertia_env.records.record import MAX_GAP_PERIODS, RunRecord
-from addedinertia_env.sim.friction import ROTOR_FRICTION_RATE_SCALE
+from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE
 from addedinertia_env.rig.known import KnownRigError
 from addedinertia_env.records.scan_kernels import gap_counts, reaction_work, squared_step_sums, true_counts
 from addedinertia_env.identify.series_kernels import accumulated_kernels, accumulated_windows
@@ -505,7 +505,7 @@ class RunBalance:
         t, i = self.t, self.i
         if self.work == "reaction":  # work of the motor's reaction on the hull: -(k_t i - M_f) dphi
             return reaction_work(t, self.interval_current(i), self.torque_scale, self.phi_s, self.psi_s, self.k_t,
-                                 self.f_visc, self.f_coul, ROTOR_FRICTION_RATE_SCALE)
+                                 self.f_visc, self.f_coul, ROTOR_COULOMB_RATE_SCALE)
         i_mid = self.torque_scale * self.interval_current(i)
         dpsi = np.diff(self.psi_s)
         if self.work == "current":
@@ -537,7 +537,7 @@ class RunBalance:
     def _cumulative_bearing_work(self) -> np.ndarray:
         """Work of the rotor-bearing friction on the flywheel from the first sample, J."""
         omega = np.gradient(self.psi, self.t)
-        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.tanh(omega[:-1] / ROTOR_FRICTION_RATE_SCALE)) * np.diff(self.psi)
+        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.tanh(omega[:-1] / ROTOR_COULOMB_RATE_SCALE)) * np.diff(self.psi)
         return np.concatenate([[0.0], np.cumsum(steps)])
 
 

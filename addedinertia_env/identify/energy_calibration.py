@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from addedinertia_env.sim.friction import ROTOR_FRICTION_RATE_SCALE
+from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE
 from addedinertia_env.identify.series_kernels import calibration_target, lag_ranking, twice_integrated
 from addedinertia_env.records.series_stats import median_step
 from addedinertia_env.identify.fit_kernels import line_basis, project_out_line
@@ -42,7 +42,7 @@ def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: floa
     # the angle the fit explains (kept for the final fit): th + the friction's torque (from psi, already
     # smoothed phase by phase) twice integrated over J_f; and the half sample intervals
     target, half_dtt = calibration_target(tt, th, psi[a:b + 1], float(f_visc), float(f_coul), float(J_f),
-                                           ROTOR_FRICTION_RATE_SCALE)
+                                           ROTOR_COULOMB_RATE_SCALE)
     y = target
 
     def twice(x):  # trapezoid integral of the integral, from 0, along the last axis

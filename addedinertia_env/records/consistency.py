@@ -77,14 +77,22 @@ def momentum_account(rec: RunRecord) -> dict | None:
             return None
     tt = t[a:r1]
 
-    def rate(x):
-        return (np.interp(tt + RATE_HALF_S, t, x) - np.interp(tt - RATE_HALF_S, t, x)) / (2 * RATE_HALF_S)
+    def rate(x, at):
+        return (np.interp(at + RATE_HALF_S, t, x) - np.interp(at - RATE_HALF_S, t, x)) / (2 * RATE_HALF_S)
 
-    w_fly = rate(theta)
+    w_fly = rate(theta, tt)
     change = known.J_flywheel * np.abs(w_fly - w_fly[0])
-    torque = gear * abs(known.k_t) * np.abs(i[a:r1]) + np.abs(known.friction_viscous * rate(psi)) \
+    # Each rate is the mean of theta' over +-RATE_HALF_S, so the change between two of them is bounded by the
+    # impulse from RATE_HALF_S before the first to RATE_HALF_S after the second (a current that steps up at
+    # the stroke's start already shows in the rate of the samples just before it).
+    lo = int(np.searchsorted(t, tt[0] - RATE_HALF_S, side="right")) - 1
+    hi = int(np.searchsorted(t, tt[-1] + RATE_HALF_S, side="left")) + 1
+    lo, hi = max(lo, 0), min(hi, len(t))
+    tg = t[lo:hi]
+    torque = gear * abs(known.k_t) * np.abs(i[lo:hi]) + np.abs(known.friction_viscous * rate(psi, tg)) \
         + abs(known.friction_coulomb)
-    impulse = np.concatenate([[0.0], np.cumsum(0.5 * (torque[1:] + torque[:-1]) * np.diff(tt))])
+    cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (torque[1:] + torque[:-1]) * np.diff(tg))])
+    impulse = np.interp(tt + RATE_HALF_S, tg, cumulative) - np.interp(tt[0] - RATE_HALF_S, tg, cumulative)
     # what the encoders may misread: each end of each difference a few counts and the noise off
     d_angle = QUANT_STEPS * (_count_step(known.phi_counts) + _count_step(known.psi_counts)) \
         + NOISE_SIGMAS * _noise(theta[a:r1])

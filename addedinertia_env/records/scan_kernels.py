@@ -215,7 +215,7 @@ def reaction_work(t, i_mean, scale, phi_s, psi_s, k_t, f_visc, f_coul, w_s):
     """Cumulative work of the motor's reaction on the hull from the first sample, J (``energy``'s
     ``_cumulative_work``, form ``reaction``): per interval ``k`` with ``omega = (psi_s[k+1] - psi_s[k]) /
     (t[k+1] - t[k])``, ``-(k_t (scale i_mean[k]) - (f_visc omega + f_coul tanh(omega / w_s))) (phi_s[k+1] -
-    phi_s[k])`` (the rotor's dry friction smoothed over the rate ``w_s``, rad/s, as the simulator's), summed as ``concatenate([[0.0], cumsum(steps)])``."""
+    phi_s[k])`` (the rotor's dry friction smoothed over the rate ``w_s``, rad/s: identify/rotor_friction.py), summed as ``concatenate([[0.0], cumsum(steps)])``."""
     n = len(t)
     out = np.empty(max(n, 1))
     out[0] = 0.0
