@@ -105,6 +105,7 @@ def hull_specs(seeds: int) -> list[dict]:
 
 
 def label_of(spec: dict) -> str:
+    """A simulated set's row label: water (cummins or constant added inertia), preset, controller, hull seed."""
     return f"{'cum' if spec['hydrodynamics'] == 'cummins' else 'con'}-{spec['preset']}-{spec['controller']}-h{spec['seed']}"
 
 
@@ -286,6 +287,9 @@ def table(rows: list[dict], before: list[dict] | None = None) -> str:
 
 
 def render(rows_path: str, before_path: str | None, out: str | None, command: str) -> str:
+    """The calibration table (runs, median |error|, median half-width, their ratio, coverage per water)
+    from the newest row of each set in ``rows_path``, beside ``before_path``'s; written between the
+    markers of ``out`` when given, and returned."""
     rows = _latest(rows_path)
     before = _latest(before_path) if before_path else None
     machine = rows[0].get("machine", "unknown machine") if rows else "no rows"
