@@ -120,6 +120,24 @@ def test_verdict_says_non_discriminating_with_numbers_when_zero_is_as_good():
     assert "**Discriminating**" in " ".join(verdict(entries))
 
 
+def test_zero_that_reads_closer_to_the_truth_than_tracking_is_not_beaten_by_control_error():
+    """Where the method is biased (memory water: the oracle reads +4 %), `zero` can sit far from the
+    oracle (large control error) yet nearer the truth: the suite does not discriminate, whatever
+    the control errors say (memory-v1's board, 2026-11-27)."""
+    n = 30
+    rng = np.random.default_rng(11)
+    bias = 0.04 + rng.normal(0, 0.002, n)  # the method's bias, common to every tracking entry
+    flat = (_rows("oracle", bias, kind="reference") + _rows("zero", rng.normal(0, 0.005, n), energy=0.0,
+                                                              kind="reference")
+            + _rows("pd", bias + rng.normal(0, 0.003, n), energy=8.0, kind="classical"))
+    entries = summarise(flat, n_boot=500)
+    disc = discrimination(entries)
+    assert paired.clearly(disc["zero_vs_best"]) > 0  # on control error zero looks clearly worse
+    assert not disc["zero_worse"] and not disc["discriminating"]  # on the ranked score it is not
+    said = " ".join(verdict(entries))
+    assert "NON-DISCRIMINATING" in said and "NOT clearly worse" in said and "ranked score" in said
+
+
 def test_few_episodes_are_warned():
     rows = _rows("oracle", [0.0] * 5, kind="reference") + _rows("a", [0.01, 0.02, 0.0, 0.03, 0.01])
     assert "fewer than 10 episodes" in " ".join(verdict(summarise(rows, n_boot=100)))

@@ -3,8 +3,11 @@
 With reference rows (simulated suites) the verdict first says whether the suite can judge
 controllers at all. It is *discriminating* when both hold:
 
-* ``zero`` is clearly worse than the best entry: the paired 95 % interval of
-  ``|c_zero| - |c_best|`` lies above zero;
+* ``zero`` is clearly worse than the best entry on the ranked score (the error a lab would
+  publish, :mod:`.score`): the paired 95 % interval of the mean score difference lies above
+  zero (rows without per-scenario scores: the paired interval of ``|c_zero| - |c_best|`` in
+  control error). Not on control error alone: where the method is biased (a memory, a drive's
+  losses) the oracle is no floor, and no control can read closer to the truth than tracking;
 * the best entry is clearly above the oracle: the paired 95 % interval of its median
   control error ``|c_best|`` excludes zero, i.e. there is measured headroom for a better
   controller.
@@ -64,7 +67,14 @@ def discrimination(entries: list[dict]) -> dict[str, Any] | None:
     if zero is not None and zero.get("control_errors") is not None:
         d = paired.difference(zero["control_errors"], best["control_errors"])
         out["zero_vs_best"] = d
-        out["zero_worse"] = paired.clearly(d) > 0
+        if zero.get("scenario_scores") is not None and best.get("scenario_scores") is not None:
+            from addedinertia_env.bench import score  # noqa: PLC0415
+
+            on_score = score.difference(zero["scenario_scores"], best["scenario_scores"])
+            out["zero_vs_best_score"] = on_score
+            out["zero_worse"] = score.clearly(on_score) > 0
+        else:
+            out["zero_worse"] = paired.clearly(d) > 0
     else:
         out["zero_vs_best"], out["zero_worse"] = None, None
     out["discriminating"] = bool(out["above_oracle"] and out["zero_worse"])
@@ -87,12 +97,15 @@ def verdict(entries: list[dict], baseline: str = "pd", target: float = TARGET) -
                  f"`{best}` is NOT clearly above the oracle: median control error {pct(disc['best_control_error'])}, "
                  f"paired 95 % CI {_ci(disc['best_ci95'])}, includes zero (no measured headroom for a better "
                  "controller)")
+        zs = disc.get("zero_vs_best_score")
+        how = (f"on the ranked score, mean paired difference {pct(zs['mean'])} (95 % CI {_ci(zs['ci95'])}, n = {zs['n']})"
+               if zs is not None else (_diff_text(z) if z is not None else ""))
         if z is None:
             zero = "no `zero` rows, so no-control cannot be compared"
         elif disc["zero_worse"]:
-            zero = f"`zero` (no control) is clearly worse than `{best}`: {_diff_text(z)}"
+            zero = f"`zero` (no control) is clearly worse than `{best}`: {how}"
         else:
-            zero = f"`zero` (no control) is NOT clearly worse than `{best}`: {_diff_text(z)}"
+            zero = f"`zero` (no control) is NOT clearly worse than `{best}`: {how}"
         label = ("**NON-DISCRIMINATING**" if not disc["discriminating"] else
                  "**Discriminating, small headroom**" if disc["headroom_small"] else "**Discriminating**")
         out.append(f"- {label}: {above}; {zero}.")
