@@ -159,6 +159,27 @@ class CorrectedEstimate:
     bias: float
 
 
+class _FamilyUnion:
+    """Each accepted family's corrected value and interval, their union, and the best family's value."""
+
+    def __init__(self, memory: MemoryIdentification):
+        self.memory, self.out, self.lo, self.hi, self.best = memory, {}, math.inf, -math.inf, None
+
+    def add(self, fit: FamilyFit, value: float, half: float, biases: list[float]) -> None:
+        """One family's corrected ``value`` with its 95 % ``half``-width and its runs' memory ``biases``."""
+        lo, hi, bias = value - half, value + half, float(np.mean(biases))
+        self.out[fit.family] = {"lambda66": value, "ci95": [lo, hi], "bias": bias}
+        self.lo, self.hi = min(self.lo, lo), max(self.hi, hi)
+        if fit is self.memory.best:
+            self.best = (value, bias)
+
+    def estimate(self) -> CorrectedEstimate | None:
+        """The best family's value with the union of the families' intervals (None: no family corrected)."""
+        if self.best is None:
+            return None
+        return CorrectedEstimate(self.best[0], (self.lo, self.hi), self.out, self.best[1])
+
+
 def corrected_energy(records: list[RunRecord], details: dict, memory: MemoryIdentification,
                      fractions=FRACTIONS) -> CorrectedEstimate | None:
     """lambda66 = A66(0) from the energy method's per-angle values (``details``: the energy result's, with its
@@ -183,9 +204,7 @@ def corrected_energy(records: list[RunRecord], details: dict, memory: MemoryIden
         if not iv.get("rejected"):
             by_run.setdefault(iv["run"], []).append(iv)
     runs = [(rec, by_run[rec.name], parts) for rec, parts in zip([r for r in records if r.name in by_run], parts_list)]
-    out = {}
-    lo_all, hi_all = math.inf, -math.inf
-    best = None
+    union = _FamilyUnion(memory)
     for fit in memory.accepted:
         g0 = np.real(_basis(fit.sections, 0.0))
         vals, sigs, grads, biases = [], [], [], []
@@ -216,15 +235,8 @@ def corrected_energy(records: list[RunRecord], details: dict, memory: MemoryIden
         wts = 1.0 / np.maximum(np.array(sigs), 1e-300) ** 2
         grad = (wts[:, None] * np.array(grads)).sum(axis=0) / wts.sum()
         common = float(np.sqrt(max(grad @ fit.cov_theta @ grad, 0.0))) if fit.cov_theta is not None else 0.0
-        half = math.hypot(0.5 * (hi - lo), Z95 * common)
-        lo, hi = value - half, value + half
-        out[fit.family] = {"lambda66": value, "ci95": [lo, hi], "bias": float(np.mean(biases))}
-        lo_all, hi_all = min(lo_all, lo), max(hi_all, hi)
-        if fit is memory.best:
-            best = (value, float(np.mean(biases)))
-    if best is None:
-        return None
-    return CorrectedEstimate(best[0], (lo_all, hi_all), out, best[1])
+        union.add(fit, value, math.hypot(0.5 * (hi - lo), Z95 * common), biases)
+    return union.estimate()
 
 
 Z95 = 1.959963984540054  # two-sided 95 % point of the normal
@@ -237,9 +249,7 @@ def _corrected_from_runs(records: list[RunRecord], per_run: list[float], per_run
     at the run's own dense angles; the interval is the union over the families."""
     from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
 
-    out = {}
-    lo_all, hi_all = math.inf, -math.inf
-    best = None
+    union = _FamilyUnion(memory)
     for fit in memory.accepted:
         vals, sigs, biases = [], [], []
         for rec, v, s in zip(records, per_run, per_run_sigma):
@@ -257,15 +267,8 @@ def _corrected_from_runs(records: list[RunRecord], per_run: list[float], per_run
         # the model's bias error is common to every run: not averaged away by pooling
         common = float(np.mean([math.sqrt(max(sg**2 - (s if np.isfinite(s) else 0.0)**2, 0.0))
                                 for sg, s in zip(sigs, per_run_sigma)]))
-        half = math.hypot(0.5 * (hi - lo), 1.96 * common)
-        lo, hi = value - half, value + half
-        out[fit.family] = {"lambda66": value, "ci95": [lo, hi], "bias": float(np.mean(biases))}
-        lo_all, hi_all = min(lo_all, lo), max(hi_all, hi)
-        if fit is memory.best:
-            best = (value, float(np.mean(biases)))
-    if best is None:
-        return None
-    return CorrectedEstimate(best[0], (lo_all, hi_all), out, best[1])
+        union.add(fit, value, math.hypot(0.5 * (hi - lo), 1.96 * common), biases)
+    return union.estimate()
 
 
 def combine(energy: float, energy_ci, fit: float, fit_ci) -> tuple[float, tuple[float, float]]:

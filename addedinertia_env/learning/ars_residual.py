@@ -257,21 +257,28 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
                            extra_card=extra_card)
 
 
+def add_search_arguments(parser: argparse.ArgumentParser, *, suite: str, base: str, scale: float, generations: int,
+                         scenarios: int, directions: int, top: int, noise: float, step: float = 0.02) -> None:
+    """The random search's flags, shared by the ARS trainers (this one and score_ars), with each one's defaults."""
+    parser.add_argument("--suite", default=suite)
+    parser.add_argument("--base", default=base, help=f"classical base controller (default {base})")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--scale", type=float, default=scale, help="largest correction, fraction of i_max")
+    parser.add_argument("--generations", type=int, default=generations)
+    parser.add_argument("--scenarios", type=int, default=scenarios, help="training scenarios per generation")
+    parser.add_argument("--directions", type=int, default=directions)
+    parser.add_argument("--top", type=int, default=top)
+    parser.add_argument("--step", type=float, default=step)
+    parser.add_argument("--noise", type=float, default=noise)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line: train one seed (and optionally export it); returns the exit status."""
     parser = argparse.ArgumentParser(prog="python -m addedinertia_env.learning.ars_residual",
                                      description="Train (and export) a linear residual controller on a suite's "
                                                  "training split by random search on the paired benchmark score.")
-    parser.add_argument("--suite", default="hard-v0")
-    parser.add_argument("--base", default="pid", help="classical base controller (default pid)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--scale", type=float, default=0.1, help="largest correction, fraction of i_max")
-    parser.add_argument("--generations", type=int, default=30)
-    parser.add_argument("--scenarios", type=int, default=12, help="training scenarios per generation")
-    parser.add_argument("--directions", type=int, default=4)
-    parser.add_argument("--top", type=int, default=2)
-    parser.add_argument("--step", type=float, default=0.02)
-    parser.add_argument("--noise", type=float, default=0.03)
+    add_search_arguments(parser, suite="hard-v0", base="pid", scale=0.1, generations=30, scenarios=12, directions=4,
+                         top=2, noise=0.03)
     parser.add_argument("--cap", type=float, default=0.005, help="per-episode cost cap (relative, 0.005 = 0.5 %%)")
     parser.add_argument("--cpu-minutes", type=float, default=30.0, help="stop after this much CPU time")
     parser.add_argument("--out", type=Path, required=True, help="run folder (curve.jsonl, policy.npz, card)")

@@ -47,7 +47,7 @@ import numpy as np
 from addedinertia_env.bench.score import CAP, SCORE_VERSION, bootstrap_mean
 from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 from addedinertia_env.foundation.atomic import atomic_target, atomic_write_text
-from addedinertia_env.learning.ars_residual import base_factory, base_params
+from addedinertia_env.learning.ars_residual import add_search_arguments, base_factory, base_params
 from addedinertia_env.learning.paired_batch import run_batch
 
 CLIP_X = 5.0  # normalised observations are clipped to +-5
@@ -299,16 +299,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m addedinertia_env.learning.score_ars",
                                 description="Train (and export) a gated linear residual controller on a suite's "
                                             "training split by random search on the ranked score (capped mean |e|).")
-    p.add_argument("--suite", default="drive-v0")
-    p.add_argument("--base", default="feedforward-pd", help="classical base controller (default feedforward-pd)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--scale", type=float, default=0.3, help="largest correction, fraction of i_max")
-    p.add_argument("--generations", type=int, default=100)
-    p.add_argument("--scenarios", type=int, default=16, help="training scenarios per generation")
-    p.add_argument("--directions", type=int, default=8)
-    p.add_argument("--top", type=int, default=4)
-    p.add_argument("--step", type=float, default=0.02)
-    p.add_argument("--noise", type=float, default=0.05)
+    add_search_arguments(p, suite="drive-v0", base="feedforward-pd", scale=0.3, generations=100, scenarios=16,
+                         directions=8, top=4, noise=0.05)
     p.add_argument("--cpu-minutes", type=float, default=25.0, help="stop training after this much CPU time")
     p.add_argument("--validate", type=int, default=64, help="validation scenarios at the end (0: none)")
     p.add_argument("--action-repeat", type=int, default=10, help="rig samples per action (10: 100 Hz)")
