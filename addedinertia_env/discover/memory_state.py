@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from addedinertia_env.discover.model import GrayBoxModel, ParamSpec, _stack
+from addedinertia_env.discover.model import GrayBoxModel, ParamSpec
 from addedinertia_env.identify.memory import FamilyFit, MemoryIdentification
 from addedinertia_env.sim import forces
 from addedinertia_env.sim.integrator import rk4_step
@@ -125,17 +125,10 @@ class MemoryGrayBoxModel(GrayBoxModel):
     def hull_prediction(self, thetas: np.ndarray) -> np.ndarray:
         """Model hull angle at every step boundary of every segment, (P, n_hull), with the memory state."""
         P = len(thetas)
-        ns = self._namespace(thetas)
-        delays, ratios = self._motor_input_params(ns, P)
-        inputs = [self._inputs(delays[p], ratios[p])[0] for p in range(P)]
+        ns, mean, slope, phi0, ends, carried = self._segment_inputs(thetas)
         lam = thetas[:, 0][:, None]
         a_inf = self._a_inf(thetas)
         segs = self.segments
-        mean = _stack([[m for m, _ in row] for row in inputs])
-        slope = _stack([[s for _, s in row] for row in inputs])
-        phi0 = np.array([s.phi[0] for s in segs])[None, :].repeat(P, 0)
-        ends = np.array([s.steps for s in segs])
-        carried = np.array([s.carry_from is not None for s in segs])
         n = self.kernel.order
         phi = np.zeros((P, len(segs), mean.shape[2] + 1))
         first = ~carried

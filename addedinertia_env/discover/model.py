@@ -198,19 +198,28 @@ class GrayBoxModel:
         """Number of flywheel residuals."""
         return int(sum(sl.stop - sl.start for fw in self._flywheels for sl in fw.chunks))
 
-    def hull_prediction(self, thetas: np.ndarray) -> np.ndarray:
-        """Model hull angle at every step boundary of every segment, (P, n_hull)."""
+    def _segment_inputs(self, thetas: np.ndarray):
+        """What every segment's integration starts from, for the (P,) parameter sets ``thetas``: the
+        parameters' namespace, the motor torque's mean and slope per step (P, segments, steps), the
+        start angles (P, segments), the step counts and whether each segment carries a state over."""
         P = len(thetas)
         ns = self._namespace(thetas)
         delays, ratios = self._motor_input_params(ns, P)
         inputs = [self._inputs(delays[p], ratios[p])[0] for p in range(P)]
-        J = (self.data.J_hull + thetas[:, 0])[:, None]
         segs = self.segments
         mean = _stack([[m for m, _ in row] for row in inputs])
         slope = _stack([[s for _, s in row] for row in inputs])
         phi0 = np.array([s.phi[0] for s in segs])[None, :].repeat(P, 0)
         ends = np.array([s.steps for s in segs])
         carried = np.array([s.carry_from is not None for s in segs])
+        return ns, mean, slope, phi0, ends, carried
+
+    def hull_prediction(self, thetas: np.ndarray) -> np.ndarray:
+        """Model hull angle at every step boundary of every segment, (P, n_hull)."""
+        P = len(thetas)
+        ns, mean, slope, phi0, ends, carried = self._segment_inputs(thetas)
+        J = (self.data.J_hull + thetas[:, 0])[:, None]
+        segs = self.segments
         if not forces.has_water_memory(ns) or not carried.any():  # strokes independent: one pass
             phi, _ = _integrate(phi0, np.zeros_like(phi0), mean, slope, self._h, J, ns, self.data, ends)
         else:  # the water state carries from the free stroke, through the hold, to the reverse
