@@ -178,10 +178,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
         base_cost, center_cost = cost[0], cost[1]
         cand = cost[2:].reshape(directions, 2, m).mean(axis=2)  # (+, -) mean cost per direction
         reward = -cand
-        best = np.argsort(np.max(reward, axis=1))[::-1][:top]
-        sigma = float(np.std(reward[best])) or 1.0
-        policy.theta = policy.theta + step / (top * sigma) * np.sum(
-            (reward[best, 0] - reward[best, 1])[:, None] * deltas[best], axis=0)
+        ars_step(policy, reward, deltas, top, step)
         ce_base = np.abs(rel[1] - rel[0])
         ce_pol = np.abs(rel[2] - rel[0])
         row = {"generation": gen, "episodes": episodes, "agent_steps": env_steps,
@@ -193,14 +190,12 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
                "paired_median_diff": float(np.nanmedian(ce_pol - ce_base)),
                "theta_norm": float(np.linalg.norm(policy.theta))}
         history.append(row)
-        with curve_path.open("a") as f:
-            f.write(json.dumps(row) + "\n")
+        append_curve_row(curve_path, row)
         log(f"gen {gen}: cost base {row['base_mean_cost'] * 100:.4f} % policy {row['policy_mean_cost'] * 100:.4f} % "
             f"(paired {row['paired_mean_diff'] * 100:+.4f} %), median ce base {row['base_median_ce'] * 100:.4f} % "
             f"policy {row['policy_median_ce'] * 100:.4f} %, |theta| {row['theta_norm']:.3f}, "
             f"cpu {row['cpu_s']:.0f} s, steps {env_steps}")
-        with atomic_target(out / "policy.npz", suffix=".npz") as tmp:
-            np.savez(tmp, mean=policy.mean, std=policy.std, theta=policy.theta)
+        save_policy(out, policy)
         write_card()
         if time.process_time() - cpu0 > 60.0 * cpu_minutes:
             break
@@ -255,6 +250,28 @@ def export_onnx(run: Path, onnx_path: Path, *, extra_card: dict[str, Any] | None
                                "theta": policy.theta.tolist()}}
     return export_residual(Linear(), policy, train_card, onnx_path, algo="ars", card_extra=whole,
                            extra_card=extra_card)
+
+
+def ars_step(policy, reward: np.ndarray, deltas: np.ndarray, top: int, step: float) -> None:
+    """One update of basic random search (Mania et al. 2018, ARS V1-t) on ``policy.theta``: the ``top``
+    directions by their better side's ``reward`` (directions x (+, -)), each weighted by its reward
+    difference, the step divided by those rewards' standard deviation."""
+    best = np.argsort(np.max(reward, axis=1))[::-1][:top]
+    sigma = float(np.std(reward[best])) or 1.0
+    policy.theta = policy.theta + step / (top * sigma) * np.sum(
+        (reward[best, 0] - reward[best, 1])[:, None] * deltas[best], axis=0)
+
+
+def append_curve_row(curve_path: Path, row: dict) -> None:
+    """One generation's row appended to the run's ``curve.jsonl`` (a resumable log, one JSON object a line)."""
+    with curve_path.open("a") as f:
+        f.write(json.dumps(row) + "\n")
+
+
+def save_policy(out: Path, policy) -> None:
+    """The policy's normalisation and weights written atomically to ``out/policy.npz``."""
+    with atomic_target(out / "policy.npz", suffix=".npz") as tmp:
+        np.savez(tmp, mean=policy.mean, std=policy.std, theta=policy.theta)
 
 
 def add_search_arguments(parser: argparse.ArgumentParser, *, suite: str, base: str, scale: float, generations: int,

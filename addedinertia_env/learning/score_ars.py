@@ -46,8 +46,9 @@ import numpy as np
 
 from addedinertia_env.bench.score import CAP, SCORE_VERSION, bootstrap_mean
 from addedinertia_env.experiment.task import OBSERVATION_FIELDS
-from addedinertia_env.foundation.atomic import atomic_target, atomic_write_text
-from addedinertia_env.learning.ars_residual import add_search_arguments, base_factory, base_params
+from addedinertia_env.foundation.atomic import atomic_write_text
+from addedinertia_env.learning.ars_residual import (add_search_arguments, append_curve_row, ars_step, base_factory,
+                                                    base_params, save_policy)
 from addedinertia_env.learning.paired_batch import run_batch
 
 CLIP_X = 5.0  # normalised observations are clipped to +-5
@@ -192,23 +193,18 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
         s = episode_scores(res.rel_error).reshape(len(thetas), m)
         base_s, center_s = s[0], s[1]
         reward = -s[2:].reshape(directions, 2, m).mean(axis=2)  # (+, -) per direction
-        best = np.argsort(np.max(reward, axis=1))[::-1][:top]
-        sigma = float(np.std(reward[best])) or 1.0
-        policy.theta = policy.theta + step / (top * sigma) * np.sum(
-            (reward[best, 0] - reward[best, 1])[:, None] * deltas[best], axis=0)
+        ars_step(policy, reward, deltas, top, step)
         row = {"generation": gen, "episodes": cost["episodes"], "agent_steps": cost["env_steps"],
                "cpu_s": round(time.process_time() - cpu0, 2), "wall_s": round(time.perf_counter() - wall0, 2),
                "scenarios": m, "base_score": float(base_s.mean()), "policy_score": float(center_s.mean()),
                "paired_mean_diff": float(np.mean(center_s - base_s)),
                "theta_norm": float(np.linalg.norm(policy.theta))}
         history.append(row)
-        with curve_path.open("a") as f:
-            f.write(json.dumps(row) + "\n")
+        append_curve_row(curve_path, row)
         log(f"gen {gen}: score base {100 * row['base_score']:.3f} % policy {100 * row['policy_score']:.3f} % "
             f"(paired {100 * row['paired_mean_diff']:+.3f} %), |theta| {row['theta_norm']:.3f}, "
             f"cpu {row['cpu_s']:.0f} s, steps {cost['env_steps']}")
-        with atomic_target(out / "policy.npz", suffix=".npz") as tmp:
-            np.savez(tmp, mean=policy.mean, std=policy.std, theta=policy.theta)
+        save_policy(out, policy)
         write_card()
         if time.process_time() - cpu0 > 60.0 * cpu_minutes:
             break
