@@ -14,7 +14,7 @@ from addedinertia_env.reports.perf import measure_batched, render_markdown
 def test_perf_json_has_the_contract_fields(capsys, tmp_path):
     out = tmp_path / "PERF.md"
     assert main(["perf", "--max-envs", "16", "--seconds", "0.01", "--repeats", "1", "--vector-envs", "4",
-                 "--vector-steps", "3", "--vector-warmup", "2", "--vector-seconds", "0.2", "--vector-repeats", "2", "--json",
+                 "--vector-steps", "120", "--vector-warmup", "2", "--vector-seconds", "0.2", "--vector-repeats", "2", "--json",
                  "--out", str(out)]) == 0
     result = json.loads(capsys.readouterr().out)
     for key in ("single_env_steps_per_s", "batched_physics_steps_per_s", "n_envs", "vector_env_samples_per_s",
@@ -42,7 +42,10 @@ def test_perf_json_has_the_contract_fields(capsys, tmp_path):
         assert len(head["time_shares"]) == 2 and "Where the headline row's wall time went" in text
         for shares, clocked in zip(head["time_shares"], head["clocked_s"]):  # each process's time, counted once
             assert shares["sample"] > 0 and min(shares.values()) >= 0 and sum(shares.values()) == pytest.approx(1.0)
-            assert abs(clocked - head["wall_s"]) < 0.2 * head["wall_s"] + 0.005  # the clock ran over the window
+            # the clock ran over the window, counted once: each worker's clock also holds the latency of the
+            # on/off messages (a few ms, tens under load), so the window is 120 steps (about 0.1 s) and 40 ms are allowed;
+            # time counted twice would read about twice the wall time
+            assert abs(clocked - head["wall_s"]) < 0.25 * head["wall_s"] + 0.04
     assert (tmp_path / "figures" / "perf_time_vs_n.png").stat().st_size > 1000
 
 
