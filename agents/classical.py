@@ -19,6 +19,7 @@ CLASSICAL: dict[str, str] = {
     "drive-aware": "agents.drive_aware:DriveAwarePD",
     "backlash-inversion": "agents.backlash_inversion:BacklashInversionPD",
     "pid-antiwindup": "agents.voltage_antiwindup:VoltageAntiWindupPID",
+    "cogging-ff": "agents.cogging_ff:CoggingFeedforwardPD",
 }
 
 

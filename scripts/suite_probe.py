@@ -3,15 +3,35 @@ scenarios and sensor noise; one JSON row per episode (rel_error, failure, wear) 
 
     python scripts/suite_probe.py drive-v1 --split tuning --count 6 --jobs 2 \
         --controllers zero pd feedforward-pd "drive-aware@prespin_fraction=0.2" > out/probe.jsonl
+
+``--without cogging`` (or ``backlash``, ``mesh``, ``drag``, ``driver``) runs the same scenarios with
+that flaw of the drawn drive switched off, the rest as drawn (the flaw's effect on each entry).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 
 from addedinertia_env.bench.runner import run_tasks
 from addedinertia_env.bench.suites import load_suite
+
+# --without NAME: the DriveParams fields set to their neutral values
+SWITCHES = {"cogging": {"cogging_torque": 0.0}, "backlash": {"backlash": 0.0}, "mesh": {"gear_efficiency": 1.0},
+            "drag": {"gear_drag": 0.0}, "driver": {"driver_time_constant": 0.0}}
+
+
+def without(scenario, flaws: list[str]):
+    """``scenario`` with the drive flaws ``flaws`` switched off (its name says which)."""
+    if not flaws:
+        return scenario
+    d = scenario.rig.drive
+    if d is None:
+        raise SystemExit(f"--without {flaws}: scenario {scenario.name} has no drive block")
+    for f in flaws:
+        d = dataclasses.replace(d, **SWITCHES[f])
+    return dataclasses.replace(scenario, rig=scenario.rig.replace(drive=d))
 
 
 def main() -> None:
@@ -23,11 +43,14 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=4)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--controllers", nargs="+", required=True, help='"name" or "name@knob=value,..."')
+    ap.add_argument("--without", nargs="*", default=[], choices=sorted(SWITCHES),
+                    help="drive flaws switched off in every scenario")
     a = ap.parse_args()
     suite = load_suite(a.suite)
     scenarios = suite.scenarios(a.split)[a.first:a.first + a.count]
     tasks = []
     for sc in scenarios:
+        sc = without(sc, a.without)
         for c in a.controllers:
             name, _, knobs = c.partition("@")
             kwargs = {k: float(v) for k, v in (kv.split("=") for kv in knobs.split(",") if kv)}
@@ -35,7 +58,7 @@ def main() -> None:
     keys = ("controller", "controller_kwargs", "seed", "preset", "rel_error", "failure", "current_sign_changes",
             "chatter_a", "wall_s")
     run_tasks(tasks, jobs=a.jobs, progress=False,
-              on_row=lambda r: print(json.dumps({k: r.get(k) for k in keys}), flush=True))
+              on_row=lambda r: print(json.dumps({**{k: r.get(k) for k in keys}, "without": a.without}), flush=True))
 
 
 if __name__ == "__main__":
