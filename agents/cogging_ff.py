@@ -7,7 +7,7 @@ show. The classical answer is to map it and feed its opposite forward. This entr
 
 * **observes the rotor's angle without a new sensor**: the controller sees the flywheel's
   rate, the slope of a quadratic fitted to the motor encoder's last samples
-  (experiment/filters.py). Summed over the control periods that rate is the encoder's angle
+  (experiment/filters.py). Summed over the control periods (trapezoid rule) that rate is the encoder's angle
   smoothed by a kernel of unit gain that is exact for a quadratic, so it does not drift
   (``psi_hat``, up to a constant that the map's phase absorbs);
 * **maps the cogging in the hold** (the hull is braked, so nothing of the stroke is spent):
@@ -126,6 +126,7 @@ class CoggingFeedforwardPD(FeedforwardPD):
         if self.sweep_len < float(self.min_sweep_s):
             self.sweep_len = 0.0
         self.psi_hat = 0.0
+        self.rate_prev: float | None = None
         self.t_hold = 0.0
         self.log: list[tuple[float, float, float]] = []  # (psi_hat, rate, current) over the sweep
         self.sweep_int = 0.0
@@ -165,7 +166,9 @@ class CoggingFeedforwardPD(FeedforwardPD):
         """The command, A: the sweep (hold start), then feedforward-pd's plus the cogging's cancellation."""
         ctx = self.ctx
         rate = obs["flywheel_rate"]
-        self.psi_hat += rate * ctx.dt
+        if self.rate_prev is not None:  # the trapezoid rule: exact for a quadratic angle, no drift
+            self.psi_hat += 0.5 * (rate + self.rate_prev) * ctx.dt
+        self.rate_prev = rate
         if obs["is_hold"] > 0.5 and self.cogging is None and self.t_hold < self.sweep_len:
             self.t_hold += ctx.dt
             self.log.append((self.psi_hat, rate, obs["current"]))
