@@ -14,6 +14,8 @@ residual is then the encoders' own noise, in rad), with columns for
   with one quadrant leaves ``c`` with a large standard error, and nothing is named;
 * ``gear_drag``: a drag ``-d sgn(Omega)`` beyond the rig block's rotor friction (a gearhead's
   no-load running torque);
+* ``supply_limit`` (:mod:`.supply_limit`): the driver's voltage pinned at the record's supply
+  with the back-EMF eating into it (judged on the voltage, not the balance);
 * ``cogging``: a torque ``A sin(m psi + phase)`` periodic in the rotor's angle, ``m = n N``
   for ``n`` cycles per motor turn (integer, the lcm of slots and poles) through the record's
   gear ratio ``N``; absent from the current. It is searched over ``n`` =
@@ -38,7 +40,7 @@ import numpy as np
 
 from addedinertia_env.records.record import RunRecord
 
-NAMES = ("mesh_loss", "gear_drag", "cogging", "backlash")
+NAMES = ("mesh_loss", "gear_drag", "cogging", "backlash", "supply_limit")
 
 # Smallest sizes named (docs/DISCOVERY.md says why; docs/DRIVE.md gives the bias each causes).
 MIN_MESH = 0.03  # -, 1 - mesh efficiency: a precision planetary stage loses at most about 3 %
@@ -378,7 +380,7 @@ def candidate(records: list[RunRecord]) -> dict[str, Any]:
     out: dict[str, Any] = {"named": [], "runs": [], "skipped": skipped, "why": {}}
     if not spans:
         out["why"] = {w: "no reverse-symmetric run with a flywheel balance" for w in NAMES}
-        return out
+        return out  # (a run without a flywheel balance has no controlled phase for supply_limit either)
     losses = [loss_fit(s) for s in spans]
     scans = [cogging_scan(s, f["lag_s"]) for s, f in zip(spans, losses)]
 
@@ -478,6 +480,9 @@ def candidate(records: list[RunRecord]) -> dict[str, Any]:
     else:
         bl["why"] = "no run can tell: " + "; ".join(sorted({f for f in fits if isinstance(f, str)}))
     words["backlash"] = bl
+    from addedinertia_env.discover.supply_limit import judge as judge_supply  # noqa: PLC0415
+
+    words["supply_limit"] = judge_supply(records)
     out["runs"] = losses
     out["words"] = words
     out["named"] = [w for w in NAMES if words[w]["named"]]
