@@ -106,13 +106,9 @@ def test_backlash_is_named_with_its_width():
 
 
 @needs_backlash
-@pytest.mark.xfail(strict=True, reason="known: the width reads low (0.746 deg for 1 deg on one pid run with three "
-                   "reversals: -0.00, 0.75, 0.95 deg). Cause measured (docs/DISCOVERY.md, 'Why the backlash width "
-                   "reads low'): pid's chatter carries the rotor back across the gap inside the 50 ms window of the "
-                   "first reversal (+0.85 then -0.93 deg), and after a clean crossing the back-EMF's residual drifts "
-                   "(k_e fitted 3 % low); not fixed; strict, so a fix shows")
 def test_backlash_width_from_one_run_within_a_quarter_degree():
-    """The width read from one pid run's three reversals, within 0.25 deg of 1 deg."""
+    """The width read from one pid run's three reversals, within 0.25 deg of 1 deg (it read 0.746 deg with
+    the winding's law written for the end current; docs/DISCOVERY.md, "Why the backlash width read low")."""
     import math  # noqa: PLC0415
 
     ev = drive_flaws.candidate([_run(DriveParams(gear_ratio=5.0, backlash=math.radians(1.0), rotor_inertia=1.5e-5),

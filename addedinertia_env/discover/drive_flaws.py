@@ -343,19 +343,37 @@ def backlash_fit(rec: RunRecord) -> dict[str, Any] | str:
     # where the current hardly changes, it is ill determined, and its error times the current's jump
     # across a reversal reads as a gap (0.5 deg for 0.25 mH and 10 A at 0.25 N m/A)
     L_known = float(b.L or 0.0)
-    target = u - L_known * di if L_known > 0 else u
+    # Where the rig block states L and the current is sampled at instants (the drive holds its voltage
+    # over each sample, the current relaxes with tau = L / R inside it, as the energy method's
+    # interval_mean_current has it), the winding's law holds exactly per interval: the voltage held
+    # over (t_k-1, t_k] is R i_ss,k + k_t Omega (the interval's mean rate), with the current it was
+    # relaxing to i_ss,k = (i_k - a i_k-1) / (1 - a), a = exp(-h / tau). The law with the end
+    # current and a central-difference L i' mis-weights the inductive term by the current's jump
+    # across every reversal (about 0.4 L dI: read as a gap) and, fitted away from the reversals,
+    # reads k_e 3 % low, whose error drifts the sum after a crossing: together 0.25 deg low on a
+    # 1 deg gap (docs/DISCOVERY.md, "Why the backlash width read low").
+    exact = L_known > 0 and float(b.R) > 0 and getattr(b, "current_sampling", "instant") == "instant"
+    if exact:
+        decay = math.exp(-dt * float(b.R) / L_known)
+        i_fit, om_fit = i.copy(), om.copy()
+        i_fit[1:] = (i[1:] - decay * i[:-1]) / (1.0 - decay)
+        om_fit[1:] = 0.5 * (om[1:] + om[:-1])
+        target = u
+    else:
+        i_fit, om_fit = i, om
+        target = u - L_known * di if L_known > 0 else u
     best = None
     for lag in LAGS_S[LAGS_S >= 0.0]:  # a channel lags, never leads
-        cols = [i] + ([] if L_known > 0 else [di]) + [np.interp(t - lag, t, om), np.ones_like(t)]
+        cols = [i_fit] + ([] if L_known > 0 else [di]) + [np.interp(t - lag, t, om_fit), np.ones_like(t)]
         A = np.column_stack(cols)
         coef, *_ = np.linalg.lstsq(A[keep], target[keep], rcond=None)
         rk = target[keep] - A[keep] @ coef
         if best is None or float(rk @ rk) < best[0]:
             best = (float(rk @ rk), lag, A, coef)
     _, lag, A, coef = best
-    if L_known > 0:  # the same layout either way: R, L, k_e, offset
+    if L_known > 0:  # the same layout either way: R, L, k_e, offset (the exact law holds L in i_ss)
         coef = np.array([coef[0], L_known, coef[1], coef[2]])
-        A = np.column_stack([A[:, 0], di, A[:, 1], A[:, 2]])
+        A = np.column_stack([A[:, 0], np.zeros_like(di) if exact else di, A[:, 1], A[:, 2]])
     k_t = float(b.k_t)
     if not (abs(coef[2] / k_t - 1) <= WINDING_TOLERANCE and abs(coef[0] / float(b.R) - 1) <= 2 * WINDING_TOLERANCE):
         return (f"the voltage does not follow the winding's law u = R i + L i' + k_t Omega (fitted R {coef[0]:.3g} "
