@@ -49,7 +49,8 @@ def test_a_record_without_a_stated_supply_is_not_judged(low_supply):
     assert not ev["named"] and "states no supply" in ev["why"], ev
 
 
-@pytest.mark.parametrize("archive", ["foreign-lab.tar.xz", "foreign-lab-2.tar.xz"])
+@pytest.mark.parametrize("archive", ["foreign-lab.tar.xz",
+                                     pytest.param("foreign-lab-2.tar.xz", marks=pytest.mark.slow)])
 def test_no_development_case_names_a_supply_limit(unpack_shared, archive):
     root = unpack_shared(archive)
     cases = sorted(p for p in root.iterdir() if p.is_dir())
