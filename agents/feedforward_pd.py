@@ -145,6 +145,6 @@ class PD(FeedforwardPD):
     name = "pd"
     KNOBS = {"omega_c": (3.0, 40.0, "log"), "zeta": (0.5, 2.0, "lin")}  # no observer to tune
 
-    def __init__(self, omega_c: float = 10.0, zeta: float = 1.0):
+    def __init__(self, omega_c: float = 10.0, zeta: float = 1.0, tuned: bool = False):  # noqa: ARG002 - never reads one
         super().__init__(tuned=False, omega_c=omega_c, zeta=zeta, feedforward=False, prespin=False,
                          observer=False)
