@@ -161,6 +161,7 @@ class RunBalance:
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         self.gear_loss: GearLoss | None = None
+        self.current_lag_calibrated = False
         if work == "reaction" and FLYWHEEL_CALIBRATION:
             dt_median = float(median_step(t))
             start = max(self.k3 - _n_samples(dt_median, 1.0), hold.start if hold is not None else self.k3) + 1
@@ -170,6 +171,7 @@ class RunBalance:
                                          self.f_visc, self.f_coul)
             if calib is not None:
                 self.torque_scale, self.current_lag = calib
+            self.current_lag_calibrated = calib is not None
             if GEAR_LOSS and rig.gear_ratio > 1.0:  # a gearbox: its loss on the flywheel's balance (energy_gear.py)
                 g_start = {"hold": self.hold_start + 1, "free": free.start + 1}.get(GEAR_SPAN, start)
                 self.gear_loss = gear_loss_fit(t, phi + psi, self.psi_s, self.i, g_start, end, self.J_f, self.k_t,
@@ -547,7 +549,10 @@ class RunBalance:
 
     @property
     def calibrated(self) -> bool:
-        """Whether the torque and the current's lag come from the flywheel's balance."""
+        """Whether the torque and the current's lag come from the flywheel's balance (through a gearbox:
+        whether the calibration pinned them; the loss's fit sets the scale either way, not the lag)."""
+        if self.gear_loss is not None:
+            return self.current_lag_calibrated
         return self.torque_scale != 1.0 or self.current_lag != 0.0
 
     def _cumulative_bearing_work(self) -> np.ndarray:
