@@ -44,7 +44,7 @@ from addedinertia_env.identify.energy_work import (
 
 FLYWHEEL_CALIBRATION = True  # calibrate the motor torque and the current's lag on the flywheel's balance
 GEAR_LOSS = True  # through a gearbox (rig.gear_ratio > 1): book the gearhead's loss fitted on the flywheel's balance
-GEAR_SPAN = "calibration"  # the loss's fit covers the calibration's span ("hold": the whole hold; "free": from the free stroke)
+GEAR_SPAN = "calibration"  # the loss's fit covers the calibration's span ("hold": the whole hold, a diagnostic)
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
 # relative, torque per ampere once calibrated on the flywheel: the calibration's scatter between runs
 # (~5e-4, docs/ENERGY_METHOD.md item 6). The flywheel's inertia is the rig block's, taken as given like
@@ -173,7 +173,7 @@ class RunBalance:
                 self.torque_scale, self.current_lag = calib
             self.current_lag_calibrated = calib is not None
             if GEAR_LOSS and rig.gear_ratio > 1.0:  # a gearbox: its loss on the flywheel's balance (energy_gear.py)
-                g_start = {"hold": self.hold_start + 1, "free": free.start + 1}.get(GEAR_SPAN, start)
+                g_start = self.hold_start + 1 if GEAR_SPAN == "hold" else start
                 self.gear_loss = gear_loss_fit(t, phi + psi, self.psi_s, self.i, g_start, end, self.J_f, self.k_t,
                                                self.f_visc, self.f_coul, self.current_lag, self.torque_scale)
                 if self.gear_loss is not None:

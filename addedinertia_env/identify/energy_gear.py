@@ -11,13 +11,14 @@ quadrant the span holds most of (docs/DRIVE.md, docs/ENERGY_METHOD.md "The drive
 
 Here the flywheel's balance ``J_f theta'' = s k_t i(t + lag) - M_f - (c k_t |i| + d) sgn(Omega)``
 (``theta = phi + psi``; the lag the calibration found) is fitted, twice integrated, over the
-record's hold and reverse stroke, with the columns ``(1, t)`` (the angle and rate at the span's
-start), the current, the mesh column and the drag column, by least squares. The energy method
+calibration's span (the last second of the hold and the reverse stroke), with the columns
+``(1, t)`` (the angle and rate at the span's start), the current, the mesh column and the drag column, by least squares. The energy method
 then books the scale ``s`` and the loss torque in its reaction work
 (:meth:`.energy_balance.RunBalance._cumulative_work`). Where the span holds one quadrant only
 (the current drives the flywheel, or only brakes it), ``c`` and ``s`` cannot be told apart: the
 mesh column is dropped and the net torque ``s' k_t i`` is what the span shows, which is what
-the work over that span needs.
+the work over that span needs. Where no current flows (``zero``) nothing is booked
+(:data:`MIN_CURRENT_SAMPLES`).
 
 Only the record's samples and its ``rig`` block are used, never ``truth``. Records without a
 gearbox (``gear_ratio`` absent or 1) are not touched: the method's numbers on them are the same,
