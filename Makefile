@@ -160,10 +160,11 @@ leaderboard-drive:
 	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v1.html LEARNED_POLICIES="$(DRIVE_POLICIES)" \
 	  BENCH_CONTROLLERS="$(DRIVE_CONTROLLERS)"
 
-# Every tunable classical entry on drive-v1's tuning split with one budget
-# (configs/controllers/tuned-drive-v1.yaml; `pd` is the untuned bare baseline).
+# Every classical entry on drive-v1's tuning split with one budget: 8 candidates (the defaults and 7
+# random draws over its KNOBS) x the first 8 tuning scenarios = 64 episodes, ranked score
+# (configs/controllers/tuned-drive-v1.yaml; docs/DRIVE.md). `pd` too: its loop gains, no observer.
 DRIVE_CONTROLLERS ?= oracle zero pd pid lqr feedforward-pd drive-aware backlash-inversion pid-antiwindup
-DRIVE_TUNED ?= backlash-inversion drive-aware pid-antiwindup feedforward-pd pid lqr
+DRIVE_TUNED ?= feedforward-pd pd pid lqr drive-aware backlash-inversion pid-antiwindup
 tune-drive: $(STAMP)
 	for c in $(DRIVE_TUNED); do \
 	  $(BIN)/addedinertia bench tune --suite drive-v1 --controller $$c --candidates 8 --scenarios 8 --seed 0 \

@@ -139,10 +139,12 @@ class FeedforwardPD(StrokeController):
 
 
 class PD(FeedforwardPD):
-    """The bare PD baseline: the same loop without feedforward, pre-spin or observer, untuned."""
+    """The bare PD baseline: the same loop without feedforward, pre-spin or observer. It reads no tuned
+    file; a suite that tunes every entry with one budget (drive-v1) passes its tuned gains explicitly."""
 
     name = "pd"
+    KNOBS = {"omega_c": (3.0, 40.0, "log"), "zeta": (0.5, 2.0, "lin")}  # no observer to tune
 
-    def __init__(self, omega_c: float = 10.0, zeta: float = 1.0):
+    def __init__(self, omega_c: float = 10.0, zeta: float = 1.0, tuned: bool = False):  # noqa: ARG002 - never reads one
         super().__init__(tuned=False, omega_c=omega_c, zeta=zeta, feedforward=False, prespin=False,
                          observer=False)

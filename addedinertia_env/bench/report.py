@@ -37,9 +37,9 @@ def preamble(rows: list[dict], command: str) -> str:
              "(`identify(records, 'energy', asymmetry_correction=False)`); `corrected` = the default identification "
              "(dissipation mismatch corrected with a damping law fitted to the free stroke). A failed run or "
              "identification counts as an infinite error."]
-    from addedinertia_env.bench.score import CAP, SCORE_VERSION  # noqa: PLC0415
+    from addedinertia_env.bench.score import CAP  # noqa: PLC0415
 
-    lines.append(f"Ranked score ({SCORE_VERSION}, bench/score.py): the mean over the scenarios of min(|e|, "
+    lines.append(f"Ranked score ({version}, bench/score.py): the mean over the scenarios of min(|e|, "
                  f"{100 * CAP:.0f} %), a failed run or identification counting {100 * CAP:.0f} %, with a 95 % "
                  "bootstrap interval of the mean (2000 resamples of the scenarios, seed 0). Tie rule: an entry whose "
                  "paired 95 % interval of the mean difference of scores against its group's leader (same scenarios, "

@@ -106,7 +106,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
     """One benchmark row (see module doc)."""
     t0 = time.perf_counter()
     sc = task.scenario
-    from addedinertia_env.sim.forces import true_lambda66  # noqa: PLC0415
+    from addedinertia_env.sim.forces import gear_ratio, true_lambda66  # noqa: PLC0415
 
     truth = true_lambda66(sc.rig)  # describes the scenario; the score's own (the records' truth block) replaces it
     row: dict[str, Any] = {
@@ -119,7 +119,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
         "learning_cycles": 0, "effects": sorted(sc.rig.effects.active),
         "control_loop": sc.loop.to_dict() if sc.loop is not None else None, "i_max": sc.rig.motor.i_max,
         "failure": None, "controller_kwargs": task.controller_kwargs, "version": __version__,
-        "commit": git_commit(), "entry_kind": None, **score_version_fields(),
+        "commit": git_commit(), "entry_kind": None, **score_version_fields(geared=gear_ratio(sc.rig) > 1.0),
     }
     try:
         rig = build_rig(sc, seed=cycle_seed(sc, 0))

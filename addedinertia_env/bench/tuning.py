@@ -80,6 +80,7 @@ def tune(controller: str, suite: str = "standard-v0", candidates: int = 8, scena
     best = min(trials, key=lambda t: (t["score"], t["median_energy_J"]))
     return {"params": best["params"], "score": best["score"], "trials": trials,
             "budget": {"candidates": candidates, "scenarios": len(scen), "episodes": len(tasks)},
+            "score_version": str(rows[0].get("score_version", SCORE_VERSION)) if rows else SCORE_VERSION,
             "tuned_path": str(s.tuned_path or TUNED_PATH)}
 
 
@@ -88,7 +89,7 @@ def write_tuned(name: str, result: dict[str, Any], command: str, path: Path | No
     path = path or TUNED_PATH
     data = (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
     data[name] = {"params": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in result["params"].items()},
-                  "tuning_score": round(float(result["score"]), 6), "score_version": SCORE_VERSION,
+                  "tuning_score": round(float(result["score"]), 6), "score_version": result.get("score_version", SCORE_VERSION),
                   "budget": result.get("budget", {}), "command": command}
     header = ("# Tuned controller gains, written by `addedinertia bench tune` (addedinertia_env/bench/tuning.py).\n"
               "# Each entry: the parameters, the tuning-split score, the budget and the command.\n")

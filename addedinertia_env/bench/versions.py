@@ -13,6 +13,11 @@ never puts an old error beside a new one:
   (``docs/RUN_RECORD.md``); the ranked score is the mean of capped |error| with a failure at
   the cap (:mod:`.score`).
 
+* ``capped-mean-v2`` (:data:`GEARED_SCORE_VERSION`): ``capped-mean-v1`` on a rig with a gearbox
+  (``gear_ratio`` > 1: drive-v0, drive-v1), once the energy method books the gearhead's loss
+  identified on the flywheel's own balance (``identify/energy_gear.py``). Rows of a rig without
+  a gearbox estimate the same number, bit for bit, and keep ``capped-mean-v1``.
+
 A suite whose truth changed takes a new name too (``memory-v1``: the memory presets, truth
 A66(0)); memory-free suites kept their names, their truth being the same number.
 
@@ -28,11 +33,11 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from addedinertia_env.bench.score import SCORE_VERSION  # this code's score (bench/score.py): truth lambda66 = A66(0)
+from addedinertia_env.bench.score import GEARED_SCORE_VERSION, SCORE_VERSION  # this code's scores (bench/score.py)
 
 FIELD = "score_version"  # the rows' field
 LEGACY = "v0"  # rows without the field: written before the truth was A66(0) with memory on
-RANKABLE = (SCORE_VERSION, LEGACY)  # a board of either alone is ranked as it always was
+RANKABLE = (SCORE_VERSION, GEARED_SCORE_VERSION, LEGACY)  # a board of any one alone is ranked
 
 
 class ScoreVersionError(ValueError):
@@ -45,9 +50,9 @@ def row_version(row: Mapping[str, Any]) -> str:
     return LEGACY if value is None else str(value)
 
 
-def row_fields() -> dict[str, str]:
-    """The version fields a new benchmark row carries (bench/runner.py)."""
-    return {FIELD: SCORE_VERSION}
+def row_fields(geared: bool = False) -> dict[str, str]:
+    """The version fields a new benchmark row carries (bench/runner.py); ``geared``: its rig has a gearbox."""
+    return {FIELD: GEARED_SCORE_VERSION if geared else SCORE_VERSION}
 
 
 def check_versions(rows_by_file: Mapping[str, Sequence[Mapping[str, Any]]]) -> str:

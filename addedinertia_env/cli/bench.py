@@ -119,7 +119,11 @@ def run_bench(args) -> int:
 
     for stale in remove_stale_temps(out.parent):
         info(f"bench: removed {stale}, a temporary file of a killed earlier run")
-    kept, notes = prepare_output(out, key, force=args.force)
+    from addedinertia_env.bench.versions import row_fields as version_fields  # noqa: PLC0415
+    from addedinertia_env.sim.forces import gear_ratio  # noqa: PLC0415
+
+    version = version_fields(geared=any(gear_ratio(sc.rig) > 1.0 for sc in scenarios))["score_version"]
+    kept, notes = prepare_output(out, key, force=args.force, version=version)
     for note in notes:
         info(f"bench: {note}")
     kept, retry = drop_failed(out, kept)

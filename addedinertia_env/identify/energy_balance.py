@@ -25,6 +25,7 @@ from addedinertia_env.identify.common import IdentificationError, SharedSavgol, 
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
 from addedinertia_env.identify.energy_calibration import MAX_LAG_S, flywheel_calibration
 from addedinertia_env.identify.energy_dissipation import DissipationMismatch, forward_damping_law
+from addedinertia_env.identify.energy_gear import GearLoss, gear_loss_fit
 from addedinertia_env.identify.energy_rest import (
     REST_FIT_S,
     crossings_fit,
@@ -42,6 +43,8 @@ from addedinertia_env.identify.energy_work import (
 
 
 FLYWHEEL_CALIBRATION = True  # calibrate the motor torque and the current's lag on the flywheel's balance
+GEAR_LOSS = True  # through a gearbox (rig.gear_ratio > 1): book the gearhead's loss fitted on the flywheel's balance
+GEAR_SPAN = "calibration"  # the loss's fit covers the calibration's span ("hold": the whole hold, a diagnostic)
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
 # relative, torque per ampere once calibrated on the flywheel: the calibration's scatter between runs
 # (~5e-4, docs/ENERGY_METHOD.md item 6). The flywheel's inertia is the rig block's, taken as given like
@@ -157,6 +160,8 @@ class RunBalance:
         self.phi_s, self.psi_s = smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec))
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
+        self.gear_loss: GearLoss | None = None
+        self.current_lag_calibrated = False
         if work == "reaction" and FLYWHEEL_CALIBRATION:
             dt_median = float(median_step(t))
             start = max(self.k3 - _n_samples(dt_median, 1.0), hold.start if hold is not None else self.k3) + 1
@@ -166,6 +171,13 @@ class RunBalance:
                                          self.f_visc, self.f_coul)
             if calib is not None:
                 self.torque_scale, self.current_lag = calib
+            self.current_lag_calibrated = calib is not None
+            if GEAR_LOSS and rig.gear_ratio > 1.0:  # a gearbox: its loss on the flywheel's balance (energy_gear.py)
+                g_start = self.hold_start + 1 if GEAR_SPAN == "hold" else start
+                self.gear_loss = gear_loss_fit(t, phi + psi, self.psi_s, self.i, g_start, end, self.J_f, self.k_t,
+                                               self.f_visc, self.f_coul, self.current_lag, self.torque_scale)
+                if self.gear_loss is not None:
+                    self.torque_scale = self.gear_loss.scale
         self.work_cum = self._cumulative_work()
         self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros(t.shape, t.dtype)
         self.asymmetry_correction = asymmetry_correction
@@ -504,8 +516,14 @@ class RunBalance:
         """Motor work from the first sample to each sample, J (the form chosen by ``work``)."""
         t, i = self.t, self.i
         if self.work == "reaction":  # work of the motor's reaction on the hull: -(k_t i - M_f) dphi
-            return reaction_work(t, self.interval_current(i), self.torque_scale, self.phi_s, self.psi_s, self.k_t,
+            i_mean = self.interval_current(i)
+            work = reaction_work(t, i_mean, self.torque_scale, self.phi_s, self.psi_s, self.k_t,
                                  self.f_visc, self.f_coul, ROTOR_COULOMB_RATE_SCALE)
+            if self.gear_loss is not None:  # and the gearhead's loss, which the hull receives too (energy_gear.py)
+                omega = np.diff(self.psi_s) / np.diff(t)
+                steps = -self.gear_loss.torque(self.k_t, i_mean, omega) * np.diff(self.phi_s)
+                work = work + np.concatenate([[0.0], np.cumsum(steps)])
+            return work
         i_mid = self.torque_scale * self.interval_current(i)
         dpsi = np.diff(self.psi_s)
         if self.work == "current":
@@ -531,7 +549,10 @@ class RunBalance:
 
     @property
     def calibrated(self) -> bool:
-        """Whether the torque and the current's lag come from the flywheel's balance."""
+        """Whether the torque and the current's lag come from the flywheel's balance (through a gearbox:
+        whether the calibration pinned them; the loss's fit sets the scale either way, not the lag)."""
+        if self.gear_loss is not None:
+            return self.current_lag_calibrated
         return self.torque_scale != 1.0 or self.current_lag != 0.0
 
     def _cumulative_bearing_work(self) -> np.ndarray:

@@ -1,0 +1,44 @@
+"""capped-mean-v2 (bench/score.py, bench/versions.py): rows of a geared rig carry their own score version,
+since the energy method books the gearhead's loss there (identify/energy_gear.py); rows of the old
+estimate on a geared suite are never ranked beside them nor resumed by a new run."""
+
+from __future__ import annotations
+
+import pytest
+from test_score_versions import _rows, _write
+
+from addedinertia_env.bench import score
+from addedinertia_env.bench.leaderboard import RowsError, load_rows
+from addedinertia_env.bench.resume import RowsFileError, prepare_output
+from addedinertia_env.bench.suites import load_suite
+from addedinertia_env.bench.versions import GEARED_SCORE_VERSION, SCORE_VERSION, row_fields
+from addedinertia_env.sim.forces import gear_ratio
+
+
+def test_a_geared_rig_writes_the_geared_version_and_others_keep_theirs():
+    assert row_fields(geared=True) == {"score_version": GEARED_SCORE_VERSION} != row_fields()
+    assert all(gear_ratio(sc.rig) > 1.0 for sc in load_suite("drive-v1").scenarios("test"))
+    assert all(gear_ratio(sc.rig) == 1.0 for sc in load_suite("standard-v0").scenarios("test"))
+    row = {"rel_error": 0.02, **row_fields(geared=True)}
+    assert score.row_fields(row) == {"score_version": GEARED_SCORE_VERSION, "score": 0.02}
+
+
+def test_old_and_new_rows_of_a_geared_suite_are_not_ranked_together(tmp_path):
+    a = _write(tmp_path / "old.jsonl", _rows("pd", SCORE_VERSION, suite="drive-v1"))
+    b = _write(tmp_path / "new.jsonl", _rows("lqr", GEARED_SCORE_VERSION, suite="drive-v1"))
+    with pytest.raises(RowsError, match="different score versions"):
+        load_rows([a, b])
+    assert load_rows([b])  # one version alone is ranked
+    with pytest.raises(score.ScoreVersionError):
+        score.check_versions(_rows("pd", SCORE_VERSION) + _rows("lqr", GEARED_SCORE_VERSION))
+
+
+def test_a_geared_run_does_not_resume_rows_of_the_old_estimate(tmp_path):
+    key = {"controller": "pd", "suite": "drive-v1", "split": "test"}
+    path = tmp_path / "rows.jsonl"
+    _write(path, _rows("pd", SCORE_VERSION, suite="drive-v1"))
+    with pytest.raises(RowsFileError, match=rf"this run writes '{GEARED_SCORE_VERSION}'"):
+        prepare_output(path, key, version=GEARED_SCORE_VERSION)
+    _write(path, _rows("pd", GEARED_SCORE_VERSION, suite="drive-v1"))
+    kept, _ = prepare_output(path, key, version=GEARED_SCORE_VERSION)
+    assert len(kept) == 6
