@@ -163,7 +163,7 @@ leaderboard-drive:
 # Every classical entry on drive-v1's tuning split with one budget: 8 candidates (the defaults and 7
 # random draws over its KNOBS) x the first 8 tuning scenarios = 64 episodes, ranked score
 # (configs/controllers/tuned-drive-v1.yaml; docs/DRIVE.md). `pd` too: its loop gains, no observer.
-DRIVE_CONTROLLERS ?= oracle zero pd pid lqr feedforward-pd drive-aware backlash-inversion pid-antiwindup
+DRIVE_CONTROLLERS ?= oracle zero pd pid lqr feedforward-pd drive-aware backlash-inversion pid-antiwindup cogging-ff
 DRIVE_TUNED ?= feedforward-pd pd pid lqr drive-aware backlash-inversion pid-antiwindup
 tune-drive: $(STAMP)
 	for c in $(DRIVE_TUNED); do \

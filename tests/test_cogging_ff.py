@@ -76,3 +76,18 @@ def test_cogging_map_and_feedforward_on_a_drive_v1_scenario():
     c = make_controller("cogging-ff", tuned=False)
     run_experiment(MujocoRig(clean.rig, seed=clean.sensor_seed), c, clean.plan)
     assert not c.cogging["found"], c.cogging
+
+
+def test_a_suites_tuned_loop_gains_reach_cogging_ff():
+    """cogging-ff adds no loop knob: on a suite with its own tuned file it runs feedforward-pd's gains
+    from that file (the same tuning budget), not the global defaults."""
+    from agents.tuned import load_tuned
+    from addedinertia_env.bench.suites import load_suite
+
+    suite = load_suite("drive-v1")
+    scenario = suite.scenarios("test")[0]
+    own = load_tuned("feedforward-pd", suite.tuned_path)
+    assert own, "drive-v1 has tuned feedforward-pd gains"
+    kwargs = suite.task(scenario, "cogging-ff").controller_kwargs
+    assert {k: kwargs[k] for k in own} == own and kwargs["tuned"] is False
+    assert suite.task(scenario, "cogging-ff", tuned=False).controller_kwargs == {"tuned": False}

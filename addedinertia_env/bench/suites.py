@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from agents.classical import CLASSICAL, controller_class
 from agents.tuned import load_tuned
 
 from addedinertia_env.foundation.config_io import check_keys, read_yaml
@@ -128,6 +129,9 @@ class Suite:
         kwargs = dict(controller_kwargs or {})
         if tuned and self.tuned_path is not None:
             params = load_tuned(controller, self.tuned_path)
+            shared = getattr(controller_class(controller), "tuned_as", None) if controller in CLASSICAL else None
+            if not params and shared:  # an entry that adds no loop knob (cogging-ff) runs its loop's tuned gains
+                params = load_tuned(shared, self.tuned_path)
             if params:  # gains tuned on this suite's tuning split, passed explicitly
                 kwargs = {**params, **kwargs}
                 tuned = False
