@@ -15,8 +15,9 @@ normalisation is inside). Its metadata (``addedinertia.*``) says how to drive th
 - ``residual_base`` / ``residual_scale``: if set, the network is a correction on top of
   a classical controller, recreated here from its name and reset with the same
   :class:`~agents.base.ControllerContext` (sensor data only); the action is
-  ``clip(base(obs) + scale * network, -1, 1)``, with the parameters the base had in
-  training (``residual_base_params``, pinned). ``residual_base_rate`` says where the base
+  ``clip(base(obs) + scale * network, -limit, limit)``, with the parameters the base had in
+  training (``residual_base_params``, pinned) and ``limit`` the metadata's ``action_limit``
+  (a fraction of i_max in (0, 1], default 1: the policy's own current limit). ``residual_base_rate`` says where the base
   runs: ``sample`` (default) every sample, so the policy acts at the sample rate;
   ``policy`` with the network, once per ``action_repeat`` samples, its context's ``dt``
   the policy period, the whole action held in between: a policy for a two-rate bench.
@@ -86,6 +87,8 @@ class OnnxPolicy:
         self.algo = self.metadata.get("algo", "")
         self.residual_base = self.metadata.get("residual_base", "") or None
         self.residual_scale = self._meta_number("residual_scale", "0", float, 0.0, 1.0)
+        # the policy's own current limit (fraction of i_max): base + correction stays inside it
+        self.action_limit = self._meta_number("action_limit", "1", float, 1e-3, 1.0)
         self.sample_rate_hz = (self._meta_number("sample_rate_hz", "0", float, 1.0, 1e6)
                                if self.metadata.get("sample_rate_hz") else None)
         self.residual_base_rate = (self.metadata.get("residual_base_rate", "") or "sample") if self.residual_base else ""
@@ -222,10 +225,10 @@ class OnnxPolicy:
         if self.residual_base_rate == "policy":  # base + correction decided together, then held
             if new_action:
                 base_action, _ = self.base.predict(obs, deterministic=True)
-                self._held_total = residual_action(base_action, self._held, self.residual_scale)
+                self._held_total = residual_action(base_action, self._held, self.residual_scale, self.action_limit)
             return self._held_total.copy(), state
         base_action, _ = self.base.predict(obs, deterministic=True)
-        return residual_action(base_action, self._held, self.residual_scale), state
+        return residual_action(base_action, self._held, self.residual_scale, self.action_limit), state
 
 
 def _optional_int(text: str | None) -> int | None:

@@ -10,15 +10,18 @@ import numpy as np
 BASE_RATES = ("sample", "policy")  # where a residual policy's base controller runs
 
 
-def residual_action(base_action, correction, scale: float) -> np.ndarray:
-    """``clip(base + scale * clip(correction, -1, 1), -1, 1)`` as a float32 array of shape (1,).
+def residual_action(base_action, correction, scale: float, limit: float = 1.0) -> np.ndarray:
+    """``clip(base + scale * clip(correction, -1, 1), -limit, limit)`` as a float32 array of shape (1,).
 
     ``base_action`` is the classical controller's normalised action, ``correction`` the
     policy's raw action (both fractions of the drive's limit), ``scale`` the largest
-    correction (a fraction of the limit)."""
+    correction (a fraction of the limit). ``limit`` (0-1, a fraction of the drive's limit)
+    is the policy's own current limit: below 1 the command never reaches the drive's limit,
+    where the energy method rejects the samples (a safety margin; 1: the drive's clip only)."""
     r = np.clip(np.asarray(correction, dtype=np.float32).reshape(-1)[:1], -1.0, 1.0)
     action = np.asarray(base_action, dtype=np.float32).reshape(1) + scale * r
-    return np.clip(action, -1.0, 1.0).astype(np.float32)
+    lim = float(limit)
+    return np.clip(action, -lim, lim).astype(np.float32)
 
 
 def policy_rate_context(context, action_repeat: int):

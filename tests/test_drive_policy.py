@@ -52,6 +52,57 @@ def test_one_generation_trains_from_the_base_and_writes_its_card(tmp_path):
     assert card["validation"]["scenarios"] == 2 and len(card["validation"]["ci95"]) == 2
 
 
+def test_the_action_limit_bounds_base_plus_correction():
+    from agents.residual import residual_action
+
+    assert residual_action(0.8, 1.0, 0.3)[0] == pytest.approx(1.0)  # the drive's clip only
+    assert residual_action(0.8, 1.0, 0.3, 0.9)[0] == pytest.approx(0.9)
+    assert residual_action(-0.95, 0.0, 0.3, 0.9)[0] == pytest.approx(-0.9)  # the base alone is held inside it too
+    assert residual_action(0.2, 0.5, 0.3, 0.9)[0] == pytest.approx(0.35)  # inside the limit: unchanged
+
+
+def test_a_limited_run_never_commands_the_drives_limit():
+    """On the batched engine, a correction pushing hard (theta = large bias) reaches the drive's limit
+    without the policy's limit, and never with it (the energy method's at-limit samples are gone)."""
+    from addedinertia_env.bench.suites import load_suite
+    from addedinertia_env.learning.ars_residual import base_factory
+    from addedinertia_env.learning.paired_batch import run_batch
+
+    suite = load_suite("drive-v1")
+    make_base = base_factory("feedforward-pd", score_ars.running_params("feedforward-pd"))
+    push = lambda obs, slots: np.ones(len(obs), np.float32)  # noqa: E731 - +0.6 i_max on top of the base
+    free = run_batch(suite, [3], make_base, policy=push, residual_scale=0.6)
+    held = run_batch(suite, [3], make_base, policy=push, residual_scale=0.6, action_limit=0.9)
+    assert free.limit_samples[0] > 0 and held.limit_samples[0] == 0
+    with pytest.raises(ValueError, match="action_limit"):
+        run_batch(suite, [3], make_base, policy=push, residual_scale=0.6, action_limit=1.5)
+
+
+@pytest.mark.skipif(not POLICY.exists(), reason="no shipped drive policy")
+def test_the_shipped_drive_policy_keeps_its_current_limit():
+    """The shipped policy's own limit (card and metadata) holds on the bench's path (OnnxPolicy.predict)
+    whatever its base asks for."""
+    from agents.onnx_policy import OnnxPolicy
+
+    card = json.loads(POLICY.with_suffix(".json").read_text())
+    limit = card["residual"]["action_limit"]
+    policy = OnnxPolicy(POLICY)
+    assert limit < 1 and policy.action_limit == pytest.approx(limit)
+
+    class Saturating:  # a base that asks for more than the drive (its correction cannot bring it back inside)
+        def predict(self, obs, deterministic=True):
+            return np.array([1.5 if obs[0] > 0 else -1.5], np.float32), None
+
+    policy.base = Saturating()
+    rng = np.random.default_rng(3)
+    got = []
+    for _ in range(40):
+        obs = rng.uniform(-3, 3, N).astype(np.float32)
+        obs[score_ars.HOLD], obs[score_ars.REVERSE] = 0.0, 1.0
+        got.append(abs(float(policy.predict(obs)[0][0])))
+    assert got == pytest.approx([limit] * len(got), abs=1e-6)
+
+
 @pytest.mark.skipif(not POLICY.exists(), reason="no shipped drive policy")
 def test_the_shipped_drive_policy_matches_its_card():
     card = json.loads(POLICY.with_suffix(".json").read_text())

@@ -121,12 +121,13 @@ def run_batch(suite, seeds: Sequence[int], make_base: Callable[[], Controller] |
               oracle: Sequence[bool] | None = None, policy: Policy | None = None, residual_scale: float = 0.0,
               action_repeat: int = 10, keep_observations: bool = False, teacher_labels: bool = False,
               teacher_mix: float = 0.0, mix_seed: int = 0,
-              teacher_omega_c: float = 40.0) -> BatchResult:
+              teacher_omega_c: float = 40.0, action_limit: float = 1.0) -> BatchResult:
     """One episode per seed (``suite.split_seed(split, seed)``), all in one batch; see module doc.
 
     ``oracle[j]``: slot ``j`` runs the oracle instead of the base. ``policy`` maps the
     observations of the non-oracle slots still running (and their slot numbers) to
-    corrections in [-1, 1], applied as ``clip(base + residual_scale * correction, -1, 1)``.
+    corrections in [-1, 1], applied as ``clip(base + residual_scale * correction, -action_limit, action_limit)``
+    (:func:`agents.residual.residual_action`; ``action_limit`` 0-1, the policy's own current limit).
 
     ``teacher_labels``: also evaluate, at every call of a non-oracle slot, the oracle on that
     slot's truth (the teacher of :mod:`.dagger`) and return the rows in ``result.labels``.
@@ -136,15 +137,19 @@ def run_batch(suite, seeds: Sequence[int], make_base: Callable[[], Controller] |
     """
     if split == "test":
         raise ValueError("run_batch(split='test'): the test split is held out; train on 'train' (or 'tuning')")
+    if not 0.0 < float(action_limit) <= 1.0:
+        raise ValueError(f"run_batch(action_limit={action_limit}): expected the policy's current limit as a "
+                         "fraction of i_max in (0, 1]")
     if teacher_mix and not teacher_labels:
         raise ValueError(f"run_batch(teacher_mix={teacher_mix}): mixing in the teacher needs teacher_labels=True")
     with _BLAS.limit(limits=1, user_api="blas"):
         return _run(suite, list(seeds), make_base, split, oracle, policy, residual_scale, action_repeat,
-                    keep_observations, teacher_labels, float(teacher_mix), mix_seed, teacher_omega_c)
+                    keep_observations, teacher_labels, float(teacher_mix), mix_seed, teacher_omega_c,
+                    float(action_limit))
 
 
 def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep, label=False, mix=0.0,
-         mix_seed=0, teacher_omega_c=40.0) -> BatchResult:
+         mix_seed=0, teacher_omega_c=40.0, limit=1.0) -> BatchResult:
     n = len(seeds)
     # the sensor noise of the benchmark's scored cycle 0 (bench/runner.py), so that a scenario here
     # is the benchmark's episode on the same scenario
@@ -186,7 +191,7 @@ def _run(suite, seeds, make_base, split, oracle, policy, scale, repeat, keep, la
         if policy is not None and len(learned):
             corr = np.asarray(policy(obs[learned], learned), dtype=np.float32).reshape(-1)
             for j, k in enumerate(learned):
-                action[k] = float(residual_action(np.float32(action[k]), corr[j], scale)[0])
+                action[k] = float(residual_action(np.float32(action[k]), corr[j], scale, limit)[0])
         if label and len(learned):
             taught = np.array([float(teachers[k].predict(obs[k], deterministic=True)[0][0]) for k in learned])
             follow = mix_rng.random(len(learned)) < mix if mix > 0 else np.zeros(len(learned), dtype=bool)

@@ -61,6 +61,7 @@ def export_residual(module, numpy_policy: Callable[[np.ndarray], np.ndarray], tr
         # base and correction both act once per drive set-point (the suite's 100 Hz), as trained
         "policy_rate_hz": repr(SAMPLE_RATE_HZ / repeat), "board_mode": "zoh",
         "residual_base": train_card["base"], "residual_scale": str(float(train_card["scale"])),
+        "action_limit": str(float(train_card.get("action_limit", 1.0))),  # base + correction stays inside it
         "residual_base_params": json.dumps(train_card.get("base_params") or {}),
         "residual_base_rate": "policy",  # the base decides with the correction, once per action
         "obs_fields": json.dumps(list(OBSERVATION_FIELDS)),
@@ -78,6 +79,7 @@ def export_residual(module, numpy_policy: Callable[[np.ndarray], np.ndarray], tr
         "action_repeat": repeat, "policy_rate_hz": SAMPLE_RATE_HZ / repeat, "board_mode": "zoh",
         "sample_rate_hz": SAMPLE_RATE_HZ,
         "residual": {"enabled": True, "base": train_card["base"], "scale": float(train_card["scale"]),
+                     "action_limit": float(train_card.get("action_limit", 1.0)),
                      "base_params": train_card.get("base_params") or {}, "base_rate": "policy",
                      **(residual_extra or {})},
         "observation_fields": list(OBSERVATION_FIELDS), "parity_max_abs_diff": parity,

@@ -19,7 +19,12 @@ it can shift the hold's pre-spin and reshape the reverse stroke separately::
     x = clip((obs - mean) / std, -5, 5)                       # frozen statistics of the base's episodes
     z = [x * is_hold, x * is_reverse, is_hold, is_reverse]     # 2 n_obs + 2 features
     r = clip(theta . z, -1, 1)
-    action = clip(base(obs) + scale * r, -1, 1)                # agents/residual.py, as on the benchmark
+    action = clip(base(obs) + scale * r, -limit, limit)        # agents/residual.py, as on the benchmark
+
+``limit`` (``--action-limit``, a fraction of i_max; 1 by default) is the policy's own current
+limit: below 1 the command never reaches the drive's limit, where the energy method rejects the
+samples and a run can fail (a failure scores the cap). The bare base of the curves and of the
+validation runs with the same limit.
 
 ``theta = 0`` at the start: the first policy *is* the base. Algorithm: Augmented Random
 Search V1-t (Mania, Guy and Recht 2018) as in :mod:`.ars_residual`. Each generation also
@@ -98,7 +103,7 @@ def running_params(base: str) -> dict[str, Any]:
 
 
 def run_thetas(suite, seeds, make_base, policy: GatedLinearPolicy, theta_rows: np.ndarray, use_policy: np.ndarray,
-               scale: float, action_repeat: int):
+               scale: float, action_repeat: int, action_limit: float = 1.0):
     """One batch: slot ``j`` runs the base plus the policy with ``theta_rows[j]`` (``use_policy[j]``) or the
     bare base; returns :func:`.paired_batch.run_batch`'s result."""
 
@@ -107,18 +112,19 @@ def run_thetas(suite, seeds, make_base, policy: GatedLinearPolicy, theta_rows: n
         r = np.clip(np.einsum("ij,ij->i", z, theta_rows[slots]), -1.0, 1.0)
         return np.where(use_policy[slots], r, 0.0).astype(np.float32)
 
-    return run_batch(suite, seeds, make_base, policy=corrections, residual_scale=scale, action_repeat=action_repeat)
+    return run_batch(suite, seeds, make_base, policy=corrections, residual_scale=scale, action_repeat=action_repeat,
+                     action_limit=action_limit)
 
 
 def evaluate(suite, seeds: list[int], make_base, policy: GatedLinearPolicy, scale: float,
-             action_repeat: int) -> dict[str, Any]:
+             action_repeat: int, action_limit: float = 1.0) -> dict[str, Any]:
     """Base and policy on ``seeds`` (training split), paired: their mean scores, the mean difference
     policy - base with its 95 % bootstrap interval, and the per-episode errors."""
     m = len(seeds)
     theta_rows = np.zeros((2 * m, policy.dim))
     theta_rows[m:] = policy.theta
     use = np.r_[np.zeros(m, bool), np.ones(m, bool)]
-    res = run_thetas(suite, seeds + seeds, make_base, policy, theta_rows, use, scale, action_repeat)
+    res = run_thetas(suite, seeds + seeds, make_base, policy, theta_rows, use, scale, action_repeat, action_limit)
     s = episode_scores(res.rel_error)
     base, pol = s[:m], s[m:]
     lo, hi = bootstrap_mean(pol - base)
@@ -133,9 +139,13 @@ def evaluate(suite, seeds: list[int], make_base, policy: GatedLinearPolicy, scal
 def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-pd", seed: int = 0,
           scale: float = 0.3, generations: int = 100, scenarios: int = 16, directions: int = 8, top: int = 4,
           step: float = 0.02, noise: float = 0.05, cpu_minutes: float = 25.0, action_repeat: int = 10,
-          validate: int = 64, log=print) -> dict[str, Any]:
+          validate: int = 64, action_limit: float = 1.0, log=print) -> dict[str, Any]:
     """Train (module doc); writes ``out/curve.jsonl``, ``out/policy.npz``, ``out/training_card.json``;
-    returns the card. Stops after ``generations`` or ``cpu_minutes`` of CPU time (then validates)."""
+    returns the card. Stops after ``generations`` or ``cpu_minutes`` of CPU time (then validates).
+    ``action_limit`` (0-1 of i_max): the policy's command, base plus correction, stays inside it
+    (:func:`agents.residual.residual_action`), in training, validation and on the bench."""
+    if not 0.0 < action_limit <= 1.0:
+        raise ValueError(f"score_ars.train: action_limit = {action_limit}; expected a fraction of i_max in (0, 1]")
     from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
     out.mkdir(parents=True, exist_ok=True)
@@ -153,7 +163,8 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
         next_scenario += m
         return seeds
 
-    first = run_batch(suite, draw(scenarios), make_base, keep_observations=True, action_repeat=action_repeat)
+    first = run_batch(suite, draw(scenarios), make_base, keep_observations=True, action_repeat=action_repeat,
+                      policy=lambda obs, slots: np.zeros(len(obs), np.float32), action_limit=action_limit)
     cost["env_steps"] += first.agent_steps
     cost["episodes"] += scenarios
     policy = GatedLinearPolicy(first.observations.mean(axis=0), np.maximum(first.observations.std(axis=0), 1e-3))
@@ -165,8 +176,8 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
         cpu_s = time.process_time() - cpu0
         card = {"algo": "ars-score", "objective": f"{SCORE_VERSION}: mean of min(|e|, {CAP:g}), failure at the cap",
                 "suite": suite_name, "split": "train", "base": base, "base_params": pinned, "seed": seed,
-                "scale": scale, "action_repeat": action_repeat, "features": "gated-linear (x is_hold, x is_reverse, "
-                "is_hold, is_reverse)", "generations_done": len(history),
+                "scale": scale, "action_limit": action_limit, "action_repeat": action_repeat,
+                "features": "gated-linear (x is_hold, x is_reverse, is_hold, is_reverse)", "generations_done": len(history),
                 "hyperparams": {"generations": generations, "scenarios": scenarios, "directions": directions,
                                 "top": top, "step": step, "noise": noise, "cpu_minutes": cpu_minutes,
                                 "validate": validate},
@@ -187,7 +198,8 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
         theta_rows = np.repeat(np.array(thetas), m, axis=0)
         use = np.ones(len(theta_rows), bool)
         use[:m] = False  # the bare base
-        res = run_thetas(suite, seeds * len(thetas), make_base, policy, theta_rows, use, scale, action_repeat)
+        res = run_thetas(suite, seeds * len(thetas), make_base, policy, theta_rows, use, scale, action_repeat,
+                         action_limit)
         cost["env_steps"] += res.agent_steps
         cost["episodes"] += len(theta_rows)
         s = episode_scores(res.rel_error).reshape(len(thetas), m)
@@ -210,7 +222,7 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
             break
     if validate:
         vseeds = list(range(VALIDATION_FIRST, VALIDATION_FIRST + validate))
-        validation = evaluate(suite, vseeds, make_base, policy, scale, action_repeat)
+        validation = evaluate(suite, vseeds, make_base, policy, scale, action_repeat, action_limit)
         cost["env_steps"] += validation.pop("agent_steps")
         cost["episodes"] += 2 * validate
         log(f"validation ({validate} scenarios from {VALIDATION_FIRST}): base {100 * validation['base_score']:.3f} % "
@@ -231,7 +243,8 @@ def finish(out: Path, validate: int = 64, log=print) -> dict[str, Any]:
     suite = load_suite(card["suite"])
     make_base = base_factory(card["base"], card["base_params"])
     vseeds = list(range(VALIDATION_FIRST, VALIDATION_FIRST + validate))
-    validation = evaluate(suite, vseeds, make_base, load_policy(out), card["scale"], card["action_repeat"])
+    validation = evaluate(suite, vseeds, make_base, load_policy(out), card["scale"], card["action_repeat"],
+                          card.get("action_limit", 1.0))
     cost = card["cost"]
     cost["env_steps"] += validation.pop("agent_steps")
     cost["episodes"] += 2 * validate
@@ -300,6 +313,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cpu-minutes", type=float, default=25.0, help="stop training after this much CPU time")
     p.add_argument("--validate", type=int, default=64, help="validation scenarios at the end (0: none)")
     p.add_argument("--action-repeat", type=int, default=10, help="rig samples per action (10: 100 Hz)")
+    p.add_argument("--action-limit", type=float, default=1.0,
+                   help="the policy's own current limit, a fraction of i_max in (0, 1]: base + correction is clipped "
+                        "to it (below 1: a margin from the drive's limit, where the energy method rejects samples)")
     p.add_argument("--out", type=Path, required=True, help="run folder (curve.jsonl, policy.npz, card)")
     p.add_argument("--onnx", type=Path, help="also export the final policy here (with its .json card)")
     p.add_argument("--finish", action="store_true", help="do not train: validate the run in --out that was stopped "
@@ -315,7 +331,7 @@ def main(argv: list[str] | None = None) -> int:
     train(args.out, suite_name=args.suite, base=args.base, seed=args.seed, scale=args.scale,
           generations=args.generations, scenarios=args.scenarios, directions=args.directions, top=args.top,
           step=args.step, noise=args.noise, cpu_minutes=args.cpu_minutes, action_repeat=args.action_repeat,
-          validate=args.validate, log=lambda m: print(m, flush=True))
+          validate=args.validate, action_limit=args.action_limit, log=lambda m: print(m, flush=True))
     if args.onnx:
         card = export_onnx(args.out, args.onnx)
         print(f"wrote {args.onnx} ({card['size_bytes']} bytes, parity {card['parity_max_abs_diff']:.2e})")
