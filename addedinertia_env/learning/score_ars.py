@@ -49,7 +49,8 @@ from typing import Any
 
 import numpy as np
 
-from addedinertia_env.bench.score import CAP, SCORE_VERSION, bootstrap_mean
+from addedinertia_env.bench.score import CAP, GEARED_SCORE_VERSION, SCORE_VERSION, bootstrap_mean
+from addedinertia_env.sim.forces import gear_ratio
 from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 from addedinertia_env.foundation.atomic import atomic_write_text
 from addedinertia_env.learning.ars_residual import (add_search_arguments, append_curve_row, ars_step, base_factory,
@@ -156,6 +157,8 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
     cpu0, wall0 = time.process_time(), time.perf_counter()
     next_scenario = seed * TRAIN_SEED_STRIDE
     cost = {"env_steps": 0, "episodes": 0}
+    geared = gear_ratio(suite.scenario(next_scenario).rig) > 1.0  # the drive suites: the gear loss is booked
+    version = GEARED_SCORE_VERSION if geared else SCORE_VERSION
 
     def draw(m: int) -> list[int]:
         nonlocal next_scenario
@@ -174,7 +177,7 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
 
     def write_card() -> dict[str, Any]:
         cpu_s = time.process_time() - cpu0
-        card = {"algo": "ars-score", "objective": f"{SCORE_VERSION}: mean of min(|e|, {CAP:g}), failure at the cap",
+        card = {"algo": "ars-score", "objective": f"{version}: mean of min(|e|, {CAP:g}), failure at the cap",
                 "suite": suite_name, "split": "train", "base": base, "base_params": pinned, "seed": seed,
                 "scale": scale, "action_limit": action_limit, "action_repeat": action_repeat,
                 "features": "gated-linear (x is_hold, x is_reverse, is_hold, is_reverse)", "generations_done": len(history),
