@@ -48,7 +48,7 @@ ENERGY_TRANSPARENT_CAUSES = {"none", "sensor_delay", "torque_constant", "bearing
 Z95 = 1.959963984540054  # two-sided 95 % point of the normal
 CALIBRATED_RATIO = Z95 / 0.6744897501960817  # half-width / median |error| of a calibrated Gaussian interval
 BEGIN, END = "<!-- interval-calibration:begin -->", "<!-- interval-calibration:end -->"
-COMMAND = ("python -m addedinertia_env.reports.interval_calibration run ROWS.jsonl --sets SETS --seeds 12 \\\n"
+COMMAND = ("python -m addedinertia_env.reports.interval_calibration run ROWS.jsonl --sets SETS --seeds 13 \\\n"
            "    --foreign PATH/foreign-lab.tar.xz --foreign PATH/foreign-lab-2.tar.xz\n"
            "python -m addedinertia_env.reports.interval_calibration render ROWS.jsonl --before BEFORE.jsonl "
            "--out docs/INTERVALS.md")
