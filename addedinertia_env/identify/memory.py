@@ -83,6 +83,7 @@ MIN_FREE_S = 3.0  # s of unbraked motion needed
 MIN_RELEASES = 1  # starts from rest (a release or a brake letting go) needed
 POLE_RANGE = (0.3, 60.0)  # rad/s: searched pole magnitudes (the rig's records resolve this band)
 Z95 = 1.96
+STIFFENING_POWERS = (3, 5)  # the torsion rod's odd nonlinear terms c d^n (d = phi - phi_n): memory's amplitude-dependent rival
 
 
 class MemoryNotIdentifiable(ValueError):
@@ -169,7 +170,7 @@ class MemoryData:
     def __init__(self, records: list[RunRecord], window_s: float = WINDOW_S, row_step_s: float = ROW_STEP_S):
         self.series = [_series(r) for r in records]
         self.windows: list[_Window] = []
-        base, ys = [], []
+        base, ys, stiff = [], [], []
         self.free_s = 0.0
         self.releases = 0
         for k, s in enumerate(self.series):
@@ -199,6 +200,9 @@ class MemoryData:
                     self.windows.append(_Window(k, a0, sel + a0))
                     base.append((cols[sel], tt[sel]))
                     ys.append(y[sel])
+                    d = s.phi[seg] - s.phi_n
+                    stiff.append(np.stack([s.c * _cumtrapz(_cumtrapz(d**n, s.dt), s.dt) for n in STIFFENING_POWERS],
+                                          axis=1)[sel])
         if not self.windows:
             raise MemoryNotIdentifiable("no unbraked motion long enough for the hull's equation")
         n_rows = sum(len(y) for y in ys)
@@ -212,6 +216,8 @@ class MemoryData:
             self.window_of_row[r:r + len(y)] = j
             r += len(y)
         self.X, self.Y = X, np.concatenate(ys)
+        # the amplitude-dependent alternative to memory (not part of the fit; see stiffness_alternative)
+        self.S = np.vstack(stiff)
         scale = np.sqrt(np.mean(X**2, axis=0))
         self.scale = np.where(scale > 0, scale, 1.0)
         # the base columns projected out once (variable projection)
@@ -257,6 +263,18 @@ class MemoryData:
         coef, *_ = np.linalg.lstsq(X / sc, self.Y, rcond=None)
         coef = coef / sc
         return coef, self.Y - X @ coef, X
+
+    def with_columns(self, extra: np.ndarray) -> MemoryData:
+        """The same rows with the columns ``extra`` added to the memory-free equation (a rival's terms)."""
+        import copy  # noqa: PLC0415
+
+        out = copy.copy(self)
+        out.X = np.hstack([self.X, extra])
+        scale = np.sqrt(np.mean(out.X**2, axis=0))
+        out.scale = np.where(scale > 0, scale, 1.0)
+        out.Q, _ = np.linalg.qr(out.X / out.scale)
+        out.Yp = out.Y - out.Q @ (out.Q.T @ out.Y)
+        return out
 
     def clustered_covariance(self, X: np.ndarray, resid: np.ndarray) -> np.ndarray:
         """Coefficient covariance with the residuals clustered by window (sandwich form)."""
@@ -516,6 +534,22 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
                      T @ V[:n_mem, :n_mem] @ T.T, strict, best.x.copy())
 
 
+def _refit_rss(data: MemoryData, fit: FamilyFit) -> float:
+    """The residual of ``fit``'s family on ``data`` (other rows or columns), its poles searched from ``fit``'s."""
+    from scipy.optimize import least_squares  # noqa: PLC0415
+
+    kinds = tuple(sec[0] for sec in fit.sections)
+    _, x0 = pack_sections(fit.sections)
+    lb, ub = _bounds(kinds)
+    try:
+        r = least_squares(lambda x: data.projected_residual(_unpack(kinds, x), fit.strict), np.clip(x0, lb, ub),
+                          bounds=(lb, ub), x_scale=1.0, diff_step=1e-4, max_nfev=60, xtol=1e-6, ftol=1e-10)
+    except (ValueError, np.linalg.LinAlgError):
+        res = data.projected_residual(fit.sections, fit.strict)
+        return float(res @ res)
+    return float(2.0 * r.cost)
+
+
 def pack_sections(sections: list[tuple]) -> tuple[tuple[str, ...], np.ndarray]:
     """The kinds and packed pole parameters of ``sections`` (the inverse of :func:`_unpack`)."""
     kinds, x = [], []
@@ -585,6 +619,8 @@ class MemoryIdentification:
     free_s: float = 0.0
     prior: str = "none"
     prior_note: str = ""  # with a prior: its source and whether the records accepted it
+    rss_stiffening: float = math.nan  # memory-free with a stiffening rod (STIFFENING_POWERS), where memory was in question
+    rss_memory_and_stiffening: float = math.nan  # the best memory model with the stiffening rod too
 
     @property
     def identified(self) -> bool:
@@ -607,14 +643,19 @@ class MemoryIdentification:
                 "family": self.best.family, "swing_omega_rad_s": self.swing_omega,
                 "families_kept": [f.family for f in self.accepted],
                 "fits": [f.summary() for f in self.fits], "rss_memory_free": self.rss_none,
-                "prior": self.prior, "free_motion_s": self.free_s}
+                "prior": self.prior, "free_motion_s": self.free_s, **self._stiffening_json()}
             if self.prior_note:
                 out["memory_model"]["prior_note"] = self.prior_note
         else:
             out["memory_model"] = {"swing_omega_rad_s": self.swing_omega, "rss_memory_free": self.rss_none,
                                    "fits": [f.summary() for f in self.fits], "prior": self.prior,
-                                   "free_motion_s": self.free_s}
+                                   "free_motion_s": self.free_s, **self._stiffening_json()}
         return out
+
+    def _stiffening_json(self) -> dict[str, Any]:
+        if math.isnan(self.rss_stiffening):
+            return {}
+        return {"rss_stiffening_rod": self.rss_stiffening, "rss_memory_and_stiffening_rod": self.rss_memory_and_stiffening}
 
 
 def swing_frequency(data: MemoryData) -> float:
@@ -691,6 +732,14 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
     base = MemoryIdentification("none", w_s, fits=fits, rss_none=rss_none, free_s=data.free_s,
                                 prior="none" if prior is None else prior.name,
                                 prior_note="" if prior is None else f"{prior.source}: not used (no memory in the records)")
+    if fits and min(f.rss for f in fits) < MEMORY_RSS_RATIO * rss_none:
+        # memory is linear; a stiffening rod is amplitude-dependent and may look like memory in one run
+        rival = min(passive or fits, key=lambda f: f.rss)
+        rod = data.with_columns(data.S)
+        base.rss_stiffening = float(rod.Yp @ rod.Yp)
+        base.rss_memory_and_stiffening = _refit_rss(rod, rival)
+        if base.rss_memory_and_stiffening >= MEMORY_RSS_RATIO * base.rss_stiffening:
+            return base  # a nonlinear rod explains the records as well: no memory
     if not passive:
         if fits and min(f.rss for f in fits) < MEMORY_RSS_RATIO * rss_none:
             base.status = ("not identifiable: the records show memory but no passive low-order model fits "
@@ -726,7 +775,8 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
         hi = max(getattr(f, _attr(key)) + Z95 * f.sigma[key] for f in accepted)
         ci[key] = (float(lo), float(hi))
     return MemoryIdentification("identified", w_s, best.A_zero, best.A_inf, best.A_swing, ci, best, accepted, fits,
-                                rss_none, data.free_s, "none" if prior is None else prior.name, note)
+                                rss_none, data.free_s, "none" if prior is None else prior.name, note,
+                                base.rss_stiffening, base.rss_memory_and_stiffening)
 
 
 def _attr(key: str) -> str:
