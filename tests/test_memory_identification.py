@@ -128,6 +128,30 @@ def test_a_stiffening_rod_is_not_taken_for_memory():
     assert got.rss_memory_and_stiffening < 0.05 * got.rss_stiffening
 
 
+def test_a66_inf_interval_holds_the_jackknife_over_starts_from_rest():
+    # A66(inf) is carried by the instants after each start from rest: its interval is at least the reported
+    # family's jackknife over those stretches (t with g - 1 degrees of freedom), and the stretches are its clusters
+    from scipy import stats
+
+    from addedinertia_env.identify.memory import MemoryData, jackknife_a_inf
+
+    kernel = kernel_first_order(5.0, 0.25)
+    recs = [synthetic_record(7.0, kernel, phi0=a, seed=k, name=f"r{k}", hold=h)
+            for k, (a, h) in enumerate(((0.1, 0.3), (0.06, 0.5), (0.08, 0.2)))]
+    data = MemoryData(recs)
+    assert data.n_segments == 3
+    left = data.without_segment(1)
+    assert left.n_windows == data.n_windows - int(np.sum(data.segment_of_window == 1)) and len(left.Y) < len(data.Y)
+    got = identify_memory(recs, families={"r1": ("r",), "c1": ("c",)})
+    assert got.identified and got.best.family == "r1"
+    jack = got.best.sigma["A66_inf_jackknife"]
+    assert jack == pytest.approx(jackknife_a_inf(data, got.best), rel=1e-9) and 0.0 < jack < 0.5
+    lo, hi = got.ci95["A66_inf"]
+    half = stats.t.ppf(0.975, 2) * jack
+    assert lo <= got.A_inf - half + 1e-12 and hi >= got.A_inf + half - 1e-12
+    assert lo <= 7.0 <= hi
+
+
 def test_too_short_a_record_is_not_identifiable():
     rec = synthetic_record(7.0, kernel_first_order(5.0, 0.25), seconds=1.5)
     got = identify_memory([rec], families={"r1": ("r",)})
