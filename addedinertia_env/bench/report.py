@@ -33,13 +33,18 @@ def preamble(rows: list[dict], command: str) -> str:
              + ("; ".join(f"`{c}`" for c in run_commands) if run_commands else "(the rows do not record it)") + ".",
              f"Suite/split: {', '.join(suites)} ({_suite_notes(rows)}). Machine: {machine_line()}. "
              f"Score version: `{version}` (bench/versions.py).",
-             "Error e = lambda66 estimate / truth - 1 of the patent's energy method as written "
-             "(`identify(records, 'energy', asymmetry_correction=False)`); `corrected` = the default identification "
+             ("Error e = lambda66 estimate / truth - 1 of the patent's energy method as written, its balance corrected "
+              "for the work of the water's memory identified from the records (`identify(records, 'energy', "
+              "asymmetry_correction=False, memory='auto')`'s `lambda66_energy_corrected`; the suite's `ranked: "
+              "memory-corrected`: the method as a lab would use it in water that remembers)" if any(r.get("ranked_score") == "memory-corrected" for r in rows)
+              else "Error e = lambda66 estimate / truth - 1 of the patent's energy method as written "
+              "(`identify(records, 'energy', asymmetry_correction=False)`)")
+             + "; `corrected` = the default identification "
              "(dissipation mismatch corrected with a damping law fitted to the free stroke). A failed run or "
              "identification counts as an infinite error."]
-    from addedinertia_env.bench.score import CAP, SCORE_VERSION  # noqa: PLC0415
+    from addedinertia_env.bench.score import CAP  # noqa: PLC0415
 
-    lines.append(f"Ranked score ({SCORE_VERSION}, bench/score.py): the mean over the scenarios of min(|e|, "
+    lines.append(f"Ranked score ({version}, bench/score.py): the mean over the scenarios of min(|e|, "
                  f"{100 * CAP:.0f} %), a failed run or identification counting {100 * CAP:.0f} %, with a 95 % "
                  "bootstrap interval of the mean (2000 resamples of the scenarios, seed 0). Tie rule: an entry whose "
                  "paired 95 % interval of the mean difference of scores against its group's leader (same scenarios, "

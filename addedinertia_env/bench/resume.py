@@ -60,11 +60,13 @@ def read_rows_tolerant(path: Path) -> tuple[list[dict[str, Any]], str | None]:
     return rows, torn
 
 
-def prepare_output(path: str | Path, key: dict[str, Any], force: bool = False) -> tuple[list[dict], list[str]]:
+def prepare_output(path: str | Path, key: dict[str, Any], force: bool = False,
+                   version: str | None = None) -> tuple[list[dict], list[str]]:
     """Rows already in ``path`` for this run's ``key`` (controller, suite, split) and messages for the user.
 
     ``force``: start the file over whatever it holds. Otherwise a file holding rows of
-    another run is refused (:class:`RowsFileError`), and a torn last line is cut off.
+    another run is refused (:class:`RowsFileError`), and a torn last line is cut off. ``version``: the
+    score version this run writes (default ``SCORE_VERSION``; a suite's ``ranked`` may name another).
     """
     path = Path(path)
     notes: list[str] = []
@@ -87,9 +89,10 @@ def prepare_output(path: str | Path, key: dict[str, Any], force: bool = False) -
                             "Use another --out, or --force to replace the file")
     from addedinertia_env.bench.versions import SCORE_VERSION, row_version  # noqa: PLC0415
 
-    older = sorted({row_version(r) for r in rows} - {SCORE_VERSION})
+    version = version or SCORE_VERSION
+    older = sorted({row_version(r) for r in rows} - {version})
     if older:  # a row of another score version is another truth or score: never resumed beside this run's
-        raise RowsFileError(f"{path}: holds rows of score version(s) {older}; this run writes {SCORE_VERSION!r}; "
+        raise RowsFileError(f"{path}: holds rows of score version(s) {older}; this run writes {version!r}; "
                             "refusing to mix them. Use another --out, or --force to replace the file")
     if torn is not None:
         atomic_write_text(path, "".join(json.dumps(r, allow_nan=False) + "\n" for r in rows))

@@ -37,6 +37,10 @@ import numpy as np
 from addedinertia_env.bench.statistics import clearly as clearly  # one rule for both scores
 
 SCORE_VERSION = "capped-mean-v1"
+# the same capped mean of the error of the memory-corrected estimate (a suite's ``ranked: memory-corrected``,
+# memory-v1): another quantity, so another version, never ranked beside the as-written rows
+MEMORY_SCORE_VERSION = "capped-mean-memory-corrected-v1"
+VERSIONS = {"as-written": SCORE_VERSION, "memory-corrected": MEMORY_SCORE_VERSION}  # ranked score -> version
 CAP = 0.10  # |relative error| at which an estimate counts as unusable; a failure scores this
 
 
@@ -54,16 +58,18 @@ def episode_score(row: dict[str, Any]) -> float:
 
 def row_fields(row: dict[str, Any]) -> dict[str, Any]:
     """The fields a bench row carries for the score: ``score_version`` and ``score``."""
-    return {"score_version": SCORE_VERSION, "score": episode_score(row)}
+    return {"score_version": VERSIONS.get(str(row.get("ranked_score", "as-written")), SCORE_VERSION),
+            "score": episode_score(row)}
 
 
 def check_versions(rows: list[dict[str, Any]], where: str = "rows") -> str:
     """The one score version of ``rows`` (rows without one count as the current version, scored
     from their errors); :class:`ScoreVersionError` naming the versions found when they differ."""
     found = sorted({str(r.get("score_version", SCORE_VERSION)) for r in rows})
-    if len(found) > 1 or found[0] != SCORE_VERSION:
-        raise ScoreVersionError(f"{where}: rows of score version(s) {found}; this leaderboard ranks "
-                                f"{SCORE_VERSION!r} only (rerun the old rows with `addedinertia bench run`)")
+    if len(found) > 1 or found[0] not in VERSIONS.values():
+        raise ScoreVersionError(f"{where}: rows of score version(s) {found}; this leaderboard ranks one of "
+                                f"{', '.join(map(repr, VERSIONS.values()))} at a time (rerun the old rows with "
+                                "`addedinertia bench run`)")
     return found[0]
 
 

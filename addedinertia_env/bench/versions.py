@@ -12,6 +12,9 @@ never puts an old error beside a new one:
   lambda66 = A66(0), the zero-frequency added inertia, in every water
   (``docs/RUN_RECORD.md``); the ranked score is the mean of capped |error| with a failure at
   the cap (:mod:`.score`).
+* :data:`~.score.MEMORY_SCORE_VERSION` (``capped-mean-memory-corrected-v1``): the same score on the
+  memory-corrected estimate (the method as written with the water's memory identified from the
+  records and corrected for), ranked by a suite that says ``ranked: memory-corrected`` (memory-v1).
 
 A suite whose truth changed takes a new name too (``memory-v1``: the memory presets, truth
 A66(0)); memory-free suites kept their names, their truth being the same number.
@@ -28,11 +31,11 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from addedinertia_env.bench.score import SCORE_VERSION  # this code's score (bench/score.py): truth lambda66 = A66(0)
+from addedinertia_env.bench.score import MEMORY_SCORE_VERSION, SCORE_VERSION  # bench/score.py: truth lambda66 = A66(0)
 
 FIELD = "score_version"  # the rows' field
 LEGACY = "v0"  # rows without the field: written before the truth was A66(0) with memory on
-RANKABLE = (SCORE_VERSION, LEGACY)  # a board of either alone is ranked as it always was
+RANKABLE = (SCORE_VERSION, MEMORY_SCORE_VERSION, LEGACY)  # a board of one alone is ranked
 
 
 class ScoreVersionError(ValueError):

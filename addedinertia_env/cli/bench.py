@@ -119,7 +119,9 @@ def run_bench(args) -> int:
 
     for stale in remove_stale_temps(out.parent):
         info(f"bench: removed {stale}, a temporary file of a killed earlier run")
-    kept, notes = prepare_output(out, key, force=args.force)
+    from addedinertia_env.bench.score import VERSIONS  # noqa: PLC0415
+
+    kept, notes = prepare_output(out, key, force=args.force, version=VERSIONS[suite.ranked])
     for note in notes:
         info(f"bench: {note}")
     kept, retry = drop_failed(out, kept)
