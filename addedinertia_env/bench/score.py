@@ -110,7 +110,7 @@ def entry_score(rows: list[dict[str, Any]], n_boot: int = 2000, seed: int = 0) -
         return float(np.mean(vals)) if vals else None
 
     return {"mean_score": float(np.mean(x)) if len(x) else math.nan, "ci95_score": [lo, hi],
-            "score_version": SCORE_VERSION, "scenario_scores": s,
+            "score_version": check_versions(rows) if rows else SCORE_VERSION, "scenario_scores": s,
             "mean_current_sign_changes": mean_of("current_sign_changes"), "mean_chatter_A": mean_of("chatter_A")}
 
 
