@@ -119,3 +119,10 @@ def test_a_suite_names_the_estimate_it_ranks(tmp_path):
     bad.write_text(text.replace("ranked: memory-corrected", "ranked: truth"))
     with pytest.raises(ConfigError, match=r"bad\.yaml: ranked = 'truth'; expected one of as-written, memory-corrected"):
         load_suite(str(bad))
+
+
+def test_an_env_on_a_suite_rewards_the_estimate_the_suite_ranks():
+    from addedinertia_env.vector.env import ReverseStrokeVectorEnv
+
+    assert ReverseStrokeVectorEnv(2, suite="memory-v1", suite_split="tuning").score_method == "memory-corrected"
+    assert ReverseStrokeVectorEnv(2, suite="standard-v0", suite_split="tuning").score_method == "as-written"
