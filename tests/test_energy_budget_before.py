@@ -52,3 +52,13 @@ def test_the_estimator_before_runs_on_todays_records(tmp_path):
             legacy.identify_energy([bad])
     finally:
         shutil.rmtree(legacy.tree, ignore_errors=True)
+
+
+def test_a_rerun_keeps_the_sections_added_by_hand(tmp_path):
+    old = tmp_path / "ENERGY_METHOD.md"
+    old.write_text("# t\n\n## spheroid-7\n\nold numbers\n\n## The drive's flaws in the budget (issue 28)\n\nby hand\n")
+    new = "# t\n\n## spheroid-7\n\nnew numbers\n"
+    got = report.keep_added_sections(new, old)
+    assert "new numbers" in got and "old numbers" not in got
+    assert got.endswith("## The drive's flaws in the budget (issue 28)\n\nby hand\n")
+    assert report.keep_added_sections(new, tmp_path / "absent.md") == new

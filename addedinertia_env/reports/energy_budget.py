@@ -407,6 +407,32 @@ def _findings() -> list[str]:
             "sensor's gain (the interval keeps 0.2 % of the motor work for it).", ""]
 
 
+def keep_added_sections(text: str, old_path: Path) -> str:
+    """``text`` with the ``## `` sections of the file at ``old_path`` that this generator does not write (added by
+    hand since, e.g. "The drive's flaws in the budget") appended, in their order: a rerun does not drop them."""
+    if not old_path.exists():
+        return text
+
+    def sections(doc: str) -> list[tuple[str, str]]:
+        out, title, lines = [], None, []
+        for line in doc.splitlines(keepends=True):
+            if line.startswith("## "):
+                if title is not None:
+                    out.append((title, "".join(lines)))
+                title, lines = line.strip(), [line]
+            elif title is not None:
+                lines.append(line)
+        if title is not None:
+            out.append((title, "".join(lines)))
+        return out
+
+    made = {t for t, _ in sections(text)}
+    added = [body for t, body in sections(old_path.read_text()) if t not in made]
+    if not added:
+        return text
+    return text.rstrip("\n") + "\n\n" + "".join(added).rstrip("\n") + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Regenerate ``docs/ENERGY_METHOD.md`` (the command is in the module docstring); ``argv`` as on the command line; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -432,6 +458,7 @@ def main(argv: list[str] | None = None) -> int:
 
         shutil.rmtree(legacy.tree, ignore_errors=True)
     text = render(results, foreign, args, time.time() - t0)
+    text = keep_added_sections(text, Path(args.out))
     atomic_write_text(args.out, text)
     print(text)
     return 0
