@@ -58,6 +58,11 @@ import numpy as np
 from addedinertia_env.record import read_record
 from addedinertia_env.identify.energy import identify_energy
 from addedinertia_env.identify.common import IdentificationError
+import addedinertia_env.record as old_record
+
+# today's reader takes L = 0 as "not stated" (another lab's records); the old one required L > 0. The records are
+# read by today's rules, as the in-process loader did before the package moved.
+old_record.POSITIVE_RIG_KEYS = tuple(k for k in old_record.POSITIVE_RIG_KEYS if k != "L")
 
 def plain(x):
     if isinstance(x, dict):
