@@ -43,13 +43,18 @@ one real pole also without an instantaneous part (``-sp``, strictly proper: ``B6
 potential-flow radiation has; see :func:`_kernel_map` for why the records need that told to them:
 an instantaneous part of the kernel is a damping, and trades against A66(inf)). The reported family
 is the simplest of those that fit (fewest parameters). The memory-free model (``none``) is fitted too; memory is declared only when it explains most
-of what the memory-free model leaves (:data:`MEMORY_RSS_RATIO`) with a passive model.
+of what the memory-free model leaves (:data:`MEMORY_RSS_RATIO`) with a passive model, and most of what its
+amplitude-dependent rival leaves: the memory-free equation with a stiffening rod's odd terms
+(:data:`STIFFENING_POWERS`), the best family refitted on top of it (memory is linear; within one run a rod's
+amplitude-dependent swing can pass for memory).
 
 Intervals: per family, the coefficients' covariance is clustered by window (the integral
 form's residuals are correlated within a window), the pole positions' share added by
 perturbing them along the fit's Jacobian; the reported 95 % interval of each quantity is
 the union over the accepted families (passive, within :data:`FAMILY_RSS_TOLERANCE` of the
-best residual).
+best residual). A66(inf)'s variance is clustered by stretch of free motion (its evidence is the instants after
+each start from rest) with Student's t, and its interval holds the reported family's jackknife over those
+stretches (:func:`jackknife_a_inf`).
 
 Only the records' samples and ``rig`` blocks are read; never ``truth``.
 """
