@@ -154,6 +154,12 @@ leaderboard-hard:
 	  LEADERBOARD_HTML=docs/leaderboard_hard.html \
 	  LEARNED_POLICIES="agents/policies/reverse_stroke.onnx agents/policies/hard_residual.onnx agents/policies/hard_dagger.onnx"
 
+# docs/LEADERBOARD_memory.md: memory-v1 (water that remembers), ranked on the memory-corrected estimate
+# (configs/suites/memory-v1.yaml `ranked:`); about 10-15 s per episode on the shared 2 cores.
+leaderboard-memory:
+	$(MAKE) leaderboard BENCH_SUITE=memory-v1 LEADERBOARD_DOC=docs/LEADERBOARD_memory.md \
+	  BENCH_CONTROLLERS="oracle zero pd lqr" LEARNED_POLICIES= BENCH_JOBS=1
+
 # docs/LEADERBOARD_drive.md: drive-v1, the suite where the drive's flaws make control decide
 # (configs/suites/drive-v1.yaml, docs/DRIVE.md); `make tune-drive` first.
 leaderboard-drive:

@@ -33,9 +33,10 @@ def kernel_resonant(d_a: float, wn: float, z: float):
 
 
 def synthetic_record(a_inf: float, kernel, phi0: float = 0.1, hold: float = 0.3, seconds: float = 8.0,
-                     name: str = "synthetic", seed: int = 0) -> RunRecord:
+                     name: str = "synthetic", seed: int = 0, kappa: float = 0.0) -> RunRecord:
     """A free decay from rest (the brake lets go at ``hold``), the hull's equation with the
-    memory ``mu`` integrated by RK4 at 0.1 ms, sampled at 1 kHz with a 17-bit encoder."""
+    memory ``mu`` integrated by RK4 at 0.1 ms, sampled at 1 kHz with a 17-bit encoder; ``kappa``
+    (1/rad^2): a stiffening rod, torque ``-C (phi + kappa phi^3)``."""
     rng = np.random.default_rng(seed)
     A, b, c, d = kernel if kernel is not None else (np.zeros((1, 1)), np.zeros(1), np.zeros(1), 0.0)
     n = len(b)
@@ -44,7 +45,7 @@ def synthetic_record(a_inf: float, kernel, phi0: float = 0.1, hold: float = 0.3,
     def f(y):
         phi, w, x = y[0], y[1], y[2:]
         mu = c @ x + d * w
-        acc = (-C * phi - B1 * w - B2 * w * abs(w) - mu) / J
+        acc = (-C * (phi + kappa * phi**3) - B1 * w - B2 * w * abs(w) - mu) / J
         return np.r_[w, acc, A @ x + b * w]
 
     h, sub = 1e-4, 10
@@ -109,6 +110,46 @@ def test_memory_free_water_is_called_none():
     recs = [synthetic_record(11.7, None, phi0=a, seed=k, name=f"r{k}") for k, a in enumerate((0.1, 0.06))]
     got = identify_memory(recs, families={"r1": ("r",), "c1": ("c",)})
     assert got.status == "none"
+
+
+def test_a_stiffening_rod_is_not_taken_for_memory():
+    # memory is linear; a rod stiffening with twist (foreign-lab's spring_stiffening, kappa ~2.8/rad^2) shifts the
+    # swing frequency with amplitude, which one run's memory fit can imitate. One decay from 0.15 rad, no memory.
+    rec = synthetic_record(11.7, None, phi0=0.15, kappa=2.8, seconds=10.0)
+    got = identify_memory([rec])
+    assert got.status == "none", (got.status, [(f.family, f.rss / got.rss_none) for f in got.fits])
+    # the rod explained what the memory-free model left, and memory added nothing to it
+    assert got.rss_stiffening < 0.05 * got.rss_none
+    assert got.rss_memory_and_stiffening > 0.05 * got.rss_stiffening
+    # the same rod under water that remembers: memory still named, on top of the rod
+    mem = synthetic_record(7.0, kernel_first_order(5.0, 0.25), phi0=0.15, kappa=2.8, seconds=10.0)
+    got = identify_memory([mem], families={"r1": ("r",), "c1": ("c",)})
+    assert got.identified, got.status
+    assert got.rss_memory_and_stiffening < 0.05 * got.rss_stiffening
+
+
+def test_a66_inf_interval_holds_the_jackknife_over_starts_from_rest():
+    # A66(inf) is carried by the instants after each start from rest: its interval is at least the reported
+    # family's jackknife over those stretches (t with g - 1 degrees of freedom), and the stretches are its clusters
+    from scipy import stats
+
+    from addedinertia_env.identify.memory import MemoryData, jackknife_a_inf
+
+    kernel = kernel_first_order(5.0, 0.25)
+    recs = [synthetic_record(7.0, kernel, phi0=a, seed=k, name=f"r{k}", hold=h)
+            for k, (a, h) in enumerate(((0.1, 0.3), (0.06, 0.5), (0.08, 0.2)))]
+    data = MemoryData(recs)
+    assert data.n_segments == 3
+    left = data.without_segment(1)
+    assert left.n_windows == data.n_windows - int(np.sum(data.segment_of_window == 1)) and len(left.Y) < len(data.Y)
+    got = identify_memory(recs, families={"r1": ("r",), "c1": ("c",)})
+    assert got.identified and got.best.family == "r1"
+    jack = got.best.sigma["A66_inf_jackknife"]
+    assert jack == pytest.approx(jackknife_a_inf(data, got.best), rel=1e-9) and 0.0 < jack < 0.5
+    lo, hi = got.ci95["A66_inf"]
+    half = stats.t.ppf(0.975, 2) * jack
+    assert lo <= got.A_inf - half + 1e-12 and hi >= got.A_inf + half - 1e-12
+    assert lo <= 7.0 <= hi
 
 
 def test_too_short_a_record_is_not_identifiable():

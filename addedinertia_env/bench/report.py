@@ -33,8 +33,13 @@ def preamble(rows: list[dict], command: str) -> str:
              + ("; ".join(f"`{c}`" for c in run_commands) if run_commands else "(the rows do not record it)") + ".",
              f"Suite/split: {', '.join(suites)} ({_suite_notes(rows)}). Machine: {machine_line()}. "
              f"Score version: `{version}` (bench/versions.py).",
-             "Error e = lambda66 estimate / truth - 1 of the patent's energy method as written "
-             "(`identify(records, 'energy', asymmetry_correction=False)`); `corrected` = the default identification "
+             ("Error e = lambda66 estimate / truth - 1 of the patent's energy method as written, its balance corrected "
+              "for the work of the water's memory identified from the records (`identify(records, 'energy', "
+              "asymmetry_correction=False, memory='auto')`'s `lambda66_energy_corrected`; the suite's `ranked: "
+              "memory-corrected`: the method as a lab would use it in water that remembers)" if any(r.get("ranked_score") == "memory-corrected" for r in rows)
+              else "Error e = lambda66 estimate / truth - 1 of the patent's energy method as written "
+              "(`identify(records, 'energy', asymmetry_correction=False)`)")
+             + "; `corrected` = the default identification "
              "(dissipation mismatch corrected with a damping law fitted to the free stroke). A failed run or "
              "identification counts as an infinite error."]
     from addedinertia_env.bench.score import CAP  # noqa: PLC0415

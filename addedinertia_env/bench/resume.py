@@ -67,7 +67,8 @@ def prepare_output(path: str | Path, key: dict[str, Any], force: bool = False,
     any other are refused, never resumed.
 
     ``force``: start the file over whatever it holds. Otherwise a file holding rows of
-    another run is refused (:class:`RowsFileError`), and a torn last line is cut off.
+    another run is refused (:class:`RowsFileError`), and a torn last line is cut off. ``version``: the
+    score version this run writes (default ``SCORE_VERSION``; a suite's ``ranked`` may name another).
     """
     path = Path(path)
     notes: list[str] = []

@@ -39,7 +39,7 @@ from addedinertia_env import __version__
 from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.runner import run_experiment
 from addedinertia_env.experiment.scenarios import build_rig
-from addedinertia_env.evaluation.scoring import AS_WRITTEN, CORRECTED, score_episode
+from addedinertia_env.evaluation.scoring import AS_WRITTEN, CORRECTED, MEMORY_CORRECTED, score_episode
 from addedinertia_env.bench.suites import EpisodeTask
 from addedinertia_env.bench.versions import row_fields as score_version_fields
 from addedinertia_env.bench.score import row_fields as score_fields
@@ -49,6 +49,7 @@ from addedinertia_env.bench.wear import episode_wear
 # strokes' dissipation mismatch), so that what the controller fails to retrace shows. The
 # corrected estimate (the project's default identification) is reported beside it.
 SCORE_METHOD = "energy, asymmetry_correction=False"
+RANKED_METHODS = {AS_WRITTEN: SCORE_METHOD, MEMORY_CORRECTED: "energy, asymmetry_correction=False, memory=auto"}
 
 REQUIRED_FIELDS = ("controller", "suite", "scenario", "seed", "lambda66_true", "lambda66_est", "rel_error",
                    "energy_J", "tracking_rms_rad", "saturated_frac", "wall_s", "version")
@@ -119,8 +120,10 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
         "learning_cycles": 0, "effects": sorted(sc.rig.effects.active),
         "control_loop": sc.loop.to_dict() if sc.loop is not None else None, "i_max": sc.rig.motor.i_max,
         "failure": None, "controller_kwargs": task.controller_kwargs, "version": __version__,
-        "commit": git_commit(), "entry_kind": None, **score_version_fields(geared=gear_ratio(sc.rig) > 1.0),
+        "commit": git_commit(), "entry_kind": None, **score_version_fields(geared=gear_ratio(sc.rig) > 1.0, ranked=task.ranked),
     }
+    if task.ranked != AS_WRITTEN:  # the suite ranks another estimate (bench/suites.py ``ranked``)
+        row.update(ranked_score=task.ranked, score_method=RANKED_METHODS[task.ranked])
     try:
         rig = build_rig(sc, seed=cycle_seed(sc, 0))
         controller = episode_controller(task.controller, task.controller_kwargs, rig)
@@ -142,7 +145,7 @@ def run_episode(task: EpisodeTask) -> dict[str, Any]:
             if n >= learning:
                 records.append(rec)
         # the one scoring (addedinertia_env/evaluation/scoring.py): ranked as written, the corrected score beside it
-        ranked = score_episode(records, AS_WRITTEN)
+        ranked = score_episode(records, task.ranked)
         row.update(episode_wear(records, sc.rig.motor.i_max))  # current sign changes, chatter (bench/wear.py)
         row.update(lambda66_true=ranked.lambda66_true, energy_J=ranked.energy_J, saturated_frac=ranked.saturated_frac,
                    tracking_rms_rad=ranked.tracking_rms_rad if math.isfinite(ranked.tracking_rms_rad) else None)

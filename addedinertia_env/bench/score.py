@@ -43,7 +43,11 @@ SCORE_VERSION = "capped-mean-v1"
 # version; on a rig without a gearbox the estimate is the same number, bit for bit, and the rows keep
 # SCORE_VERSION (bench/versions.py).
 GEARED_SCORE_VERSION = "capped-mean-v2"
-VERSIONS = (SCORE_VERSION, GEARED_SCORE_VERSION)  # what this code writes
+# the same capped mean of the error of the memory-corrected estimate (a suite's ``ranked: memory-corrected``,
+# memory-v1): another quantity, so another version, never ranked beside the as-written rows
+MEMORY_SCORE_VERSION = "capped-mean-memory-corrected-v1"
+RANKED_VERSIONS = {"as-written": SCORE_VERSION, "memory-corrected": MEMORY_SCORE_VERSION}  # ranked score -> version
+VERSIONS = (SCORE_VERSION, GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION)  # what this code writes
 CAP = 0.10  # |relative error| at which an estimate counts as unusable; a failure scores this
 
 
@@ -61,9 +65,12 @@ def episode_score(row: dict[str, Any]) -> float:
 
 def row_fields(row: dict[str, Any]) -> dict[str, Any]:
     """The fields a bench row carries for the score: ``score_version`` (the row's own where it is one
-    this code writes: :data:`GEARED_SCORE_VERSION` for a geared rig; else :data:`SCORE_VERSION`) and ``score``."""
+    this code writes: :data:`GEARED_SCORE_VERSION` for a geared rig; else the version of the suite's
+    ranked estimate, :data:`RANKED_VERSIONS`) and ``score``."""
     version = row.get("score_version")
-    return {"score_version": version if version in VERSIONS else SCORE_VERSION, "score": episode_score(row)}
+    if version not in VERSIONS:
+        version = RANKED_VERSIONS.get(str(row.get("ranked_score", "as-written")), SCORE_VERSION)
+    return {"score_version": version, "score": episode_score(row)}
 
 
 def check_versions(rows: list[dict[str, Any]], where: str = "rows") -> str:
@@ -72,7 +79,8 @@ def check_versions(rows: list[dict[str, Any]], where: str = "rows") -> str:
     found = sorted({str(r.get("score_version", SCORE_VERSION)) for r in rows})
     if len(found) > 1 or found[0] not in VERSIONS:
         raise ScoreVersionError(f"{where}: rows of score version(s) {found}; this leaderboard ranks one of "
-                                f"{list(VERSIONS)} at a time (rerun the old rows with `addedinertia bench run`)")
+                                f"{', '.join(map(repr, VERSIONS))} at a time (rerun the old rows with "
+                                "`addedinertia bench run`)")
     return found[0]
 
 
@@ -113,8 +121,7 @@ def entry_score(rows: list[dict[str, Any]], n_boot: int = 2000, seed: int = 0) -
         return float(np.mean(vals)) if vals else None
 
     return {"mean_score": float(np.mean(x)) if len(x) else math.nan, "ci95_score": [lo, hi],
-            "score_version": str(rows[0].get("score_version", SCORE_VERSION)) if rows else SCORE_VERSION,
-            "scenario_scores": s,
+            "score_version": check_versions(rows) if rows else SCORE_VERSION, "scenario_scores": s,
             "mean_current_sign_changes": mean_of("current_sign_changes"), "mean_chatter_A": mean_of("chatter_A")}
 
 

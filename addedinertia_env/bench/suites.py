@@ -19,7 +19,10 @@ Optional keys: ``effects``, ``loop``, ``motor`` (hidden effects, the control loo
 overrides drawn per seed: :mod:`.scenario_draws`) and ``cycles: N`` (each episode runs N
 reverse-symmetric cycles, each with fresh sensor noise, identified jointly), ``tuned:
 FILE`` (the suite's own tuned gains, a file in configs/controllers/ written by
-``bench tune --suite NAME``; without it controllers use configs/controllers/tuned.yaml).
+``bench tune --suite NAME``; without it controllers use configs/controllers/tuned.yaml), ``ranked:
+as-written | memory-corrected`` (the estimate the leaderboard ranks, default the method as written;
+``memory-corrected``: the same with the water's memory identified from the records and corrected for,
+its own score version, bench/versions.py).
 """
 
 from __future__ import annotations
@@ -39,7 +42,8 @@ from addedinertia_env.bench.scenario_draws import apply_extras, validate_extras
 
 SUITE_DIR = CONFIG_DIR / "suites"
 SUITE_KEYS = {"name", "description", "presets", "ranges", "fixed", "splits", "effects", "loop", "motor", "cycles",
-              "tuned", "drive"}
+              "tuned", "drive", "ranked"}
+RANKED_SCORES = ("as-written", "memory-corrected")  # evaluation/scoring.py's scores a suite may rank
 TUNED_DIR = CONFIG_DIR / "controllers"
 TRAIN_FIRST_SEED = 10**9  # declared splits lie below; seeds from here on are the "train" pseudo-split
 SPLITS = ("tuning", "test")
@@ -61,6 +65,7 @@ class EpisodeTask:
     controller: str
     controller_kwargs: dict[str, Any] = field(default_factory=dict)
     cycles: int = 1  # scored reverse-symmetric cycles, identified jointly
+    ranked: str = "as-written"  # the score the leaderboard ranks (evaluation/scoring.py), the suite's ``ranked``
     entry: dict[str, Any] = field(default_factory=dict)  # declared by a submission: entry_kind, train cost
 
 
@@ -78,6 +83,7 @@ class Suite:
     cycles: int = 1
     tuned_path: Path | None = None  # the suite's own tuned gains (None: configs/controllers/tuned.yaml)
     source: str = ""  # the suite file, for messages
+    ranked: str = "as-written"  # the score the leaderboard ranks (``ranked:``; RANKED_SCORES)
 
     def seeds(self, split: str) -> list[int]:
         """The scenario seeds of ``split`` (``tuning``, ``test`` or ``all``)."""
@@ -139,7 +145,7 @@ class Suite:
             kwargs["tuned"] = False
         return EpisodeTask(suite=self.name, split=self.split_of(scenario.seed), scenario=scenario,
                            preset=self.preset_for(scenario.seed), controller=controller, controller_kwargs=kwargs,
-                           cycles=self.cycles, entry=dict(entry or {}))
+                           cycles=self.cycles, ranked=self.ranked, entry=dict(entry or {}))
 
 
 def suite_path(name: str) -> Path:
@@ -191,11 +197,14 @@ def load_suite(name: str) -> Suite:
     if tuned is not None and not (isinstance(tuned, str) and tuned.endswith((".yaml", ".yml"))
                                   and "/" not in tuned):
         raise ConfigError(f"{path}: tuned = {tuned!r}; expected a .yaml file name in configs/controllers/")
+    ranked = data.get("ranked", "as-written")
+    if ranked not in RANKED_SCORES:
+        raise ConfigError(f"{path}: ranked = {ranked!r}; expected one of {', '.join(RANKED_SCORES)}")
     extras = validate_extras(data, path)
     extras = {k: v for k, v in extras.items() if v}
     suite = Suite(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
                   presets=tuple(presets), ranges=ranges, fixed=dict(fixed), splits=splits, extras=extras,
-                  cycles=cycles, tuned_path=TUNED_DIR / tuned if tuned else None, source=str(path))
+                  cycles=cycles, tuned_path=TUNED_DIR / tuned if tuned else None, source=str(path), ranked=ranked)
     for first, _ in splits.values():  # a bad fixed value or range refused up front, naming the suite file
         suite.scenario(first)
     return suite

@@ -12,6 +12,9 @@ never puts an old error beside a new one:
   lambda66 = A66(0), the zero-frequency added inertia, in every water
   (``docs/RUN_RECORD.md``); the ranked score is the mean of capped |error| with a failure at
   the cap (:mod:`.score`).
+* :data:`~.score.MEMORY_SCORE_VERSION` (``capped-mean-memory-corrected-v1``): the same score on the
+  memory-corrected estimate (the method as written with the water's memory identified from the
+  records and corrected for), ranked by a suite that says ``ranked: memory-corrected`` (memory-v1).
 
 * ``capped-mean-v2`` (:data:`GEARED_SCORE_VERSION`): ``capped-mean-v1`` on a rig with a gearbox
   (``gear_ratio`` > 1: drive-v0, drive-v1), once the energy method books the gearhead's loss
@@ -33,11 +36,11 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from addedinertia_env.bench.score import GEARED_SCORE_VERSION, SCORE_VERSION  # this code's scores (bench/score.py)
+from addedinertia_env.bench.score import GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION, SCORE_VERSION  # bench/score.py
 
 FIELD = "score_version"  # the rows' field
 LEGACY = "v0"  # rows without the field: written before the truth was A66(0) with memory on
-RANKABLE = (SCORE_VERSION, GEARED_SCORE_VERSION, LEGACY)  # a board of any one alone is ranked
+RANKABLE = (SCORE_VERSION, GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION, LEGACY)  # a board of any one alone is ranked
 
 
 class ScoreVersionError(ValueError):
@@ -50,8 +53,12 @@ def row_version(row: Mapping[str, Any]) -> str:
     return LEGACY if value is None else str(value)
 
 
-def row_fields(geared: bool = False) -> dict[str, str]:
-    """The version fields a new benchmark row carries (bench/runner.py); ``geared``: its rig has a gearbox."""
+def row_fields(geared: bool = False, ranked: str = "as-written") -> dict[str, str]:
+    """The version fields a new benchmark row carries (bench/runner.py): the suite's ``ranked`` estimate
+    (``memory-corrected``: :data:`MEMORY_SCORE_VERSION`), else ``geared`` (its rig has a gearbox:
+    :data:`GEARED_SCORE_VERSION`), else :data:`SCORE_VERSION`."""
+    if ranked == "memory-corrected":
+        return {FIELD: MEMORY_SCORE_VERSION}
     return {FIELD: GEARED_SCORE_VERSION if geared else SCORE_VERSION}
 
 

@@ -122,7 +122,8 @@ def run_bench(args) -> int:
     from addedinertia_env.bench.versions import row_fields as version_fields  # noqa: PLC0415
     from addedinertia_env.sim.forces import gear_ratio  # noqa: PLC0415
 
-    version = version_fields(geared=any(gear_ratio(sc.rig) > 1.0 for sc in scenarios))["score_version"]
+    geared = any(gear_ratio(sc.rig) > 1.0 for sc in scenarios)
+    version = version_fields(geared=geared, ranked=suite.ranked)["score_version"]
     kept, notes = prepare_output(out, key, force=args.force, version=version)
     for note in notes:
         info(f"bench: {note}")

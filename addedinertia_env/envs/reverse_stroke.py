@@ -182,6 +182,7 @@ class ReverseStrokeEnv(gym.Env[np.ndarray, np.ndarray]):
             from addedinertia_env.bench.suites import load_suite  # noqa: PLC0415
 
             self.suite = load_suite(suite)
+            self.score_method = self.suite.ranked  # the suite's own ranked estimate (bench/suites.py ``ranked``)
             if suite_split == "test":
                 raise ValueError(f"ReverseStrokeEnv option suite_split={suite_split!r}: the test split is held "
                                  "out; expected 'train' (seeds outside both splits) or 'tuning'")

@@ -37,10 +37,18 @@ from addedinertia_env.records.run_record import RecordError, RunRecord
 
 AS_WRITTEN = "as-written"  # the benchmark's ranked score: the energy method as written
 CORRECTED = "corrected"  # the project's default identification: the energy method, asymmetry corrected
+# the energy method as written, its balance corrected for the work of the water's memory (the memory identified
+# from the records): the method as a lab would use it in water that remembers, while what the controller fails
+# to retrace still shows (memory-v1). Not identify()'s lambda66 with memory, which is the memory fit's A66(0)
+# (the free swing's equation, the same whichever controller drove the stroke): the balance's own value,
+# ``lambda66_energy_corrected`` (identify/memory_energy.py), or the balance alone where no memory was found.
+MEMORY_CORRECTED = "memory-corrected"
+VALUE_KEYS = {MEMORY_CORRECTED: "lambda66_energy_corrected"}  # a score's value from identify()'s details
 SCORES: dict[str, dict[str, bool | str]] = {  # name -> identify()'s options of the energy method
-    # as written: the patent's balance alone, without the water's memory correction (identify's default)
+    # as written: the patent's balance alone, without the water's memory correction
     AS_WRITTEN: {"asymmetry_correction": False, "memory": "off"},
-    CORRECTED: {"asymmetry_correction": True},
+    CORRECTED: {"asymmetry_correction": True, "memory": "auto"},  # identify()'s default, stated
+    MEMORY_CORRECTED: {"asymmetry_correction": False, "memory": "auto"},
 }
 RANKED = AS_WRITTEN  # what the leaderboard ranks (bench/runner.py SCORE_METHOD)
 REWARD = CORRECTED  # what the environment's accuracy term rewards (outside a benchmark suite)
@@ -89,10 +97,13 @@ def estimate(records: Sequence[RunRecord], score: str = CORRECTED) -> Estimate:
         result = identify(list(records), "energy", interval_details=False, **options)  # the numbers only
     except (IdentificationError, RecordError) as e:
         return Estimate(score, failure=str(e), failure_type=type(e).__name__)
-    value = float(result.lambda66)
+    value, ci = float(result.lambda66), result.ci95
+    key = VALUE_KEYS.get(score)
+    if key is not None and key in result.details:
+        value, ci = float(result.details[key]), result.details[f"{key}_ci95"]
     if not math.isfinite(value):
         return Estimate(score, failure="identification returned a non-finite lambda66", failure_type="ValueError")
-    return Estimate(score, value, (float(result.ci95[0]), float(result.ci95[1])), int(result.n_intervals))
+    return Estimate(score, value, (float(ci[0]), float(ci[1])), int(result.n_intervals))
 
 
 def truth_lambda66(records: Sequence[RunRecord]) -> float:

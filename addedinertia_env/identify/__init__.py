@@ -32,10 +32,10 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
 
     ``memory`` (energy and whole-record methods): ``"auto"`` (or True; the CLI's default ``--memory auto``)
     identifies the water's radiation memory from the records and corrects for it, so that lambda66 is A66(0)
-    (docs/RADIATION_MEMORY.md); memory-free records give ``memory: "none"`` and unchanged numbers. ``"off"``
-    (or False, the default in Python): the method alone. Off by default here because the memory fit is not yet
-    reproducible to 1e-10 across BLAS kernels (6.8e-7 on one record of another lab, where a stiffening spring
-    was taken for memory), which the method alone is (tests/test_same_numbers_any_cpu.py). ``prior``: ``"none"`` (the default: the records alone) or ``"bem"``: the
+    (docs/RADIATION_MEMORY.md); memory-free records give ``memory: "none"`` and unchanged numbers. The default,
+    as on the command line (it was ``"off"`` in Python while a stiffening spring could be taken for memory and the
+    result then moved by 6.8e-7 between BLAS kernels; tests/test_same_numbers_any_cpu.py runs memory auto).
+    ``"off"`` (or False): the method alone (the method as written, the "before" of the docs' tables). ``prior``: ``"none"`` (the default: the records alone) or ``"bem"``: the
     hull's BEM cache (``bem_cache``, a path; default the cache of the preset the records name) as a prior on
     the memory model (:mod:`~addedinertia_env.identify.memory_prior`); stated in the result as ``prior``."""
     if method not in METHODS:
@@ -50,9 +50,9 @@ def identify(records: list[RunRecord], method: str = "energy", **options) -> Res
         check_momentum_consistent(rec)
     module, _, func = METHODS[method].partition(":")
     estimator = getattr(importlib.import_module(module), func)
-    memory = options.pop("memory", "off")
+    memory = options.pop("memory", "auto")
     if memory not in (False, True, "auto", "off"):
-        raise ValueError(f"identify(): memory={memory!r}; expected 'auto', 'off' (the default), True or False")
+        raise ValueError(f"identify(): memory={memory!r}; expected 'auto' (the default), 'off', True or False")
     memory = memory in (True, "auto")
     prior = options.pop("prior", "none")
     if prior not in PRIORS:

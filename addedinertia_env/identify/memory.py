@@ -43,13 +43,18 @@ one real pole also without an instantaneous part (``-sp``, strictly proper: ``B6
 potential-flow radiation has; see :func:`_kernel_map` for why the records need that told to them:
 an instantaneous part of the kernel is a damping, and trades against A66(inf)). The reported family
 is the simplest of those that fit (fewest parameters). The memory-free model (``none``) is fitted too; memory is declared only when it explains most
-of what the memory-free model leaves (:data:`MEMORY_RSS_RATIO`) with a passive model.
+of what the memory-free model leaves (:data:`MEMORY_RSS_RATIO`) with a passive model, and most of what its
+amplitude-dependent rival leaves: the memory-free equation with a stiffening rod's odd terms
+(:data:`STIFFENING_POWERS`), the best family refitted on top of it (memory is linear; within one run a rod's
+amplitude-dependent swing can pass for memory).
 
 Intervals: per family, the coefficients' covariance is clustered by window (the integral
 form's residuals are correlated within a window), the pole positions' share added by
 perturbing them along the fit's Jacobian; the reported 95 % interval of each quantity is
 the union over the accepted families (passive, within :data:`FAMILY_RSS_TOLERANCE` of the
-best residual).
+best residual). A66(inf)'s variance is clustered by stretch of free motion (its evidence is the instants after
+each start from rest) with Student's t, and its interval holds the reported family's jackknife over those
+stretches (:func:`jackknife_a_inf`).
 
 Only the records' samples and ``rig`` blocks are read; never ``truth``.
 """
@@ -83,6 +88,8 @@ MIN_FREE_S = 3.0  # s of unbraked motion needed
 MIN_RELEASES = 1  # starts from rest (a release or a brake letting go) needed
 POLE_RANGE = (0.3, 60.0)  # rad/s: searched pole magnitudes (the rig's records resolve this band)
 Z95 = 1.96
+POLE_SEARCH = dict(x_scale=1.0, diff_step=1e-4, max_nfev=60, xtol=1e-6, ftol=1e-10)  # least_squares' options
+STIFFENING_POWERS = (3, 5)  # the torsion rod's odd nonlinear terms c d^n (d = phi - phi_n): memory's amplitude-dependent rival
 
 
 class MemoryNotIdentifiable(ValueError):
@@ -169,7 +176,9 @@ class MemoryData:
     def __init__(self, records: list[RunRecord], window_s: float = WINDOW_S, row_step_s: float = ROW_STEP_S):
         self.series = [_series(r) for r in records]
         self.windows: list[_Window] = []
-        base, ys = [], []
+        base, ys, stiff = [], [], []
+        segment_of_window: list[int] = []  # which stretch of free motion (a start from rest, mostly) each window is in
+        n_segments = 0
         self.free_s = 0.0
         self.releases = 0
         for k, s in enumerate(self.series):
@@ -182,6 +191,7 @@ class MemoryData:
                 a, b = a + SMOOTH_HALF if a > 0 else a, b - SMOOTH_HALF if b < len(s.free) else b
                 if b - a < n_win // 3:
                     continue
+                n_segments += 1
                 self.free_s += (b - a) * s.dt
                 for a0 in range(a, b - n_win // 3, n_win):
                     b0 = min(a0 + n_win, b)
@@ -197,12 +207,17 @@ class MemoryData:
                     if len(sel) < 3:
                         continue
                     self.windows.append(_Window(k, a0, sel + a0))
+                    segment_of_window.append(n_segments - 1)
                     base.append((cols[sel], tt[sel]))
                     ys.append(y[sel])
+                    d = s.phi[seg] - s.phi_n
+                    stiff.append(np.stack([s.c * _cumtrapz(_cumtrapz(d**n, s.dt), s.dt) for n in STIFFENING_POWERS],
+                                          axis=1)[sel])
         if not self.windows:
             raise MemoryNotIdentifiable("no unbraked motion long enough for the hull's equation")
         n_rows = sum(len(y) for y in ys)
         self.n_windows = len(self.windows)
+        self.segment_of_window = np.asarray(segment_of_window, dtype=np.int64)
         X = np.zeros((n_rows, len(self.BASE) + self.n_windows))
         self.window_of_row = np.zeros(n_rows, dtype=np.int64)
         r = 0
@@ -212,6 +227,8 @@ class MemoryData:
             self.window_of_row[r:r + len(y)] = j
             r += len(y)
         self.X, self.Y = X, np.concatenate(ys)
+        # the amplitude-dependent alternative to memory (not part of the fit; see stiffness_alternative)
+        self.S = np.vstack(stiff)
         scale = np.sqrt(np.mean(X**2, axis=0))
         self.scale = np.where(scale > 0, scale, 1.0)
         # the base columns projected out once (variable projection)
@@ -258,15 +275,59 @@ class MemoryData:
         coef = coef / sc
         return coef, self.Y - X @ coef, X
 
-    def clustered_covariance(self, X: np.ndarray, resid: np.ndarray) -> np.ndarray:
-        """Coefficient covariance with the residuals clustered by window (sandwich form)."""
+    def with_columns(self, extra: np.ndarray) -> MemoryData:
+        """The same rows with the columns ``extra`` added to the memory-free equation (a rival's terms)."""
+        import copy  # noqa: PLC0415
+
+        out = copy.copy(self)
+        out.X = np.hstack([self.X, extra])
+        scale = np.sqrt(np.mean(out.X**2, axis=0))
+        out.scale = np.where(scale > 0, scale, 1.0)
+        out.Q, _ = np.linalg.qr(out.X / out.scale)
+        out.Yp = out.Y - out.Q @ (out.Q.T @ out.Y)
+        return out
+
+    def without_segment(self, k: int) -> MemoryData:
+        """The same equation without the rows of stretch ``k`` of free motion (a jackknife sample)."""
+        import copy  # noqa: PLC0415
+
+        keep_w = np.flatnonzero(self.segment_of_window != k)
+        keep_r = np.isin(self.window_of_row, keep_w)
+        out = copy.copy(self)
+        out.windows = [self.windows[j] for j in keep_w]
+        renumber = np.full(self.n_windows, -1, dtype=np.int64)
+        renumber[keep_w] = np.arange(len(keep_w))
+        out.window_of_row = renumber[self.window_of_row[keep_r]]
+        out.segment_of_window = self.segment_of_window[keep_w]
+        out.n_windows = len(keep_w)
+        base = list(range(len(self.BASE))) + [len(self.BASE) + j for j in keep_w]  # the dropped windows' momenta go
+        out.X, out.Y, out.S = self.X[keep_r][:, base], self.Y[keep_r], self.S[keep_r]
+        scale = np.sqrt(np.mean(out.X**2, axis=0))
+        out.scale = np.where(scale > 0, scale, 1.0)
+        out.Q, _ = np.linalg.qr(out.X / out.scale)
+        out.Yp = out.Y - out.Q @ (out.Q.T @ out.Y)
+        return out
+
+    @property
+    def segment_of_row(self) -> np.ndarray:
+        """The stretch of free motion each equation row is in (the clusters of A66(inf)'s evidence)."""
+        return self.segment_of_window[self.window_of_row]
+
+    @property
+    def n_segments(self) -> int:
+        return int(self.segment_of_window.max()) + 1
+
+    def clustered_covariance(self, X: np.ndarray, resid: np.ndarray, clusters: np.ndarray | None = None) -> np.ndarray:
+        """Coefficient covariance with the residuals clustered by window (sandwich form); ``clusters``: another
+        cluster index per row (the stretches of free motion, :attr:`segment_of_row`)."""
         sc = np.sqrt(np.mean(X**2, axis=0))
         sc = np.where(sc > 0, sc, 1.0)
         Xs = X / sc
         bread = np.linalg.pinv(Xs.T @ Xs)
-        scores = np.zeros((self.n_windows, X.shape[1]))
-        np.add.at(scores, self.window_of_row, Xs * resid[:, None])
-        g = self.n_windows
+        rows_c = self.window_of_row if clusters is None else clusters
+        g = int(rows_c.max()) + 1
+        scores = np.zeros((g, X.shape[1]))
+        np.add.at(scores, rows_c, Xs * resid[:, None])
         meat = scores.T @ scores * (g / max(g - 1, 1))
         return (bread @ meat @ bread) / np.outer(sc, sc)
 
@@ -382,7 +443,7 @@ class FamilyFit:
     A_inf: float
     A_zero: float
     A_swing: float
-    sigma: dict[str, float]  # 1-sigma of A_inf, A_zero, A_swing (clustered + pole positions)
+    sigma: dict[str, float]  # 1-sigma of A_inf, A_zero, A_swing (clustered + pole positions; A_inf's by stretch)
     passive: bool
     min_re_K: float
     theta: np.ndarray = field(repr=False)  # memory coefficients (kg m^2 x section units)
@@ -391,6 +452,7 @@ class FamilyFit:
     cov_theta: np.ndarray | None = field(default=None, repr=False)  # covariance of ``theta`` (clustered)
     strict: bool = False  # without an instantaneous part: B66(inf) = 0 (:func:`_kernel_map`)
     x: np.ndarray | None = field(default=None, repr=False)  # the packed pole parameters (a start for the variant)
+    pole_sigma: np.ndarray | None = field(default=None, repr=False)  # 1-sigma of ``x`` (clustered; None: poles fixed)
 
     @property
     def n_params(self) -> int:
@@ -472,7 +534,7 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
     for x0 in starts:
         try:
             r = least_squares(lambda x: data.projected_residual(_unpack(kinds, x), strict), x0, bounds=(lb, ub),
-                              x_scale=1.0, diff_step=1e-4, max_nfev=60, xtol=1e-6, ftol=1e-10)
+                              **POLE_SEARCH)
         except (ValueError, np.linalg.LinAlgError):
             continue
         if best is None or r.cost < best.cost:
@@ -485,12 +547,19 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
     rows = _quantities(sections, coef, swing_omega, strict)
     values = rows @ coef
     var = np.einsum("ij,jk,ik->i", rows, V, rows)
+    # A66(inf) is carried by the first instants after each start from rest, so its independent pieces of evidence
+    # are the stretches of free motion, not the windows: its variance is clustered by stretch (and its interval
+    # takes Student's t with one fewer degree of freedom than there are stretches, identify_memory)
+    seg = data.segment_of_row
+    var_inf = float(rows[0] @ data.clustered_covariance(X, resid, seg) @ rows[0])
     # the pole positions' share: the quantities' change along the poles' own covariance
+    pole_sigma = None
     try:
         J = best.jac
         if J is None:
             raise ValueError("fixed poles: no share of their positions")
         Vx = _clustered_pole_covariance(data, J, resid)
+        pole_sigma = np.sqrt(np.maximum(np.diag(Vx), 0.0))
         grads = []
         for j in range(len(best.x)):
             h = 1e-4
@@ -501,6 +570,7 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
             grads.append((_quantities(sp, cp, swing_omega, strict) @ cp - values) / h)
         G = np.array(grads).T  # 3 x n_x
         var = var + np.einsum("ij,jk,ik->i", G, Vx, G)
+        var_inf += float(G[0] @ _clustered_pole_covariance(data, J, resid, seg) @ G[0])
     except (np.linalg.LinAlgError, ValueError):
         pass
     n_mem = rows.shape[1] - data.X.shape[1]
@@ -510,10 +580,59 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
     scale = max(float(np.max(np.abs(ReK))), 1e-12)
     passive = bool(np.min(ReK) >= -PASSIVITY_TOLERANCE * scale and values[1] > values[0] and values[0] > 0.0)
     sig = np.sqrt(np.maximum(var, 0.0))
+    sig_window = float(sig[0])
+    sig[0] = max(sig[0], math.sqrt(max(var_inf, 0.0)))  # the wider of the two clusterings
     return FamilyFit(name, sections, float(resid @ resid), float(values[0]), float(values[1]), float(values[2]),
-                     {"A66_inf": float(sig[0]), "A66_zero": float(sig[1]), "A66_swing": float(sig[2])},
+                     {"A66_inf": float(sig[0]), "A66_zero": float(sig[1]), "A66_swing": float(sig[2]),
+                      "A66_inf_by_window": sig_window},
                      passive, float(np.min(ReK)), theta, float(coef[n_mem + 1]), float(coef[n_mem + 2]),
-                     T @ V[:n_mem, :n_mem] @ T.T, strict, best.x.copy())
+                     T @ V[:n_mem, :n_mem] @ T.T, strict, best.x.copy(), pole_sigma)
+
+
+def jackknife_a_inf(data: MemoryData, fit: FamilyFit) -> float:
+    """The jackknife standard deviation of ``fit``'s A66(inf) over the stretches of free motion (each left out in
+    turn, the family's poles searched again from its own): A66(inf) is carried by the instants after each start from
+    rest, and a bias the noise leaves in the pole positions moves with the stretches; nan with fewer than 3."""
+    from scipy.optimize import least_squares  # noqa: PLC0415
+
+    g = data.n_segments
+    if g < 3 or fit.x is None:
+        return math.nan
+    kinds = tuple(sec[0] for sec in fit.sections)
+    lb, ub = _bounds(kinds)
+    values = []
+    for k in range(g):
+        sub_data = data.without_segment(k)
+        if sub_data.n_windows < 2:
+            continue
+        try:
+            r = least_squares(lambda x: sub_data.projected_residual(_unpack(kinds, x), fit.strict),
+                              np.clip(fit.x, lb, ub), bounds=(lb, ub), **POLE_SEARCH)
+            coef, _, _ = sub_data.solve(_unpack(kinds, r.x), fit.strict)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        n_mem = len(coef) - sub_data.X.shape[1]
+        values.append(float(coef[n_mem]))  # A66(inf): the first base coefficient after the memory's
+    if len(values) < 3:
+        return math.nan
+    v = np.asarray(values)
+    return float(math.sqrt((len(v) - 1) / len(v) * np.sum((v - v.mean()) ** 2)))
+
+
+def _refit_rss(data: MemoryData, fit: FamilyFit) -> float:
+    """The residual of ``fit``'s family on ``data`` (other rows or columns), its poles searched from ``fit``'s."""
+    from scipy.optimize import least_squares  # noqa: PLC0415
+
+    kinds = tuple(sec[0] for sec in fit.sections)
+    _, x0 = pack_sections(fit.sections)
+    lb, ub = _bounds(kinds)
+    try:
+        r = least_squares(lambda x: data.projected_residual(_unpack(kinds, x), fit.strict), np.clip(x0, lb, ub),
+                          bounds=(lb, ub), **POLE_SEARCH)
+    except (ValueError, np.linalg.LinAlgError):
+        res = data.projected_residual(fit.sections, fit.strict)
+        return float(res @ res)
+    return float(2.0 * r.cost)
 
 
 def pack_sections(sections: list[tuple]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -542,7 +661,8 @@ def _bounds(kinds: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     return np.array(lb), np.array(ub)
 
 
-def _clustered_pole_covariance(data: MemoryData, J: np.ndarray, resid: np.ndarray) -> np.ndarray:
+def _clustered_pole_covariance(data: MemoryData, J: np.ndarray, resid: np.ndarray,
+                               clusters: np.ndarray | None = None) -> np.ndarray:
     """Covariance of the packed pole parameters, clustered by window like the coefficients'
     (:meth:`MemoryData.clustered_covariance`): ``J`` is the Jacobian of the projected residual (rows x
     pole parameters) at the fit, whose residual is ``resid``. The integral form's rows within a window
@@ -550,9 +670,10 @@ def _clustered_pole_covariance(data: MemoryData, J: np.ndarray, resid: np.ndarra
     ``s^2 (J'J)^-1`` would count every 20 ms row as new information and make the poles, and with them
     A66(inf), look several times surer than the records allow."""
     bread = np.linalg.pinv(J.T @ J)
-    scores = np.zeros((data.n_windows, J.shape[1]))
-    np.add.at(scores, data.window_of_row, J * resid[:, None])
-    g = data.n_windows
+    rows_c = data.window_of_row if clusters is None else clusters
+    g = int(rows_c.max()) + 1
+    scores = np.zeros((g, J.shape[1]))
+    np.add.at(scores, rows_c, J * resid[:, None])
     meat = scores.T @ scores * (g / max(g - 1, 1))
     return bread @ meat @ bread
 
@@ -585,6 +706,8 @@ class MemoryIdentification:
     free_s: float = 0.0
     prior: str = "none"
     prior_note: str = ""  # with a prior: its source and whether the records accepted it
+    rss_stiffening: float = math.nan  # memory-free with a stiffening rod (STIFFENING_POWERS), where memory was in question
+    rss_memory_and_stiffening: float = math.nan  # the best memory model with the stiffening rod too
 
     @property
     def identified(self) -> bool:
@@ -607,14 +730,19 @@ class MemoryIdentification:
                 "family": self.best.family, "swing_omega_rad_s": self.swing_omega,
                 "families_kept": [f.family for f in self.accepted],
                 "fits": [f.summary() for f in self.fits], "rss_memory_free": self.rss_none,
-                "prior": self.prior, "free_motion_s": self.free_s}
+                "prior": self.prior, "free_motion_s": self.free_s, **self._stiffening_json()}
             if self.prior_note:
                 out["memory_model"]["prior_note"] = self.prior_note
         else:
             out["memory_model"] = {"swing_omega_rad_s": self.swing_omega, "rss_memory_free": self.rss_none,
                                    "fits": [f.summary() for f in self.fits], "prior": self.prior,
-                                   "free_motion_s": self.free_s}
+                                   "free_motion_s": self.free_s, **self._stiffening_json()}
         return out
+
+    def _stiffening_json(self) -> dict[str, Any]:
+        if math.isnan(self.rss_stiffening):
+            return {}
+        return {"rss_stiffening_rod": self.rss_stiffening, "rss_memory_and_stiffening_rod": self.rss_memory_and_stiffening}
 
 
 def swing_frequency(data: MemoryData) -> float:
@@ -691,6 +819,14 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
     base = MemoryIdentification("none", w_s, fits=fits, rss_none=rss_none, free_s=data.free_s,
                                 prior="none" if prior is None else prior.name,
                                 prior_note="" if prior is None else f"{prior.source}: not used (no memory in the records)")
+    if fits and min(f.rss for f in fits) < MEMORY_RSS_RATIO * rss_none:
+        # memory is linear; a stiffening rod is amplitude-dependent and may look like memory in one run
+        rival = min(passive or fits, key=lambda f: f.rss)
+        rod = data.with_columns(data.S)
+        base.rss_stiffening = float(rod.Yp @ rod.Yp)
+        base.rss_memory_and_stiffening = _refit_rss(rod, rival)
+        if base.rss_memory_and_stiffening >= MEMORY_RSS_RATIO * base.rss_stiffening:
+            return base  # a nonlinear rod explains the records as well: no memory
     if not passive:
         if fits and min(f.rss for f in fits) < MEMORY_RSS_RATIO * rss_none:
             base.status = ("not identifiable: the records show memory but no passive low-order model fits "
@@ -722,11 +858,27 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
             note = f"{prior.source}: rejected by the records ({why}); the records alone"
     ci = {}
     for key in ("A66_inf", "A66_zero", "A66_swing"):
-        lo = min(getattr(f, _attr(key)) - Z95 * f.sigma[key] for f in accepted)
-        hi = max(getattr(f, _attr(key)) + Z95 * f.sigma[key] for f in accepted)
+        z = _t95(data.n_segments) if key == "A66_inf" else Z95
+        lo = min(getattr(f, _attr(key)) - z * f.sigma[key] for f in accepted)
+        hi = max(getattr(f, _attr(key)) + z * f.sigma[key] for f in accepted)
         ci[key] = (float(lo), float(hi))
+    # A66(inf) also within the reported family's jackknife over the starts from rest (t with g - 1 dof)
+    jack = jackknife_a_inf(data, best)
+    if math.isfinite(jack):
+        half = _t95(data.n_segments) * jack
+        ci["A66_inf"] = (min(ci["A66_inf"][0], best.A_inf - half), max(ci["A66_inf"][1], best.A_inf + half))
+        best.sigma["A66_inf_jackknife"] = jack
     return MemoryIdentification("identified", w_s, best.A_zero, best.A_inf, best.A_swing, ci, best, accepted, fits,
-                                rss_none, data.free_s, "none" if prior is None else prior.name, note)
+                                rss_none, data.free_s, "none" if prior is None else prior.name, note,
+                                base.rss_stiffening, base.rss_memory_and_stiffening)
+
+
+def _t95(n_clusters: int) -> float:
+    """The two-sided 95 % point for a variance clustered over ``n_clusters`` stretches of free motion: Student's t
+    with ``n_clusters - 1`` degrees of freedom (a few starts from rest carry A66(inf)), the normal's past 30."""
+    from scipy import stats  # noqa: PLC0415
+
+    return Z95 if n_clusters > 30 else float(stats.t.ppf(0.975, max(n_clusters - 1, 1)))
 
 
 def _attr(key: str) -> str:

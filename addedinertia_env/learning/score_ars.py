@@ -49,7 +49,8 @@ from typing import Any
 
 import numpy as np
 
-from addedinertia_env.bench.score import CAP, GEARED_SCORE_VERSION, SCORE_VERSION, bootstrap_mean
+from addedinertia_env.bench.score import CAP, bootstrap_mean
+from addedinertia_env.bench.versions import row_fields as version_fields
 from addedinertia_env.sim.forces import gear_ratio
 from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 from addedinertia_env.foundation.atomic import atomic_write_text
@@ -158,7 +159,7 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
     next_scenario = seed * TRAIN_SEED_STRIDE
     cost = {"env_steps": 0, "episodes": 0}
     geared = gear_ratio(suite.scenario(next_scenario).rig) > 1.0  # the drive suites: the gear loss is booked
-    version = GEARED_SCORE_VERSION if geared else SCORE_VERSION
+    version = version_fields(geared=geared, ranked=suite.ranked)["score_version"]  # what the suite's rows carry
 
     def draw(m: int) -> list[int]:
         nonlocal next_scenario

@@ -19,7 +19,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime as dt
-import importlib.util
+import io
+import json
+import os
 import subprocess
 import sys
 import tarfile
@@ -50,20 +52,80 @@ LEGACY_LINES = ("estimate", "bookkeeping", "hull rates", "spring", "hull at rest
 
 # --- the estimator before ------------------------------------------------------------------
 
-def load_legacy_estimator(rev: str):
-    """The energy-method module of git revision ``rev`` (its relative imports resolved against
-    today's package), or None when git or the revision is not available."""
+LEGACY_WORKER = r"""
+import json, sys
+import numpy as np
+from addedinertia_env.record import read_record
+from addedinertia_env.identify.energy import identify_energy
+from addedinertia_env.identify.common import IdentificationError
+import addedinertia_env.record as old_record
+
+# today's reader takes L = 0 as "not stated" (another lab's records); the old one required L > 0. The records are
+# read by today's rules, as the in-process loader did before the package moved.
+old_record.POSITIVE_RIG_KEYS = tuple(k for k in old_record.POSITIVE_RIG_KEYS if k != "L")
+
+def plain(x):
+    if isinstance(x, dict):
+        return {k: plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [plain(v) for v in x]
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+out = []
+for path in sys.argv[2:]:
     try:
-        source = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:addedinertia_env/identify/energy.py"],
-                                check=True, capture_output=True, text=True).stdout
+        r = identify_energy([read_record(path)])
+        out.append({"lambda66": float(r.lambda66), "intervals": plain(r.details["intervals"])})
+    except (IdentificationError, KeyError, ValueError) as e:
+        out.append({"refused": f"{type(e).__name__}: {e}"})
+json.dump(out, open(sys.argv[1], "w"))
+"""
+
+
+class LegacyEstimator:
+    """The energy method of git revision ``rev``, run in its own process on its own package tree (``git archive``
+    of that revision: its modules import each other by the layout they had then, ``..record``, which today's
+    package no longer has). Records go to it as files (today's format, without truth); a record it refuses (a
+    preset added since) comes back as :class:`IdentificationError` with the old code's reason."""
+
+    def __init__(self, rev: str, tree: Path):
+        self.rev, self.tree = rev, tree
+
+    def identify_energy(self, records):
+        from types import SimpleNamespace  # noqa: PLC0415
+
+        from addedinertia_env.records.record import write_record  # noqa: PLC0415
+
+        with tempfile.TemporaryDirectory() as tmp:
+            paths = [str(write_record(rec.without_truth(), Path(tmp) / f"rec-{k}.csv")) for k, rec in enumerate(records)]
+            target = Path(tmp) / "out.json"
+            env = {**os.environ, "PYTHONPATH": str(self.tree)}
+            done = subprocess.run([sys.executable, "-c", LEGACY_WORKER, str(target), *paths], env=env, cwd=self.tree,
+                                  capture_output=True, text=True)
+            if done.returncode != 0:
+                raise IdentificationError(f"the estimator of {self.rev} failed: {done.stderr.strip()[-300:]}")
+            got = json.loads(target.read_text())[0]
+        if "refused" in got:
+            raise IdentificationError(f"the estimator of {self.rev} refused the record: {got['refused']}")
+        return SimpleNamespace(lambda66=got["lambda66"], details={"intervals": got["intervals"]})
+
+
+def load_legacy_estimator(rev: str, workdir: Path | None = None):
+    """The energy method of git revision ``rev`` (:class:`LegacyEstimator`: that revision's package extracted with
+    ``git archive`` into ``workdir``, default a temporary folder), or None when git or the revision is not available."""
+    tree = Path(workdir or tempfile.mkdtemp(prefix=f"energy-{rev}-"))
+    try:
+        archive = subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", rev, "addedinertia_env"],
+                                 check=True, capture_output=True).stdout
     except (OSError, subprocess.CalledProcessError):
         return None
-    spec = importlib.util.spec_from_loader("addedinertia_env.identify._energy_before", loader=None)
-    module = importlib.util.module_from_spec(spec)
-    module.__package__ = "addedinertia_env.identify"
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    exec(compile(source, f"<{rev}:energy.py>", "exec"), module.__dict__)  # noqa: S102 - our own history
-    return module
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(tree, filter="data")
+    return LegacyEstimator(rev, tree)
 
 
 def legacy_budget(run: eb.TrueRun, legacy) -> dict[str, float]:
@@ -117,7 +179,11 @@ def measure(preset: str, sensors: str, seeds, legacy) -> dict:
             for work in ("current", "electric"):
                 row[work] = 100.0 * (identify([run.record], "energy", work=work).lambda66 / run.truth - 1.0)
         if legacy is not None:
-            lb = legacy_budget(run, legacy)
+            try:
+                lb = legacy_budget(run, legacy)
+            except IdentificationError as e:  # a preset the old estimator does not know: said, not dropped
+                print(f"{preset}, seed {seed}: {e}", file=sys.stderr)
+                lb = {line: float("nan") for line in LEGACY_LINES}
             before.append(lb)
             row["before"] = lb["estimate"]
         rows.append(row)
@@ -147,7 +213,6 @@ def _motor_work_share(run: eb.TrueRun) -> float:
 
 def foreign_lab(legacy, archive: str | Path | None) -> list[dict] | None:
     """Each reverse-symmetric record of the foreign-lab development set ``archive`` (a .tar.xz; None: none): error after and before, percent."""
-    import json  # noqa: PLC0415
 
     from addedinertia_env.records.record import read_record  # noqa: PLC0415
 
@@ -185,6 +250,8 @@ def _cell(values: list[float]) -> str:
     v = np.asarray(values, float)
     if not len(v):
         return "-"
+    if not np.isfinite(v).all():
+        return "refused"
     spread = 0.5 * (np.percentile(v, 84) - np.percentile(v, 16)) if len(v) > 1 else 0.0
     return f"{np.median(v):+.4f} ({spread:.4f})"
 
@@ -241,7 +308,8 @@ def render(results: dict, foreign: list[dict] | None, args, wall_s: float) -> st
             lines.append(f"| {sensors} | {np.median(np.abs(e)):.4f} % | {' '.join(f'{x:+.4f}' for x in e)} | "
                          f"{np.mean([r['covered'] for r in rows]):.0%} | "
                          f"{np.median([r['half_width'] for r in rows]):.3f} % | "
-                         + (f"{np.median(np.abs(eb_)):.4f} % |" if eb_ is not None else "- |"))
+                         + (f"{np.median(np.abs(eb_)):.4f} % |" if eb_ is not None and np.isfinite(eb_).all()
+                            else "refused by the estimator before |" if eb_ is not None else "- |"))
         lines.append("")
     lines += _work_form_section(results)
     if foreign is not None:
@@ -344,6 +412,32 @@ def _findings() -> list[str]:
             "sensor's gain (the interval keeps 0.2 % of the motor work for it).", ""]
 
 
+def keep_added_sections(text: str, old_path: Path) -> str:
+    """``text`` with the ``## `` sections of the file at ``old_path`` that this generator does not write (added by
+    hand since, e.g. "The drive's flaws in the budget") appended, in their order: a rerun does not drop them."""
+    if not old_path.exists():
+        return text
+
+    def sections(doc: str) -> list[tuple[str, str]]:
+        out, title, lines = [], None, []
+        for line in doc.splitlines(keepends=True):
+            if line.startswith("## "):
+                if title is not None:
+                    out.append((title, "".join(lines)))
+                title, lines = line.strip(), [line]
+            elif title is not None:
+                lines.append(line)
+        if title is not None:
+            out.append((title, "".join(lines)))
+        return out
+
+    made = {t for t, _ in sections(text)}
+    added = [body for t, body in sections(old_path.read_text()) if t not in made]
+    if not added:
+        return text
+    return text.rstrip("\n") + "\n\n" + "".join(added).rstrip("\n") + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Regenerate ``docs/ENERGY_METHOD.md`` (the command is in the module docstring); ``argv`` as on the command line; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -364,7 +458,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{preset}, {sensors} sensors ...", file=sys.stderr, flush=True)
             results[(preset, sensors)] = measure(preset, sensors, range(1, args.seeds + 1), legacy)
     foreign = foreign_lab(legacy, args.data)
+    if legacy is not None:
+        import shutil  # noqa: PLC0415
+
+        shutil.rmtree(legacy.tree, ignore_errors=True)
     text = render(results, foreign, args, time.time() - t0)
+    text = keep_added_sections(text, Path(args.out))
     atomic_write_text(args.out, text)
     print(text)
     return 0

@@ -113,7 +113,7 @@ def study_point(run, decay, window: tuple[float, float]) -> dict[str, Any]:
     row: dict[str, Any] = {"A66_zero": a0, "A66_swing": truth.get("A66_swing"), "A66_inf": truth.get("A66_inf"),
                            "tank_s": float(run.t[-1] - run.t[0])}
     try:
-        before = identify([run], "energy", fractions=window)
+        before = identify([run], "energy", fractions=window, memory="off")
         row["before"] = float(before.lambda66)
     except IdentificationError as e:
         row["before"], row["why"] = math.nan, str(e)[:200]

@@ -63,7 +63,7 @@ def run_case(preset: str, seed: int, memory: bool, discover_too: bool = True,
     for rec in records:
         exp = rec.meta["experiment"]
         try:
-            est = float(identify([rec], "energy").lambda66)
+            est = float(identify([rec], "energy", memory="off").lambda66)
         except IdentificationError as e:
             est, why = math.nan, str(e)
         else:

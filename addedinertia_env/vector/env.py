@@ -133,6 +133,8 @@ class ReverseStrokeVectorEnv(VectorEnv):
                              "in [0.1, 4] (spare slots per environment)")
         env_kwargs.pop("max_episode_steps", None)  # from the registration; an episode ends well before it
         self.score_method = reward_score(suite)  # the ranked score on a suite (issue 28), else the corrected one
+        if self.suite is not None:  # the suite's own ranked estimate (bench/suites.py ``ranked``; memory-v1's)
+            self.score_method = self.suite.ranked
         weights = env_kwargs.pop("reward_weights", None) or (SCORE_ONLY if suite is not None else RewardWeights())
         self.config = EnvConfig(reward_weights=weights, **env_kwargs)
         if not isinstance(score_episodes, bool):
