@@ -315,6 +315,7 @@ class MemoryData:
 
     @property
     def n_segments(self) -> int:
+        """How many stretches of free motion (starts from rest) the rows come from."""
         return int(self.segment_of_window.max()) + 1
 
     def clustered_covariance(self, X: np.ndarray, resid: np.ndarray, clusters: np.ndarray | None = None) -> np.ndarray:

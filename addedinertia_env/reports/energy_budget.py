@@ -96,6 +96,9 @@ class LegacyEstimator:
         self.rev, self.tree = rev, tree
 
     def identify_energy(self, records):
+        """The old revision's energy-method estimate of ``records`` (run in its own process on its own
+        package tree): a namespace with ``lambda66`` (kg m^2) and ``details["intervals"]``, the fields of
+        today's ``identify`` result that the budget reads; IdentificationError where that revision refuses."""
         from types import SimpleNamespace  # noqa: PLC0415
 
         from addedinertia_env.records.record import write_record  # noqa: PLC0415
