@@ -42,3 +42,24 @@ def test_a_geared_run_does_not_resume_rows_of_the_old_estimate(tmp_path):
     _write(path, _rows("pd", GEARED_SCORE_VERSION, suite="drive-v1"))
     kept, _ = prepare_output(path, key, version=GEARED_SCORE_VERSION)
     assert len(kept) == 6
+
+
+def test_the_three_versions_side_by_side():
+    """What a row carries: the suite's ranked estimate first (memory-corrected), then the gearbox, else
+    the plain version; a row's own known version is kept when its score is recomputed; one board
+    never ranks two of them together."""
+    from addedinertia_env.bench.versions import MEMORY_SCORE_VERSION  # noqa: PLC0415
+
+    assert row_fields(geared=False)["score_version"] == SCORE_VERSION
+    assert row_fields(geared=True)["score_version"] == GEARED_SCORE_VERSION
+    assert row_fields(geared=False, ranked="memory-corrected")["score_version"] == MEMORY_SCORE_VERSION
+    assert len({SCORE_VERSION, GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION}) == 3
+    geared_row = {"score_version": GEARED_SCORE_VERSION, "rel_error": 0.01}
+    assert score.row_fields(geared_row)["score_version"] == GEARED_SCORE_VERSION
+    memory_row = {"ranked_score": "memory-corrected", "rel_error": 0.01}
+    assert score.row_fields(memory_row)["score_version"] == MEMORY_SCORE_VERSION
+    assert score.row_fields({"rel_error": 0.01})["score_version"] == SCORE_VERSION
+    for a, b in ((GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION), (SCORE_VERSION, GEARED_SCORE_VERSION)):
+        with pytest.raises(score.ScoreVersionError):
+            score.check_versions([{"score_version": a, "rel_error": 0.0}, {"score_version": b, "rel_error": 0.0}])
+    assert score.check_versions([{"score_version": MEMORY_SCORE_VERSION, "rel_error": 0.0}]) == MEMORY_SCORE_VERSION
