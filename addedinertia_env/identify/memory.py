@@ -323,14 +323,8 @@ class MemoryData:
         cluster index per row (the stretches of free motion, :attr:`segment_of_row`)."""
         sc = np.sqrt(np.mean(X**2, axis=0))
         sc = np.where(sc > 0, sc, 1.0)
-        Xs = X / sc
-        bread = np.linalg.pinv(Xs.T @ Xs)
         rows_c = self.window_of_row if clusters is None else clusters
-        g = int(rows_c.max()) + 1
-        scores = np.zeros((g, X.shape[1]))
-        np.add.at(scores, rows_c, Xs * resid[:, None])
-        meat = scores.T @ scores * (g / max(g - 1, 1))
-        return (bread @ meat @ bread) / np.outer(sc, sc)
+        return _cluster_sandwich(X / sc, resid, rows_c) / np.outer(sc, sc)
 
 
 def bilinear(num, den, fs: float) -> tuple[np.ndarray, np.ndarray]:
@@ -670,11 +664,18 @@ def _clustered_pole_covariance(data: MemoryData, J: np.ndarray, resid: np.ndarra
     are strongly correlated (each is a double integral over the same samples), so a variance from
     ``s^2 (J'J)^-1`` would count every 20 ms row as new information and make the poles, and with them
     A66(inf), look several times surer than the records allow."""
-    bread = np.linalg.pinv(J.T @ J)
-    rows_c = data.window_of_row if clusters is None else clusters
-    g = int(rows_c.max()) + 1
-    scores = np.zeros((g, J.shape[1]))
-    np.add.at(scores, rows_c, J * resid[:, None])
+    return _cluster_sandwich(J, resid, data.window_of_row if clusters is None else clusters)
+
+
+def _cluster_sandwich(X: np.ndarray, resid: np.ndarray, clusters: np.ndarray) -> np.ndarray:
+    """The cluster-robust (sandwich) covariance of a least-squares fit with regressors ``X`` (rows x
+    parameters) and residual ``resid``, rows grouped by the integer ``clusters`` (0..g-1), with the
+    small-sample factor g / (g - 1): ``B M B`` with ``B = pinv(X'X)`` and ``M`` the summed outer
+    products of each cluster's score."""
+    bread = np.linalg.pinv(X.T @ X)
+    g = int(clusters.max()) + 1
+    scores = np.zeros((g, X.shape[1]))
+    np.add.at(scores, clusters, X * resid[:, None])
     meat = scores.T @ scores * (g / max(g - 1, 1))
     return bread @ meat @ bread
 
