@@ -146,8 +146,7 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
         atomic_write_text(out / "training_card.json", json.dumps(card, indent=2) + "\n")
         return card
 
-    curve_path = out / "curve.jsonl"
-    curve_path.write_text("")
+    (out / "curve.jsonl").write_text("")  # a fresh curve; close_generation appends a row a generation
     history: list[dict[str, Any]] = []
     for gen in range(generations):
         seeds = draw(scenarios)
@@ -189,15 +188,11 @@ def train(out: Path, *, suite_name: str = "hard-v0", base: str = "pid", seed: in
                "base_median_ce": float(np.nanmedian(ce_base)), "policy_median_ce": float(np.nanmedian(ce_pol)),
                "paired_median_diff": float(np.nanmedian(ce_pol - ce_base)),
                "theta_norm": float(np.linalg.norm(policy.theta))}
-        history.append(row)
-        append_curve_row(curve_path, row)
-        log(f"gen {gen}: cost base {row['base_mean_cost'] * 100:.4f} % policy {row['policy_mean_cost'] * 100:.4f} % "
-            f"(paired {row['paired_mean_diff'] * 100:+.4f} %), median ce base {row['base_median_ce'] * 100:.4f} % "
-            f"policy {row['policy_median_ce'] * 100:.4f} %, |theta| {row['theta_norm']:.3f}, "
-            f"cpu {row['cpu_s']:.0f} s, steps {env_steps}")
-        save_policy(out, policy)
-        write_card()
-        if time.process_time() - cpu0 > 60.0 * cpu_minutes:
+        message = (f"gen {gen}: cost base {row['base_mean_cost'] * 100:.4f} % policy {row['policy_mean_cost'] * 100:.4f} % "
+                   f"(paired {row['paired_mean_diff'] * 100:+.4f} %), median ce base {row['base_median_ce'] * 100:.4f} % "
+                   f"policy {row['policy_median_ce'] * 100:.4f} %, |theta| {row['theta_norm']:.3f}, "
+                   f"cpu {row['cpu_s']:.0f} s, steps {env_steps}")
+        if close_generation(out, policy, history, row, message, log, write_card, cpu0, cpu_minutes):
             break
     return write_card()
 
@@ -266,6 +261,18 @@ def append_curve_row(curve_path: Path, row: dict) -> None:
     """One generation's row appended to the run's ``curve.jsonl`` (a resumable log, one JSON object a line)."""
     with curve_path.open("a") as f:
         f.write(json.dumps(row) + "\n")
+
+
+def close_generation(out: Path, policy, history: list, row: dict, message: str, log, write_card, cpu0: float,
+                     cpu_minutes: float) -> bool:
+    """A generation's books: its row kept and appended to ``out/curve.jsonl``, ``message`` logged, the
+    policy and the card saved; True when the run's CPU budget (``cpu_minutes`` from ``cpu0``) is spent."""
+    history.append(row)
+    append_curve_row(out / "curve.jsonl", row)
+    log(message)
+    save_policy(out, policy)
+    write_card()
+    return time.process_time() - cpu0 > 60.0 * cpu_minutes
 
 
 def save_policy(out: Path, policy) -> None:

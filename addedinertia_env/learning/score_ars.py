@@ -54,8 +54,8 @@ from addedinertia_env.bench.versions import row_fields as version_fields
 from addedinertia_env.sim.forces import gear_ratio
 from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 from addedinertia_env.foundation.atomic import atomic_write_text
-from addedinertia_env.learning.ars_residual import (add_search_arguments, append_curve_row, ars_step, base_factory,
-                                                    base_params, save_policy)
+from addedinertia_env.learning.ars_residual import (add_search_arguments, ars_step, base_factory, base_params,
+                                                    close_generation)
 from addedinertia_env.learning.paired_batch import run_batch
 
 CLIP_X = 5.0  # normalised observations are clipped to +-5
@@ -191,8 +191,7 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
         atomic_write_text(out / "training_card.json", json.dumps(card, indent=2) + "\n")
         return card
 
-    curve_path = out / "curve.jsonl"
-    curve_path.write_text("")
+    (out / "curve.jsonl").write_text("")  # a fresh curve; close_generation appends a row a generation
     for gen in range(generations):
         seeds = draw(scenarios)
         deltas = rng.standard_normal((directions, policy.dim))
@@ -215,14 +214,10 @@ def train(out: Path, *, suite_name: str = "drive-v0", base: str = "feedforward-p
                "scenarios": m, "base_score": float(base_s.mean()), "policy_score": float(center_s.mean()),
                "paired_mean_diff": float(np.mean(center_s - base_s)),
                "theta_norm": float(np.linalg.norm(policy.theta))}
-        history.append(row)
-        append_curve_row(curve_path, row)
-        log(f"gen {gen}: score base {100 * row['base_score']:.3f} % policy {100 * row['policy_score']:.3f} % "
-            f"(paired {100 * row['paired_mean_diff']:+.3f} %), |theta| {row['theta_norm']:.3f}, "
-            f"cpu {row['cpu_s']:.0f} s, steps {cost['env_steps']}")
-        save_policy(out, policy)
-        write_card()
-        if time.process_time() - cpu0 > 60.0 * cpu_minutes:
+        message = (f"gen {gen}: score base {100 * row['base_score']:.3f} % policy {100 * row['policy_score']:.3f} % "
+                   f"(paired {100 * row['paired_mean_diff']:+.3f} %), |theta| {row['theta_norm']:.3f}, "
+                   f"cpu {row['cpu_s']:.0f} s, steps {cost['env_steps']}")
+        if close_generation(out, policy, history, row, message, log, write_card, cpu0, cpu_minutes):
             break
     if validate:
         vseeds = list(range(VALIDATION_FIRST, VALIDATION_FIRST + validate))
