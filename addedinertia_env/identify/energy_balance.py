@@ -25,6 +25,7 @@ from addedinertia_env.identify.common import IdentificationError, SharedSavgol, 
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
 from addedinertia_env.identify.energy_calibration import MAX_LAG_S, flywheel_calibration
 from addedinertia_env.identify.energy_dissipation import DissipationMismatch, forward_damping_law
+from addedinertia_env.identify.energy_cogging import Cogging, cogging_fit
 from addedinertia_env.identify.energy_gear import GearLoss, gear_loss_fit
 from addedinertia_env.identify.energy_rest import (
     REST_FIT_S,
@@ -45,6 +46,9 @@ from addedinertia_env.identify.energy_work import (
 FLYWHEEL_CALIBRATION = True  # calibrate the motor torque and the current's lag on the flywheel's balance
 GEAR_LOSS = True  # through a gearbox (rig.gear_ratio > 1): book the gearhead's loss fitted on the flywheel's balance
 GEAR_SPAN = "calibration"  # the loss's fit covers the calibration's span ("hold": the whole hold, a diagnostic)
+COGGING = True  # through a gearbox: book the motor's cogging where the flywheel's balance shows it (energy_cogging.py)
+COGGING_LOSS = True  # and the gearhead's loss is then the one fitted beside it
+COGGING_SPAN = "record"  # its fit covers the free stroke, the hold and the reverse stroke ("calibration": the loss's span)
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
 # relative, torque per ampere once calibrated on the flywheel: the calibration's scatter between runs
 # (~5e-4, docs/ENERGY_METHOD.md item 6). The flywheel's inertia is the rig block's, taken as given like
@@ -161,6 +165,9 @@ class RunBalance:
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         self.gear_loss: GearLoss | None = None
+        self.cogging: Cogging | None = None
+        self._cog_basis: np.ndarray | None = None  # (2, samples): the hull's cumulative work per unit A, B (J / N m)
+        self._cog_alt: list[np.ndarray] = []  # per alternative period, its cumulative work minus the booked one's
         self.current_lag_calibrated = False
         if work == "reaction" and FLYWHEEL_CALIBRATION:
             dt_median = float(median_step(t))
@@ -178,6 +185,13 @@ class RunBalance:
                                                self.f_visc, self.f_coul, self.current_lag, self.torque_scale)
                 if self.gear_loss is not None:
                     self.torque_scale = self.gear_loss.scale
+                if COGGING:  # the motor's cogging, where the balance shows it (energy_cogging.py)
+                    c_start = free.start + 1 if COGGING_SPAN == "record" else start
+                    self.cogging = cogging_fit(t, phi + psi, self.psi_s, self.i, c_start, end, self.J_f, self.k_t,
+                                               self.f_visc, self.f_coul, self.current_lag, rig.gear_ratio)
+                    if COGGING_LOSS and self.cogging is not None and self.cogging.loss is not None:
+                        self.gear_loss = self.cogging.loss  # the loss fitted beside the cogging, one model
+                        self.torque_scale = self.gear_loss.scale
         self.work_cum = self._cumulative_work()
         self.bearing_cum = self._cumulative_bearing_work() if work != "reaction" else np.zeros(t.shape, t.dtype)
         self.asymmetry_correction = asymmetry_correction
@@ -273,6 +287,7 @@ class RunBalance:
             c, n, p2, p3 = self.c, self.phi_n, self.phi_rest2, self.phi_rest3
             spring = 0.5 * c * ((p2 - n) ** 2 - (p - n) ** 2 + (p3 - n) ** 2 - (p - n) ** 2)
             got["fixed"] = (p, spring, A_f, A_r, B_f, B_r, np.searchsorted(t, t1), np.searchsorted(t, t4))
+            got["s_cog"] = self._cogging_sigma(at, n1)
         p, spring, A_f, A_r, B_f, B_r, k1s, k4s = (x.copy() for x in got["fixed"])
         zero = np.zeros(len(good))
         T = BalanceTerms(phi1=p, t1=t1, t4=t4, w1f=w1f, w1r=w1r, spring=spring, A_f=A_f, A_r=A_r, B_f=B_f,
@@ -293,6 +308,24 @@ class RunBalance:
             T.dW, s_dW = self.dW_of(p)
         return {"terms": T, "fits": fits, "good": good, "reason": got["reason"], "s_dW": s_dW,
                 "k1s": k1s, "k4s": k4s, "windows": got["windows"]}
+
+    def _cogging_sigma(self, at: np.ndarray, n1: int) -> np.ndarray:
+        """Per angle, J: the booked cogging work's 1-sigma in the balance's numerator (``A_r - A_f``), from
+        the coefficients' covariance and the alternative periods' spread (energy_cogging.py); zeros without
+        cogging booked. ``at``: t2, t3, every t1, every t4 (as in :meth:`terms_many`)."""
+        if self.cogging is None or self._cog_basis is None:
+            return np.zeros(len(at) - 2 - n1)
+
+        def numerator(cum: np.ndarray) -> np.ndarray:
+            v = np.interp(at, self.t, cum)
+            return (v[2 + n1:] - v[1]) - (v[0] - v[2:2 + n1])
+
+        g = np.vstack([numerator(row) for row in self._cog_basis])
+        var = np.einsum("ik,ij,jk->k", g, self.cogging.cov, g)
+        if self._cog_alt:
+            spread = np.vstack([numerator(d) for d in self._cog_alt])
+            var = var + np.mean(spread**2, axis=0)
+        return np.sqrt(var)
 
     def interval(self, phi1: float) -> Interval:
         """One boundary angle's estimate with its uncertainty parts, or a rejected interval."""
@@ -319,8 +352,11 @@ class RunBalance:
         gain_u = CALIBRATED_TORQUE_UNCERTAINTY if self.calibrated else CURRENT_GAIN_UNCERTAINTY
         # the motor work's noise over k1..k2 and k3..k4, the rates' sigmas, the gain's and the dissipation
         # model's parts, each over the kinetic denominator (the numpy expressions, compiled)
+        s_dW = got["s_dW"]
+        if self.cogging is not None:  # the booked cogging's uncertainty is shared by the angles as the model's is
+            s_dW = np.hypot(s_dW, self._fits_at(phi1)["s_cog"])
         contiguous = [np.ascontiguousarray(x, dtype=float) for x in (T.A_f, T.A_r, T.w1f, T.w1r, fit["f"]["sigma_rate"],
-                                                                      fit["r"]["sigma_rate"], got["s_dW"])]
+                                                                      fit["r"]["sigma_rate"], s_dW)]
         s_independent, s_common, sigma, s_current = angle_uncertainties(
             lam, *contiguous, np.asarray(k1s, dtype=np.int64), np.asarray(k4s, dtype=np.int64), self.k2, self.k3,
             self._dsq_cum, self.k_t * self.noise_i, gain_u, self.J_h)
@@ -523,6 +559,9 @@ class RunBalance:
                 omega = np.diff(self.psi_s) / np.diff(t)
                 steps = -self.gear_loss.torque(self.k_t, i_mean, omega) * np.diff(self.phi_s)
                 work = work + np.concatenate([[0.0], np.cumsum(steps)])
+            if self.cogging is not None:  # and the cogging's, absent from the current (energy_cogging.py)
+                cog, self._cog_basis, self._cog_alt = self.cogging.cumulative_work(self.psi_s, self.phi_s)
+                work = work + cog
             return work
         i_mid = self.torque_scale * self.interval_current(i)
         dpsi = np.diff(self.psi_s)
