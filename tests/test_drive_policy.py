@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addedinertia_env.bench.score import CAP
+from addedinertia_env.bench.score import CAP, GEARED_SCORE_VERSION
 from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 from addedinertia_env.learning import score_ars
 from addedinertia_env.learning.score_ars import GatedLinearPolicy, episode_scores
@@ -43,12 +43,12 @@ def test_the_gated_policy_acts_only_in_its_phase():
 
 def test_one_generation_trains_from_the_base_and_writes_its_card(tmp_path):
     """Generation 0's policy (theta = 0) is its base, episode for episode; the first step moves theta;
-    the card says the objective (capped-mean-v2: the default suite, drive-v1, is geared), the cost and the validation."""
+    the card says the objective (the geared version: the default suite, drive-v1, is geared), the cost and the validation."""
     card = score_ars.train(tmp_path, generations=1, scenarios=2, directions=1, top=1, validate=2, log=lambda m: None)
     row = json.loads((tmp_path / "curve.jsonl").read_text().splitlines()[0])
     assert row["paired_mean_diff"] == 0.0 and row["base_score"] == row["policy_score"]
     assert np.linalg.norm(score_ars.load_policy(tmp_path).theta) > 0
-    assert card["objective"].startswith("capped-mean-v2") and card["cost"]["episodes"] == 2 + 4 * 2 + 2 * 2
+    assert card["objective"].startswith(GEARED_SCORE_VERSION) and card["cost"]["episodes"] == 2 + 4 * 2 + 2 * 2
     assert card["validation"]["scenarios"] == 2 and len(card["validation"]["ci95"]) == 2
 
 

@@ -1,6 +1,7 @@
-"""capped-mean-v2 (bench/score.py, bench/versions.py): rows of a geared rig carry their own score version,
-since the energy method books the gearhead's loss there (identify/energy_gear.py); rows of the old
-estimate on a geared suite are never ranked beside them nor resumed by a new run."""
+"""capped-mean-v3 (bench/score.py, bench/versions.py): rows of a geared rig carry their own score version,
+since the energy method books the gearhead's loss there (identify/energy_gear.py) and, from v3, the
+motor's cogging (identify/energy_cogging.py); rows of an older estimate on a geared suite (v1, v2) are
+never ranked beside them nor resumed by a new run."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from addedinertia_env.bench import score
 from addedinertia_env.bench.leaderboard import RowsError, load_rows
 from addedinertia_env.bench.resume import RowsFileError, prepare_output
 from addedinertia_env.bench.suites import load_suite
-from addedinertia_env.bench.versions import GEARED_SCORE_VERSION, SCORE_VERSION, row_fields
+from addedinertia_env.bench.versions import GEARED_SCORE_VERSION, RANKABLE, SCORE_VERSION, row_fields
 from addedinertia_env.sim.forces import gear_ratio
 
 
@@ -63,3 +64,26 @@ def test_the_three_versions_side_by_side():
         with pytest.raises(score.ScoreVersionError):
             score.check_versions([{"score_version": a, "rel_error": 0.0}, {"score_version": b, "rel_error": 0.0}])
     assert score.check_versions([{"score_version": MEMORY_SCORE_VERSION, "rel_error": 0.0}]) == MEMORY_SCORE_VERSION
+
+
+V2 = "capped-mean-v2"  # the geared rows written before the cogging was booked (the loss alone)
+
+
+def test_v2_rows_of_the_loss_alone_are_a_former_version_never_ranked_beside_v3(tmp_path):
+    """The estimator changed on geared rigs (cogging booked): v3 is what is written, v2 rows keep their
+    version when their score is recomputed, a board of v2 alone still ranks, v2 beside v3 is refused, and
+    a new run does not resume v2 rows."""
+    assert GEARED_SCORE_VERSION == "capped-mean-v3" and V2 in score.FORMER_VERSIONS and V2 not in score.VERSIONS
+    assert V2 in RANKABLE and GEARED_SCORE_VERSION in RANKABLE
+    assert score.row_fields({"score_version": V2, "rel_error": 0.01})["score_version"] == V2
+    assert score.check_versions([{"score_version": V2, "rel_error": 0.0}]) == V2
+    with pytest.raises(score.ScoreVersionError):
+        score.check_versions([{"score_version": V2, "rel_error": 0.0}, {"score_version": GEARED_SCORE_VERSION,
+                                                                       "rel_error": 0.0}])
+    old = _write(tmp_path / "v2.jsonl", _rows("pd", V2, suite="drive-v1"))
+    new = _write(tmp_path / "v3.jsonl", _rows("lqr", GEARED_SCORE_VERSION, suite="drive-v1"))
+    assert load_rows([old]) and load_rows([new])
+    with pytest.raises(RowsError, match="different score versions"):
+        load_rows([old, new])
+    with pytest.raises(RowsFileError, match=rf"this run writes '{GEARED_SCORE_VERSION}'"):
+        prepare_output(old, {"controller": "pd", "suite": "drive-v1", "split": "test"}, version=GEARED_SCORE_VERSION)

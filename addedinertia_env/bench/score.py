@@ -41,8 +41,11 @@ SCORE_VERSION = "capped-mean-v1"
 # day the energy method books the gearhead's loss identified on the flywheel's balance
 # (identify/energy_gear.py, issue 28): the estimate of a geared rig changed, so its rows are a new
 # version; on a rig without a gearbox the estimate is the same number, bit for bit, and the rows keep
-# SCORE_VERSION (bench/versions.py).
-GEARED_SCORE_VERSION = "capped-mean-v2"
+# SCORE_VERSION (bench/versions.py). v3: from the day it also books the motor's cogging identified on
+# that balance, with the loss fitted beside it (identify/energy_cogging.py); v2 rows (the loss alone) are
+# a former version: kept as they are, ranked only among themselves, never resumed by a new run.
+GEARED_SCORE_VERSION = "capped-mean-v3"
+FORMER_VERSIONS = ("capped-mean-v2",)  # what this code wrote before: a row's own is kept, never mixed
 # the same capped mean of the error of the memory-corrected estimate (a suite's ``ranked: memory-corrected``,
 # memory-v1): another quantity, so another version, never ranked beside the as-written rows
 MEMORY_SCORE_VERSION = "capped-mean-memory-corrected-v1"
@@ -68,7 +71,7 @@ def row_fields(row: dict[str, Any]) -> dict[str, Any]:
     this code writes: :data:`GEARED_SCORE_VERSION` for a geared rig; else the version of the suite's
     ranked estimate, :data:`RANKED_VERSIONS`) and ``score``."""
     version = row.get("score_version")
-    if version not in VERSIONS:
+    if version not in VERSIONS + FORMER_VERSIONS:
         version = RANKED_VERSIONS.get(str(row.get("ranked_score", "as-written")), SCORE_VERSION)
     return {"score_version": version, "score": episode_score(row)}
 
@@ -77,7 +80,7 @@ def check_versions(rows: list[dict[str, Any]], where: str = "rows") -> str:
     """The one score version of ``rows`` (rows without one count as the current version, scored
     from their errors); :class:`ScoreVersionError` naming the versions found when they differ."""
     found = sorted({str(r.get("score_version", SCORE_VERSION)) for r in rows})
-    if len(found) > 1 or found[0] not in VERSIONS:
+    if len(found) > 1 or found[0] not in VERSIONS + FORMER_VERSIONS:
         raise ScoreVersionError(f"{where}: rows of score version(s) {found}; this leaderboard ranks one of "
                                 f"{', '.join(map(repr, VERSIONS))} at a time (rerun the old rows with "
                                 "`addedinertia bench run`)")

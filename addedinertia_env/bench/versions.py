@@ -16,10 +16,15 @@ never puts an old error beside a new one:
   memory-corrected estimate (the method as written with the water's memory identified from the
   records and corrected for), ranked by a suite that says ``ranked: memory-corrected`` (memory-v1).
 
-* ``capped-mean-v2`` (:data:`GEARED_SCORE_VERSION`): ``capped-mean-v1`` on a rig with a gearbox
-  (``gear_ratio`` > 1: drive-v0, drive-v1), once the energy method books the gearhead's loss
-  identified on the flywheel's own balance (``identify/energy_gear.py``). Rows of a rig without
-  a gearbox estimate the same number, bit for bit, and keep ``capped-mean-v1``.
+* ``capped-mean-v2`` (a former version, :data:`~.score.FORMER_VERSIONS`): ``capped-mean-v1`` on a rig
+  with a gearbox (``gear_ratio`` > 1: drive-v0, drive-v1), once the energy method books the
+  gearhead's loss identified on the flywheel's own balance (``identify/energy_gear.py``). Rows of a
+  rig without a gearbox estimate the same number, bit for bit, and keep ``capped-mean-v1``.
+* ``capped-mean-v3`` (:data:`GEARED_SCORE_VERSION`, 2026-11-28): the same on a geared rig once the
+  energy method also books the motor's cogging where the flywheel's balance shows it, with the
+  gearhead's loss fitted beside it (``identify/energy_cogging.py``). A board of ``capped-mean-v2``
+  rows alone is still ranked (as legacy rows are); never beside ``capped-mean-v3`` rows, and a new
+  run does not resume them.
 
 A suite whose truth changed takes a new name too (``memory-v1``: the memory presets, truth
 A66(0)); memory-free suites kept their names, their truth being the same number.
@@ -36,11 +41,16 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from addedinertia_env.bench.score import GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION, SCORE_VERSION  # bench/score.py
+from addedinertia_env.bench.score import (  # bench/score.py
+    FORMER_VERSIONS,
+    GEARED_SCORE_VERSION,
+    MEMORY_SCORE_VERSION,
+    SCORE_VERSION,
+)
 
 FIELD = "score_version"  # the rows' field
 LEGACY = "v0"  # rows without the field: written before the truth was A66(0) with memory on
-RANKABLE = (SCORE_VERSION, GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION, LEGACY)  # a board of any one alone is ranked
+RANKABLE = (SCORE_VERSION, GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION, *FORMER_VERSIONS, LEGACY)  # any one alone is ranked
 
 
 class ScoreVersionError(ValueError):
