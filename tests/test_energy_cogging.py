@@ -65,12 +65,14 @@ def test_booking_the_cogging_takes_out_the_oracles_bias():
     assert sum(booked) < 0.3 * sum(written), (booked, written)
 
 
-@pytest.mark.parametrize("suite, index", [("standard-v0", 1), ("drive-v0", 0)])
-def test_a_record_without_cogging_is_estimated_bit_for_bit_as_before(suite, index, monkeypatch):
+@pytest.mark.parametrize("suite, controller, index", [("standard-v0", "feedforward-pd", 1),
+                                                      ("drive-v0", "feedforward-pd", 0), ("drive-v1", "zero", 0)])
+def test_a_record_without_cogging_is_estimated_bit_for_bit_as_before(suite, controller, index, monkeypatch):
     """A rig without a gearbox is not scanned; a geared rig without cogging (drive-v0) is scanned and
-    nothing stands out: the estimate and its interval are the same numbers as without the booking."""
-    rec = _record(suite, "feedforward-pd", index)
-    assert (rec.known.gear_ratio > 1.0) == (suite == "drive-v0")
+    nothing stands out; a flywheel without drive current (`zero`) books nothing, as for the gearhead's loss:
+    the estimate and its interval are the same numbers as without the booking."""
+    rec = _record(suite, controller, index)
+    assert (rec.known.gear_ratio > 1.0) == suite.startswith("drive")
     assert RunBalance(rec.without_truth(), "reaction", False).cogging is None
     on = identify([rec.without_truth()], "energy", asymmetry_correction=False)
     monkeypatch.setattr(energy_balance, "COGGING", False)
