@@ -50,7 +50,8 @@ from addedinertia_env.bench.score import (  # bench/score.py
 
 FIELD = "score_version"  # the rows' field
 LEGACY = "v0"  # rows without the field: written before the truth was A66(0) with memory on
-RANKABLE = (SCORE_VERSION, GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION, *FORMER_VERSIONS, LEGACY)  # any one alone is ranked
+# a board of any one alone is ranked
+RANKABLE = (SCORE_VERSION, GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION, *FORMER_VERSIONS, LEGACY)
 
 
 class ScoreVersionError(ValueError):

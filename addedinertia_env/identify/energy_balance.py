@@ -48,7 +48,9 @@ GEAR_LOSS = True  # through a gearbox (rig.gear_ratio > 1): book the gearhead's 
 GEAR_SPAN = "calibration"  # the loss's fit covers the calibration's span ("hold": the whole hold, a diagnostic)
 COGGING = True  # through a gearbox: book the motor's cogging where the flywheel's balance shows it (energy_cogging.py)
 COGGING_LOSS = True  # and the gearhead's loss is then the one fitted beside it
-COGGING_SPAN = "record"  # its fit covers the free stroke, the hold and the reverse stroke ("calibration": the loss's span)
+# the cogging's fit covers the free stroke, the hold and the reverse stroke ("calibration": the loss's span,
+# a diagnostic)
+COGGING_SPAN = "record"
 CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md section 7)
 # relative, torque per ampere once calibrated on the flywheel: the calibration's scatter between runs
 # (~5e-4, docs/ENERGY_METHOD.md item 6). The flywheel's inertia is the rig block's, taken as given like

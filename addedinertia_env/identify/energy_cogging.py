@@ -8,13 +8,18 @@ work the method books, ``-(s k_t i - M_f) dphi``, leaves out ``-T(psi) dphi``. O
 ``U = (A cos(m psi) - B sin(m psi)) / m``: a potential difference, so where the rotor turns through many
 cycles it averages out, and what is left depends on where the plan leaves the rotor (docs/DRIVE.md).
 
-The torque is fitted where the gearhead's loss is (:mod:`.energy_gear`, the calibration's span: the last
-second of the hold and the reverse stroke), on the same twice-integrated balance
-``J_f theta'' = s k_t i(t + lag) - M_f - loss + T(psi)``, with the columns of the loss (angle and rate at
-the span's start, current, mesh where both quadrants are seen, drag) and ``sin, cos(m psi)``. ``n`` is not
-in the rig block: it is searched over :data:`PERIODS` (as discovery's ``cogging`` word,
-``discover/drive_flaws.py``), and the best ``n`` is booked only where the records show it (the
-evidence discovery asks for, per record):
+The torque is fitted on the flywheel's twice-integrated balance
+``J_f theta'' = s k_t i(t + lag) - M_f - loss + T(psi)`` (as :mod:`.energy_gear` fits the loss) over the
+span the caller gives; the energy method gives it the whole record from the start of the free stroke to
+the end of the reverse stroke (``energy_balance.COGGING_SPAN``): in the free stroke the motor is open and
+the hull carries the flywheel through the cogging's detent and the gearhead's drag, which is where the
+cogging's work on the hull is done on drive-v1 (docs/DRIVE.md, "drive-v1 with the cogging booked"). The
+columns are the loss's (angle and rate at the span's start, current, mesh where both quadrants are seen,
+drag) and ``sin, cos(m psi)``; the loss fitted beside the cogging is returned too (:attr:`Cogging.loss`),
+and the method books it in place of the calibration-span one (``energy_balance.COGGING_LOSS``). ``n`` is
+not in the rig block: it is searched over :data:`PERIODS` (as discovery's ``cogging`` word,
+``discover/drive_flaws.py``), and the best ``n`` is booked only where the records show it (the evidence
+discovery asks for, per record):
 
 * its drop of the residual sum of squares stands out of the other periods' (their median, the null's
   scale: whatever colour the twice-integrated residual has lifts every period alike) by the chi-square
@@ -26,10 +31,15 @@ angle aliases it; the columns taper it out there (the flywheel's inertia filters
 booked work takes the torque's exact mean over each sample interval (linear motion inside it), which
 averages such cycles to nearly nothing, as the physics does.
 
-The coefficients' covariance (white-residual formula inflated for the residual's correlation from sample
-to sample) goes into the interval: the booked work is linear in ``(A, B)``. Only the record's samples and
-its ``rig`` block are used, never ``truth``. Records without a gearbox are not scanned (bit for bit as
-before, ``tests/test_energy_cogging.py``).
+Nothing is booked where no drive current flows (``zero``: as :mod:`.energy_gear` books no loss there).
+
+The span holds 1.5-2 motor turns on drive-v1, so neighbouring periods fit nearly alike and the one found
+may be off (the true 24 on 19 of 36 records tried); what the booked work needs is the torque near where
+the flywheel sat. Its uncertainty, in the interval's common part: the coefficients' covariance
+(white-residual formula inflated for the residual's correlation from sample to sample; the work is linear
+in ``(A, B)``) plus the spread of the works the next :data:`ALTERNATIVES` periods would book (covered 26
+of 36, docs/ENERGY_METHOD.md). Only the record's samples and its ``rig`` block are used, never ``truth``.
+Records without a gearbox are not scanned (bit for bit as before, ``tests/test_energy_cogging.py``).
 """
 
 from __future__ import annotations
@@ -112,7 +122,8 @@ def _seen(m: float, dpsi: np.ndarray) -> np.ndarray:
 
 
 def _inflation(r: np.ndarray) -> float:
-    """The standard errors' inflation for residuals correlated from sample to sample, ``sqrt((1 + rho) / (1 - rho))``."""
+    """The standard errors' inflation for residuals correlated from sample to sample,
+    ``sqrt((1 + rho) / (1 - rho))``."""
     rho = float(np.clip((r[1:] @ r[:-1]) / max(float(r @ r), 1e-300), 0.0, 0.99))
     return math.sqrt((1.0 + rho) / (1.0 - rho))
 
