@@ -177,7 +177,7 @@ class RunBalance:
             if calib is not None:
                 self.torque_scale, self.current_lag = calib
             self.current_lag_calibrated = calib is not None
-            if calib is None and SCALE_AT_RULE and not (GEAR_LOSS and rig.gear_ratio > 1.0):
+            if calib is None and SCALE_AT_RULE and not rig.gear_ratio > 1.0:  # a gearbox: its loss is no scale
                 # the lag not pinned (a smooth current): the scale alone, from the release on, with the current
                 # timed as the work takes it; kept where its own 1-sigma beats the current sensor's gain
                 rule = scale_at_sampling_rule(t, phi + psi, self.psi_s, self.interval_current(self.i), self.k3 + 1,
