@@ -100,3 +100,37 @@ def test_pd_run_torque_scale_recovers_a_drawn_current_gain_within_its_interval()
     assert balance.scale_sigma < 0.3 * CURRENT_GAIN_UNCERTAINTY
     true_scale = 1.0 / (1.0 + gain)
     assert abs(balance.torque_scale - true_scale) < 3.0 * balance.scale_sigma, (balance.torque_scale, balance.scale_sigma)
+
+
+def _coast(w: float, omega0: float = 0.023, J_f: float = 0.13, f_visc: float = 1e-4, f_coul: float = 2e-3,
+           seconds: float = 1.0, fs: float = 1000.0, sub: int = 20):
+    """A flywheel coasting from ``omega0`` under ``J_f Omega' = -f_visc Omega - f_coul tanh(Omega / w)``, sampled."""
+    n = int(seconds * fs)
+    dt = 1.0 / fs / sub
+    psi, omega, out = 0.0, omega0, []
+    for _ in range(n):
+        out.append(psi)
+        for _ in range(sub):
+            a = -(f_visc * omega + f_coul * np.tanh(omega / w)) / J_f
+            psi += omega * dt + 0.5 * a * dt * dt
+            omega = max(omega + a * dt, 0.0)
+    return np.arange(n) / fs, np.array(out)
+
+
+@pytest.mark.parametrize("w", [0.004, 0.01, 0.03])
+def test_the_dry_frictions_law_near_rest_is_read_from_a_coast(w):
+    from addedinertia_env.identify.rotor_friction import creep_rate_scale
+
+    t, psi = _coast(w)
+    got = creep_rate_scale(t, psi, np.zeros_like(t), 0, len(t) - 1, 0.13, 1e-4, 2e-3, 0.24, 0.0)
+    assert got == pytest.approx(w, rel=0.05)
+
+
+def test_a_sign_like_dry_friction_or_a_driven_flywheel_is_not_read_as_a_smoothed_law():
+    from addedinertia_env.identify.rotor_friction import creep_rate_scale
+
+    t, psi = _coast(1e-5, omega0=0.05)  # a constant deceleration (it would stop after 3.3 s)
+    assert creep_rate_scale(t, psi, np.zeros_like(t), 0, len(t) - 1, 0.13, 1e-4, 2e-3, 0.24, 0.0) is None
+    t, psi = _coast(0.01)
+    current = np.full_like(t, 0.05)  # a motor driving it: its balance is not the coast's
+    assert creep_rate_scale(t, psi, current, 0, len(t) - 1, 0.13, 1e-4, 2e-3, 0.24, 0.0) is None

@@ -15,7 +15,7 @@ import numpy as np
 
 from addedinertia_env.experiment.metrics import current_at_limit
 from addedinertia_env.records.record import MAX_GAP_PERIODS, RunRecord
-from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE
+from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE, creep_rate_scale
 from addedinertia_env.rig.known import KnownRigError
 from addedinertia_env.records.scan_kernels import gap_counts, reaction_work, squared_step_sums, true_counts
 from addedinertia_env.identify.series_kernels import accumulated_kernels, accumulated_windows
@@ -45,6 +45,7 @@ from addedinertia_env.identify.energy_work import (
 
 
 SCALE_AT_RULE = True  # when the lag is not pinned: the torque scale alone, the current timed by its sampling rule
+CREEP_LAW = True  # the rotor's dry friction's rate scale from the flywheel's coast in the hold, where it shows
 RELEASE_FIT_LAW = True  # the rest after the release from the hull's law of motion (energy_rest.released_fit), not a quadratic
 FLYWHEEL_CALIBRATION = True  # calibrate the motor torque and the current's lag on the flywheel's balance
 GEAR_LOSS = True  # through a gearbox (rig.gear_ratio > 1): book the gearhead's loss fitted on the flywheel's balance
@@ -162,6 +163,15 @@ class RunBalance:
         # Smoothed angles for the work increments, smoothed phase by phase: a window across the
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
         self.phi_s, self.psi_s = smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec))
+        # the rotor's dry friction near rest: the block's sign-like law unless the hold's coast shows another
+        self.rotor_w_s = ROTOR_COULOMB_RATE_SCALE
+        self.rotor_w_s_measured = False
+        if CREEP_LAW and hold is not None:
+            psi_step = 2.0 * np.pi / rig.psi_counts if rig.psi_counts else 0.0
+            w_s = creep_rate_scale(t, psi, self.i, hold.start, hold.stop - 1, self.J_f, self.f_visc, self.f_coul,
+                                   self.k_t, psi_step)
+            if w_s is not None:
+                self.rotor_w_s, self.rotor_w_s_measured = w_s, True
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         self.scale_sigma: float | None = None  # 1-sigma of a torque scale fitted at the sampling rule (scale_at_sampling_rule)
@@ -173,7 +183,7 @@ class RunBalance:
             # The fit stays inside the reverse stroke with its lag grid (the record may end there).
             end = rev.stop - 1 - _n_samples(dt_median, MAX_LAG_S) - 2
             calib = flywheel_calibration(t, phi + psi, self.psi_s, self.i, start, end, self.J_f, self.k_t,
-                                         self.f_visc, self.f_coul)
+                                         self.f_visc, self.f_coul, self.rotor_w_s)
             if calib is not None:
                 self.torque_scale, self.current_lag = calib
             self.current_lag_calibrated = calib is not None
@@ -181,7 +191,8 @@ class RunBalance:
                 # the lag not pinned (a smooth current): the scale alone, from the release on, with the current
                 # timed as the work takes it; kept where its own 1-sigma beats the current sensor's gain
                 rule = scale_at_sampling_rule(t, phi + psi, self.psi_s, self.interval_current(self.i), self.k3 + 1,
-                                              end, self.J_f, self.k_t, self.f_visc, self.f_coul, self.noise_i)
+                                              end, self.J_f, self.k_t, self.f_visc, self.f_coul, self.noise_i,
+                                              self.rotor_w_s)
                 if rule is not None and rule[1] < CURRENT_GAIN_UNCERTAINTY:
                     self.torque_scale, self.scale_sigma = rule
             if GEAR_LOSS and rig.gear_ratio > 1.0:  # a gearbox: its loss on the flywheel's balance (energy_gear.py)
@@ -501,7 +512,7 @@ class RunBalance:
         reaction ``-(k_t i - M_f)`` (the reaction work's torque, rotor friction from the flywheel's rate; data-sheet
         ``k_t``: the calibration comes later, and a scale error only rescales a small part of a shape)."""
         omega = np.gradient(self.psi_s, self.t)
-        rotor = self.f_visc * omega + self.f_coul * np.tanh(omega / ROTOR_COULOMB_RATE_SCALE)
+        rotor = self.f_visc * omega + self.f_coul * np.tanh(omega / self.rotor_w_s)
         return -self.c * (self.phi - self.phi_n) - (self.k_t * self.i - rotor)
 
     def _anchor_reverse_start(self, fit: np.ndarray | ReleaseFit, rest: float) -> None:
@@ -545,7 +556,7 @@ class RunBalance:
         if self.work == "reaction":  # work of the motor's reaction on the hull: -(k_t i - M_f) dphi
             i_mean = self.interval_current(i)
             work = reaction_work(t, i_mean, self.torque_scale, self.phi_s, self.psi_s, self.k_t,
-                                 self.f_visc, self.f_coul, ROTOR_COULOMB_RATE_SCALE)
+                                 self.f_visc, self.f_coul, self.rotor_w_s)
             if self.gear_loss is not None:  # and the gearhead's loss, which the hull receives too (energy_gear.py)
                 omega = np.diff(self.psi_s) / np.diff(t)
                 steps = -self.gear_loss.torque(self.k_t, i_mean, omega) * np.diff(self.phi_s)
@@ -587,7 +598,7 @@ class RunBalance:
     def _cumulative_bearing_work(self) -> np.ndarray:
         """Work of the rotor-bearing friction on the flywheel from the first sample, J."""
         omega = np.gradient(self.psi, self.t)
-        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.tanh(omega[:-1] / ROTOR_COULOMB_RATE_SCALE)) * np.diff(self.psi)
+        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.tanh(omega[:-1] / self.rotor_w_s)) * np.diff(self.psi)
         return np.concatenate([[0.0], np.cumsum(steps)])
 
 

@@ -21,7 +21,7 @@ LAG_PRECISION = 0.02  # the current lag must be fitted to this fraction of a sam
 
 
 def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: float, f_visc: float,
-                         f_coul: float) -> tuple[float, float] | None:
+                         f_coul: float, w_s: float | None = None) -> tuple[float, float] | None:
     """Torque per logged ampere relative to ``k_t`` (scale) and the current channel's lag (s),
     from the flywheel's own balance ``J_f theta'' = s k_t i(t - lag) - M_f`` (physics.md s8).
 
@@ -34,7 +34,8 @@ def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: floa
     span is too short, the fit is poor (residual over 1e-3 rad rms: friction or offset not
     as stated over a long hold), or the lag is not pinned to :data:`LAG_PRECISION` of a
     sample: a current without fast changes (an ideal tracking controller's) lets a lag
-    and a scale trade off, and the fit then lands a few ms and half a percent off.
+    and a scale trade off, and the fit then lands a few ms and half a percent off. ``w_s``: the
+    rotor's dry friction's rate scale (rotor_friction.creep_rate_scale where the record shows it).
     """
     if b - a < 200:
         return None
@@ -42,7 +43,7 @@ def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: floa
     # the angle the fit explains (kept for the final fit): th + the friction's torque (from psi, already
     # smoothed phase by phase) twice integrated over J_f; and the half sample intervals
     target, half_dtt = calibration_target(tt, th, psi[a:b + 1], float(f_visc), float(f_coul), float(J_f),
-                                           ROTOR_COULOMB_RATE_SCALE)
+                                           ROTOR_COULOMB_RATE_SCALE if w_s is None else float(w_s))
     y = target
 
     def twice(x):  # trapezoid integral of the integral, from 0, along the last axis
@@ -154,7 +155,7 @@ RULE_LAG_UNCERTAINTY = 0.1
 
 
 def scale_at_sampling_rule(t, theta, psi, i_mean, a: int, b: int, J_f: float, k_t: float, f_visc: float,
-                           f_coul: float, noise_i: float) -> tuple[float, float] | None:
+                           f_coul: float, noise_i: float, w_s: float | None = None) -> tuple[float, float] | None:
     """Torque per logged ampere relative to ``k_t`` and its 1-sigma, from the flywheel's balance over
     samples ``a..b`` with the current timed by the record's own sampling rule (``i_mean``: the mean
     current over each sample interval, as the motor work takes it), when :func:`flywheel_calibration`
@@ -167,13 +168,13 @@ def scale_at_sampling_rule(t, theta, psi, i_mean, a: int, b: int, J_f: float, k_
     scale's own error source: the logged current's noise (white, ``noise_i`` A rms) through the double
     integral, the angle's residual scatter (the encoders' quantisation), and the timing, a lag of
     :data:`RULE_LAG_UNCERTAINTY` of a sample through the scale's slope against the lag. None when the
-    span is under 200 samples or the scale is outside 0.5..2.
+    span is under 200 samples or the scale is outside 0.5..2. ``w_s``: as :func:`flywheel_calibration`'s.
     """
     if b - a < 200:
         return None
     tt, th = t[a:b + 1], theta[a:b + 1]
     target, half_dtt = calibration_target(tt, th, psi[a:b + 1], float(f_visc), float(f_coul), float(J_f),
-                                          ROTOR_COULOMB_RATE_SCALE)
+                                          ROTOR_COULOMB_RATE_SCALE if w_s is None else float(w_s))
     Q = line_basis(tt)
 
     def projected(x):
