@@ -161,11 +161,13 @@ def test_all_angles_at_once_equal_each_angle_alone(records):
                 assert one.terms["dW"] == pytest.approx(iv.terms["dW"], rel=1e-10, abs=1e-15), name
 
 
-def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul):
-    """The flywheel calibration's lag search with one least-squares fit per lag (rss per lag)."""
+def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul, w_s=None):
+    """The flywheel calibration's lag search with one least-squares fit per lag (rss per lag); ``w_s``: the
+    rotor dry friction's rate scale the balance passed (the record's coast, or the default)."""
+    w_s = ROTOR_COULOMB_RATE_SCALE if w_s is None else w_s
     tt, th = t[a:b + 1], theta[a:b + 1]
     om = np.gradient(psi[a:b + 1], tt)
-    friction = f_visc * om + f_coul * np.tanh(om / ROTOR_COULOMB_RATE_SCALE)  # the energy method's smoothed rotor dry friction
+    friction = f_visc * om + f_coul * np.tanh(om / w_s)  # the energy method's smoothed rotor dry friction
 
     def twice(x):
         c1 = np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(tt))])

@@ -98,7 +98,9 @@ def flywheel_effects(records: list[RunRecord]) -> tuple[list[str], dict[str, Any
             balance = RunBalance(rec.without_truth(), "reaction", False)
         except (IdentificationError, ValueError):
             continue
-        if (balance.torque_scale, balance.current_lag) != (1.0, 0.0):  # (1, 0): no calibration was possible
+        # (1, 0): no calibration was possible; a scale fitted alone at the current's sampling rule (scale_sigma) is
+        # not the lag-and-scale calibration these words judge
+        if getattr(balance, "scale_sigma", None) is None and (balance.torque_scale, balance.current_lag) != (1.0, 0.0):
             scales.append(balance.torque_scale)
             lags.append(balance.current_lag)
     words = []

@@ -15,7 +15,7 @@ import numpy as np
 
 from addedinertia_env.experiment.metrics import current_at_limit
 from addedinertia_env.records.record import MAX_GAP_PERIODS, RunRecord
-from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE
+from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE, creep_rate_scale
 from addedinertia_env.rig.known import KnownRigError
 from addedinertia_env.records.scan_kernels import gap_counts, reaction_work, squared_step_sums, true_counts
 from addedinertia_env.identify.series_kernels import accumulated_kernels, accumulated_windows
@@ -23,16 +23,18 @@ from addedinertia_env.records.series_stats import median_step
 from addedinertia_env.identify.balance_kernels import angle_uncertainties, angle_values
 from addedinertia_env.identify.common import IdentificationError, SharedSavgol, largest_gap, local_fit, power_fit
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
-from addedinertia_env.identify.energy_calibration import MAX_LAG_S, flywheel_calibration
+from addedinertia_env.identify.energy_calibration import MAX_LAG_S, flywheel_calibration, scale_at_sampling_rule
 from addedinertia_env.identify.energy_dissipation import DissipationMismatch, forward_damping_law
 from addedinertia_env.identify.energy_cogging import Cogging, cogging_fit
 from addedinertia_env.identify.energy_gear import GearLoss, gear_loss_fit
 from addedinertia_env.identify.energy_rest import (
     REST_FIT_S,
+    ReleaseFit,
     crossings_fit,
     encoder_step,
     power_series,
     power_series_derivative,
+    released_fit,
 )
 from addedinertia_env.identify.energy_work import (
     electric_work_steps,
@@ -43,6 +45,9 @@ from addedinertia_env.identify.energy_work import (
 )
 
 
+SCALE_AT_RULE = True  # when the lag is not pinned: the torque scale alone, the current timed by its sampling rule
+CREEP_LAW = True  # the rotor's dry friction's rate scale from the flywheel's coast in the hold, where it shows
+RELEASE_FIT_LAW = True  # the rest after the release from the hull's law of motion (energy_rest.released_fit), not a quadratic
 FLYWHEEL_CALIBRATION = True  # calibrate the motor torque and the current's lag on the flywheel's balance
 GEAR_LOSS = True  # through a gearbox (rig.gear_ratio > 1): book the gearhead's loss fitted on the flywheel's balance
 GEAR_SPAN = "calibration"  # the loss's fit covers the calibration's span ("hold": the whole hold, a diagnostic)
@@ -164,8 +169,18 @@ class RunBalance:
         # Smoothed angles for the work increments, smoothed phase by phase: a window across the
         # brake's release would leak the first milliseconds of the reverse stroke into t3.
         self.phi_s, self.psi_s = smooth_by_phase(rec, phi, psi, cuts=phase_blocks(rec))
+        # the rotor's dry friction near rest: the block's sign-like law unless the hold's coast shows another
+        self.rotor_w_s = ROTOR_COULOMB_RATE_SCALE
+        self.rotor_w_s_measured = False
+        if CREEP_LAW and hold is not None:
+            psi_step = 2.0 * np.pi / rig.psi_counts if rig.psi_counts else 0.0
+            w_s = creep_rate_scale(t, psi, self.i, hold.start, hold.stop - 1, self.J_f, self.f_visc, self.f_coul,
+                                   self.k_t, psi_step)
+            if w_s is not None:
+                self.rotor_w_s, self.rotor_w_s_measured = w_s, True
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
+        self.scale_sigma: float | None = None  # 1-sigma of a torque scale fitted at the sampling rule (scale_at_sampling_rule)
         self.gear_loss: GearLoss | None = None
         self.cogging: Cogging | None = None
         self._cog_basis: np.ndarray | None = None  # (2, samples): the hull's cumulative work per unit A, B (J / N m)
@@ -177,10 +192,18 @@ class RunBalance:
             # The fit stays inside the reverse stroke with its lag grid (the record may end there).
             end = rev.stop - 1 - _n_samples(dt_median, MAX_LAG_S) - 2
             calib = flywheel_calibration(t, phi + psi, self.psi_s, self.i, start, end, self.J_f, self.k_t,
-                                         self.f_visc, self.f_coul)
+                                         self.f_visc, self.f_coul, self.rotor_w_s)
             if calib is not None:
                 self.torque_scale, self.current_lag = calib
             self.current_lag_calibrated = calib is not None
+            if calib is None and SCALE_AT_RULE and not rig.gear_ratio > 1.0:  # a gearbox: its loss is no scale
+                # the lag not pinned (a smooth current): the scale alone, from the release on, with the current
+                # timed as the work takes it; kept where its own 1-sigma beats the current sensor's gain
+                rule = scale_at_sampling_rule(t, phi + psi, self.psi_s, self.interval_current(self.i), self.k3 + 1,
+                                              end, self.J_f, self.k_t, self.f_visc, self.f_coul, self.noise_i,
+                                              self.rotor_w_s)
+                if rule is not None and rule[1] < CURRENT_GAIN_UNCERTAINTY:
+                    self.torque_scale, self.scale_sigma = rule
             if GEAR_LOSS and rig.gear_ratio > 1.0:  # a gearbox: its loss on the flywheel's balance (energy_gear.py)
                 g_start = self.hold_start + 1 if GEAR_SPAN == "hold" else start
                 self.gear_loss = gear_loss_fit(t, phi + psi, self.psi_s, self.i, g_start, end, self.J_f, self.k_t,
@@ -351,7 +374,8 @@ class RunBalance:
         lam, sat, mismatch = self._values(T, k4s)
         if self._dsq_cum is None:  # sum of the squared angle increments from the first sample
             self._dsq_cum = squared_step_sums(self.phi_s if self.work == "reaction" else self.psi_s)
-        gain_u = CALIBRATED_TORQUE_UNCERTAINTY if self.calibrated else CURRENT_GAIN_UNCERTAINTY
+        gain_u = (self.scale_sigma if self.scale_sigma is not None
+                  else CALIBRATED_TORQUE_UNCERTAINTY if self.calibrated else CURRENT_GAIN_UNCERTAINTY)
         # the motor work's noise over k1..k2 and k3..k4, the rates' sigmas, the gain's and the dissipation
         # model's parts, each over the kinetic denominator (the numpy expressions, compiled)
         s_dW = got["s_dW"]
@@ -505,10 +529,13 @@ class RunBalance:
             return float(phi[k2]), float(phi[k3])
         q = 2.0 * np.pi / self.known.phi_counts
         fit_before = crossings_fit(self.t, phi, k2, -REST_FIT_S, q)
-        fit_after = crossings_fit(self.t, phi, k3, REST_FIT_S, q)
+        fit_after = released_fit(self.t, phi, k3, REST_FIT_S, q, self._hull_torque()) if RELEASE_FIT_LAW else None
+        if fit_after is None:
+            fit_after = crossings_fit(self.t, phi, k3, REST_FIT_S, q)
         self._fit_before = fit_before
         before = power_series(fit_before, 0.0) if fit_before is not None else None
-        after = power_series(fit_after, 0.0) if fit_after is not None else None
+        after = None if fit_after is None else (fit_after.rest if isinstance(fit_after, ReleaseFit)
+                                                else power_series(fit_after, 0.0))
         r2 = before if before is not None else float(phi[k2])
         r3 = after if after is not None else float(phi[k3])
         held = hold is not None and abs(phi[k3] - phi[k2]) <= 1.5 * q
@@ -518,7 +545,15 @@ class RunBalance:
             self._anchor_reverse_start(fit_after, r3)
         return float(r2), float(r3)
 
-    def _anchor_reverse_start(self, fit: np.ndarray, rest: float) -> None:
+    def _hull_torque(self) -> np.ndarray:
+        """Torque on the hull per sample, N m, that the rig block and the current give: the spring's and the motor's
+        reaction ``-(k_t i - M_f)`` (the reaction work's torque, rotor friction from the flywheel's rate; data-sheet
+        ``k_t``: the calibration comes later, and a scale error only rescales a small part of a shape)."""
+        omega = np.gradient(self.psi_s, self.t)
+        rotor = self.f_visc * omega + self.f_coul * np.tanh(omega / self.rotor_w_s)
+        return -self.c * (self.phi - self.phi_n) - (self.k_t * self.i - rotor)
+
+    def _anchor_reverse_start(self, fit: np.ndarray | ReleaseFit, rest: float) -> None:
         """Replace the smoothed angle over the reverse stroke's first :data:`REST_FIT_S` by the
         rest-angle fit (blended out over its second half).
 
@@ -529,7 +564,10 @@ class RunBalance:
         end = int(np.searchsorted(t, t[k3] + REST_FIT_S, side="right"))
         tau = t[k3:end] - t[k3]
         blend = np.clip(2.0 - 2.0 * tau / REST_FIT_S, 0.0, 1.0)
-        curve = power_series(fit, tau) - power_series(fit, 0.0) + rest
+        if isinstance(fit, ReleaseFit):
+            curve = fit.angle[:end - k3] - fit.rest + rest
+        else:
+            curve = power_series(fit, tau) - power_series(fit, 0.0) + rest
         self.phi_s[k3:end] = blend * curve + (1.0 - blend) * self.phi_s[k3:end]
 
     def _rest_rate(self, k: int, start: int, window_s: float = 0.05, angle: np.ndarray | None = None) -> float:
@@ -556,7 +594,7 @@ class RunBalance:
         if self.work == "reaction":  # work of the motor's reaction on the hull: -(k_t i - M_f) dphi
             i_mean = self.interval_current(i)
             work = reaction_work(t, i_mean, self.torque_scale, self.phi_s, self.psi_s, self.k_t,
-                                 self.f_visc, self.f_coul, ROTOR_COULOMB_RATE_SCALE)
+                                 self.f_visc, self.f_coul, self.rotor_w_s)
             if self.gear_loss is not None:  # and the gearhead's loss, which the hull receives too (energy_gear.py)
                 omega = np.diff(self.psi_s) / np.diff(t)
                 steps = -self.gear_loss.torque(self.k_t, i_mean, omega) * np.diff(self.phi_s)
@@ -594,12 +632,14 @@ class RunBalance:
         whether the calibration pinned them; the loss's fit sets the scale either way, not the lag)."""
         if self.gear_loss is not None:
             return self.current_lag_calibrated
+        if self.scale_sigma is not None:  # the scale alone: the current keeps its sampling rule
+            return False
         return self.torque_scale != 1.0 or self.current_lag != 0.0
 
     def _cumulative_bearing_work(self) -> np.ndarray:
         """Work of the rotor-bearing friction on the flywheel from the first sample, J."""
         omega = np.gradient(self.psi, self.t)
-        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.tanh(omega[:-1] / ROTOR_COULOMB_RATE_SCALE)) * np.diff(self.psi)
+        steps = -(self.f_visc * omega[:-1] + self.f_coul * np.tanh(omega[:-1] / self.rotor_w_s)) * np.diff(self.psi)
         return np.concatenate([[0.0], np.cumsum(steps)])
 
 

@@ -21,7 +21,7 @@ LAG_PRECISION = 0.02  # the current lag must be fitted to this fraction of a sam
 
 
 def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: float, f_visc: float,
-                         f_coul: float) -> tuple[float, float] | None:
+                         f_coul: float, w_s: float | None = None) -> tuple[float, float] | None:
     """Torque per logged ampere relative to ``k_t`` (scale) and the current channel's lag (s),
     from the flywheel's own balance ``J_f theta'' = s k_t i(t - lag) - M_f`` (physics.md s8).
 
@@ -34,7 +34,8 @@ def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: floa
     span is too short, the fit is poor (residual over 1e-3 rad rms: friction or offset not
     as stated over a long hold), or the lag is not pinned to :data:`LAG_PRECISION` of a
     sample: a current without fast changes (an ideal tracking controller's) lets a lag
-    and a scale trade off, and the fit then lands a few ms and half a percent off.
+    and a scale trade off, and the fit then lands a few ms and half a percent off. ``w_s``: the
+    rotor's dry friction's rate scale (rotor_friction.creep_rate_scale where the record shows it).
     """
     if b - a < 200:
         return None
@@ -42,7 +43,7 @@ def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: floa
     # the angle the fit explains (kept for the final fit): th + the friction's torque (from psi, already
     # smoothed phase by phase) twice integrated over J_f; and the half sample intervals
     target, half_dtt = calibration_target(tt, th, psi[a:b + 1], float(f_visc), float(f_coul), float(J_f),
-                                           ROTOR_COULOMB_RATE_SCALE)
+                                           ROTOR_COULOMB_RATE_SCALE if w_s is None else float(w_s))
     y = target
 
     def twice(x):  # trapezoid integral of the integral, from 0, along the last axis
@@ -144,3 +145,68 @@ def _lagged_twice(t: np.ndarray, i: np.ndarray, a: int, b: int, lags: np.ndarray
     if not blend:
         return None
     return linear(np.interp(t[a:b + 1][None, :] + lags[:, None], t, i))
+
+
+# The current channel's timing when the flywheel cannot pin its lag: the record's sampling rule
+# (energy_work.interval_mean_current) is taken as the timing, uncertain by this fraction of a sample
+# interval. Where the lag is pinned (lqr runs, 17- and 20-bit encoders), the fitted lags lie 0.05 to
+# 0.16 ms from 0 at 1 kHz, within about 0.1 ms of the interval rule's own offset (0.08 ms for L/R = one sample).
+RULE_LAG_UNCERTAINTY = 0.1
+
+
+def scale_at_sampling_rule(t, theta, psi, i_mean, a: int, b: int, J_f: float, k_t: float, f_visc: float,
+                           f_coul: float, noise_i: float, w_s: float | None = None) -> tuple[float, float] | None:
+    """Torque per logged ampere relative to ``k_t`` and its 1-sigma, from the flywheel's balance over
+    samples ``a..b`` with the current timed by the record's own sampling rule (``i_mean``: the mean
+    current over each sample interval, as the motor work takes it), when :func:`flywheel_calibration`
+    cannot pin the lag (a smooth current lets lag and scale trade).
+
+    The span should start at the brake's release: over a hold with no current the flywheel creeps at
+    rates no encoder resolves, where the rotor's dry friction is not known (its law at rest is the
+    rig's, not the block's), and a fit that reaches into the hold takes that misfit for scale (up to
+    1 % on unquantised records). The 1-sigma is the root sum of squares of three parts, each the
+    scale's own error source: the logged current's noise (white, ``noise_i`` A rms) through the double
+    integral, the angle's residual scatter (the encoders' quantisation), and the timing, a lag of
+    :data:`RULE_LAG_UNCERTAINTY` of a sample through the scale's slope against the lag. None when the
+    span is under 200 samples or the scale is outside 0.5..2. ``w_s``: as :func:`flywheel_calibration`'s.
+    """
+    if b - a < 200:
+        return None
+    tt, th = t[a:b + 1], theta[a:b + 1]
+    target, half_dtt = calibration_target(tt, th, psi[a:b + 1], float(f_visc), float(f_coul), float(J_f),
+                                          ROTOR_COULOMB_RATE_SCALE if w_s is None else float(w_s))
+    Q = line_basis(tt)
+
+    def projected(x):
+        return project_out_line(np.atleast_2d(x), Q).reshape(np.shape(x))
+
+    y = projected(target)
+    h = np.diff(tt)
+    dt = float(median_step(tt))
+
+    def column(shift: float) -> np.ndarray:  # the interval means shifted by ``shift`` s, twice integrated, scaled
+        m = np.asarray(i_mean[a:b], dtype=float)
+        if shift:
+            mid = 0.5 * (tt[1:] + tt[:-1])
+            m = np.interp(mid + shift, mid, m)
+        rate = np.concatenate([[0.0], np.cumsum(m * h)])
+        angle = np.concatenate([[0.0], np.cumsum(0.5 * h * (rate[1:] + rate[:-1]))])
+        return projected(k_t * angle / J_f)
+
+    z = column(0.0)
+    zz = float(z @ z)
+    if not zz > 0.0:
+        return None
+    scale = float((z @ y) / zz)
+    if not 0.5 < scale < 2.0:
+        return None
+    r = y - scale * z
+    # the current's noise: white per sample; its double integral's weight on the scale is (M^T z) / z.z
+    c1 = np.cumsum(z[::-1])[::-1]
+    w = dt * dt * (np.cumsum(c1[::-1])[::-1] - c1)
+    s_noise = abs(scale) * (k_t / J_f) * noise_i * float(np.linalg.norm(w)) / zz
+    s_angle = float(np.sqrt((r @ r) / max(len(r) - 3, 1) / zz))
+    step = RULE_LAG_UNCERTAINTY * dt
+    up, down = column(step), column(-step)
+    s_lag = 0.5 * abs(float((up @ y) / (up @ up)) - float((down @ y) / (down @ down)))
+    return scale, float(np.sqrt(s_noise**2 + s_angle**2 + s_lag**2))

@@ -7,6 +7,8 @@ takes its spring term's rests from these fits.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from addedinertia_env.identify.series_kernels import count_crossings
@@ -56,6 +58,48 @@ def crossings_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: floa
     if span_s < 0:
         return coef
     return np.array([coef[0], 0.0, coef[1]])
+
+
+@dataclass(frozen=True)
+class ReleaseFit:
+    """The hull's angle after the brake's release, from :func:`released_fit`: ``rest`` (rad, the angle at
+    the release) and ``angle`` (rad, the fitted angle on the samples ``k..k + len(angle) - 1``)."""
+
+    rest: float
+    inverse_inertia: float  # 1 / kg m^2, the fit's scale of the torque's double integral
+    angle: np.ndarray
+
+
+def released_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float,
+                 torque: np.ndarray) -> ReleaseFit | None:
+    """The angle after the brake's release at sample ``k``, fitted to the instants where the
+    quantised reading steps within ``span_s`` seconds (positive) after it, with the hull's own law
+    of motion as its shape: ``phi(tau) = rest + G(tau) / J`` with ``G`` the double integral from the
+    release (where the hull is at rest) of ``torque`` (N m, per sample: the spring's and the motor's
+    reaction, what the rig block and the current say act on the hull), ``rest`` and ``1 / J`` fitted.
+
+    Why not a quadratic in time (:func:`crossings_fit`): that assumes a constant acceleration, but
+    after the release the motor's torque changes within milliseconds (a feedback controller's current
+    ramps up as the reference pulls away), so the acceleration changes by a tenth over the span and
+    a quadratic through the steps reads the rest 0.15 to 0.5 counts off, always the same way (the
+    spring term's -0.03 % of lambda66). The other torques are left out: the damping grows from zero
+    with the speed (``b1 tau / 3 J``, under 1e-3 of the motion here) and the spring's own change is of
+    order ``(omega tau)^2 / 12``; a constant torque not in ``torque`` rescales ``1 / J`` only. None
+    when fewer than four steps or the fit's ``1 / J`` is not positive (no torque to shape it)."""
+    b = int(np.searchsorted(t, t[k] + span_s, side="right")) - 1
+    tau, levels = count_crossings(t, phi, k, b, k, q)
+    if not len(tau) or b - k < 2:
+        return None
+    s = t[k:b + 1] - t[k]
+    h = np.diff(s)
+    f = np.asarray(torque[k:b + 1], dtype=float)
+    rate = np.concatenate([[0.0], np.cumsum(0.5 * h * (f[1:] + f[:-1]))])  # J x the hull's rate
+    G = np.concatenate([[0.0], np.cumsum(0.5 * h * (rate[1:] + rate[:-1]))])  # J x the angle moved
+    X = np.column_stack([np.ones(len(tau)), np.interp(tau, s, G)])
+    coef, *_ = rounded_lstsq(X, levels, rcond=None)
+    if not coef[1] > 0.0:
+        return None
+    return ReleaseFit(float(coef[0]), float(coef[1]), coef[0] + coef[1] * G)
 
 
 def encoder_step(angle: np.ndarray, counts: int) -> float:
