@@ -87,3 +87,21 @@ def test_v2_rows_of_the_loss_alone_are_a_former_version_never_ranked_beside_v3(t
         load_rows([old, new])
     with pytest.raises(RowsFileError, match=rf"this run writes '{GEARED_SCORE_VERSION}'"):
         prepare_output(old, {"controller": "pd", "suite": "drive-v1", "split": "test"}, version=GEARED_SCORE_VERSION)
+
+
+@pytest.mark.parametrize("former", score.FORMER_VERSIONS)
+def test_every_former_version_ranks_alone_and_is_never_mixed_or_resumed(tmp_path, former):
+    """2026-11-28 the energy method changed on every rig (the rest after the release, the torque scale of a
+    smooth current, the rotor's creep): each version this code wrote before is a former one, whatever the
+    suite. A board of its rows alone ranks; beside what this code writes now it is refused; a new run
+    refuses to resume it."""
+    current = {"capped-mean-memory-corrected-v1": score.MEMORY_SCORE_VERSION,
+               "capped-mean-v2": GEARED_SCORE_VERSION}.get(former, SCORE_VERSION)
+    assert former not in score.VERSIONS and current in score.VERSIONS and former in RANKABLE
+    old = _write(tmp_path / "old.jsonl", _rows("pd", former))
+    new = _write(tmp_path / "new.jsonl", _rows("lqr", current))
+    assert load_rows([old]) and load_rows([new])
+    with pytest.raises(RowsError, match="different score versions"):
+        load_rows([old, new])
+    with pytest.raises(RowsFileError, match=rf"this run writes '{current}'"):
+        prepare_output(old, {"controller": "pd", "suite": "synthetic", "split": "test"}, version=current)

@@ -36,19 +36,23 @@ import numpy as np
 
 from addedinertia_env.bench.statistics import clearly as clearly  # one rule for both scores
 
-SCORE_VERSION = "capped-mean-v1"
-# The same score on a rig with a gearbox (a row whose scenario's rig has gear_ratio > 1), from the
-# day the energy method books the gearhead's loss identified on the flywheel's balance
-# (identify/energy_gear.py, issue 28): the estimate of a geared rig changed, so its rows are a new
-# version; on a rig without a gearbox the estimate is the same number, bit for bit, and the rows keep
-# SCORE_VERSION (bench/versions.py). v3: from the day it also books the motor's cogging identified on
-# that balance, with the loss fitted beside it (identify/energy_cogging.py); v2 rows (the loss alone) are
-# a former version: kept as they are, ranked only among themselves, never resumed by a new run.
+# The version names what a row's number is: the estimate, the truth and the ranking (bench/versions.py).
+# Plain rigs: v1 (truth A66(0), 2026-11-27), then v4 (2026-11-28): the energy method reads the rest
+# after the brake's release from the hull's law of motion, the torque scale on smooth currents at the
+# current's sampling rule, and the rotor's dry friction near rest from the flywheel's coast
+# (identify/energy_rest.py, energy_calibration.py, rotor_friction.py); the estimate of every rig changed.
+SCORE_VERSION = "capped-mean-v4"
+# The same score on a rig with a gearbox (a row whose scenario's rig has gear_ratio > 1): v2 from the day
+# the energy method booked the gearhead's loss identified on the flywheel's balance (identify/energy_gear.py,
+# issue 28); v3 (2026-11-28) from the day it also books the motor's cogging identified on that balance,
+# with the loss fitted beside it (identify/energy_cogging.py), and the plain rigs' v4 changes above.
 GEARED_SCORE_VERSION = "capped-mean-v3"
-FORMER_VERSIONS = ("capped-mean-v2",)  # what this code wrote before: a row's own is kept, never mixed
 # the same capped mean of the error of the memory-corrected estimate (a suite's ``ranked: memory-corrected``,
-# memory-v1): another quantity, so another version, never ranked beside the as-written rows
-MEMORY_SCORE_VERSION = "capped-mean-memory-corrected-v1"
+# memory-v1): another quantity, so another version, never ranked beside the as-written rows; v2 with v4's
+# energy method and the memory families averaged by their evidence (identify/memory.py)
+MEMORY_SCORE_VERSION = "capped-mean-memory-corrected-v2"
+# what this code wrote before: a row's own is kept, ranked only among its own, never resumed by a new run
+FORMER_VERSIONS = ("capped-mean-v1", "capped-mean-v2", "capped-mean-memory-corrected-v1")
 RANKED_VERSIONS = {"as-written": SCORE_VERSION, "memory-corrected": MEMORY_SCORE_VERSION}  # ranked score -> version
 VERSIONS = (SCORE_VERSION, GEARED_SCORE_VERSION, MEMORY_SCORE_VERSION)  # what this code writes
 CAP = 0.10  # |relative error| at which an estimate counts as unusable; a failure scores this

@@ -8,23 +8,31 @@ never puts an old error beside a new one:
 * ``v0`` (rows without ``score_version``, written before 2026-11-27): with radiation memory
   on, the truth was A66 at the natural swing frequency, 1.7-2.0 % above A66(0) on the
   shipped hulls; in memory-free water it was the hull's lambda66.
-* :data:`SCORE_VERSION` (``capped-mean-v1``, defined in :mod:`.score`): the truth is
-  lambda66 = A66(0), the zero-frequency added inertia, in every water
-  (``docs/RUN_RECORD.md``); the ranked score is the mean of capped |error| with a failure at
-  the cap (:mod:`.score`).
-* :data:`~.score.MEMORY_SCORE_VERSION` (``capped-mean-memory-corrected-v1``): the same score on the
-  memory-corrected estimate (the method as written with the water's memory identified from the
-  records and corrected for), ranked by a suite that says ``ranked: memory-corrected`` (memory-v1).
+* ``capped-mean-v1`` (a former version, :data:`~.score.FORMER_VERSIONS`): the truth is
+  lambda66 = A66(0), the zero-frequency added inertia, in every water (``docs/RUN_RECORD.md``);
+  the ranked score is the mean of capped |error| with a failure at the cap (:mod:`.score`).
+* ``capped-mean-memory-corrected-v1`` (former): the same score on the memory-corrected estimate
+  (the method as written with the water's memory identified from the records and corrected
+  for), ranked by a suite that says ``ranked: memory-corrected`` (memory-v1).
+* ``capped-mean-v2`` (former): ``capped-mean-v1`` on a rig with a gearbox (``gear_ratio`` > 1:
+  drive-v0, drive-v1), once the energy method booked the gearhead's loss identified on the
+  flywheel's own balance (``identify/energy_gear.py``).
+* 2026-11-28, the energy method revised on every rig: the rest after the brake's release read
+  from the hull's law of motion (``identify/energy_rest.py``), the torque scale of a smooth
+  current fitted at the current's sampling rule (``identify/energy_calibration.py``), the
+  rotor's dry friction near rest read from the flywheel's coast (``identify/rotor_friction.py``)
+  (docs/INTERVALS.md). So every version moved on:
 
-* ``capped-mean-v2`` (a former version, :data:`~.score.FORMER_VERSIONS`): ``capped-mean-v1`` on a rig
-  with a gearbox (``gear_ratio`` > 1: drive-v0, drive-v1), once the energy method books the
-  gearhead's loss identified on the flywheel's own balance (``identify/energy_gear.py``). Rows of a
-  rig without a gearbox estimate the same number, bit for bit, and keep ``capped-mean-v1``.
-* ``capped-mean-v3`` (:data:`GEARED_SCORE_VERSION`, 2026-11-28): the same on a geared rig once the
-  energy method also books the motor's cogging where the flywheel's balance shows it, with the
-  gearhead's loss fitted beside it (``identify/energy_cogging.py``). A board of ``capped-mean-v2``
-  rows alone is still ranked (as legacy rows are); never beside ``capped-mean-v3`` rows, and a new
-  run does not resume them.
+  - :data:`SCORE_VERSION` (``capped-mean-v4``): rigs without a gearbox;
+  - :data:`GEARED_SCORE_VERSION` (``capped-mean-v3``): rigs with a gearbox, where the energy
+    method also books the motor's cogging seen on the flywheel's balance, with the gearhead's
+    loss fitted beside it (``identify/energy_cogging.py``);
+  - :data:`~.score.MEMORY_SCORE_VERSION` (``capped-mean-memory-corrected-v2``): the
+    memory-corrected estimate, its memory families averaged by their evidence.
+
+  Former versions' rows keep their version: a board of one former version alone is still
+  ranked (the boards in docs/ say which version they are); never beside another version, and a
+  new run does not resume them (rerun them with ``addedinertia bench run --force``).
 
 A suite whose truth changed takes a new name too (``memory-v1``: the memory presets, truth
 A66(0)); memory-free suites kept their names, their truth being the same number.
