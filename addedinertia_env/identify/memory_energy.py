@@ -324,12 +324,13 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
             details["lambda66_energy_corrected_ci95"] = list(corrected.ci95)
             value, ci = combine(corrected.value, corrected.ci95, mem.A_zero, mem.ci95["A66_zero"])
             if mem.n_stretches < MIN_STRETCHES:
-                # too few starts from rest to estimate the model's error (its variances are clustered by stretch):
-                # the records bound the correction only by its own size, so the interval holds it whole
+                # too few starts from rest to estimate the model's error: its variances are clustered by stretch
+                # (and by 2-4 windows), so neither a family's interval nor their mixture means anything; the
+                # records bound the correction only by its own size, and the interval holds it whole
                 half = abs(value - result.lambda66)
-                ci = (min(ci[0], value - half), max(ci[1], value + half))
+                ci = (value - half, value + half)
                 details["memory_interval"] = (
-                    f"widened by the whole memory correction ({100 * half / abs(value):.2f} %): "
+                    f"+- the whole memory correction ({100 * half / abs(value):.2f} %): "
                     f"{mem.n_stretches} stretch(es) of free motion, at least {MIN_STRETCHES} needed to estimate the "
                     "memory model's error (hand identify the hull's free decays beside its reverse runs)")
         else:
