@@ -304,7 +304,9 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
     ``lambda66`` becomes A66(0) (:func:`combine`); the JSON adds ``A66_swing``, ``A66_inf`` (each with ``ci95``),
     the memory model, and the uncorrected value. Memory-free water (``memory: "none"``):
     the energy method's numbers unchanged. Not identifiable: the uncorrected value with its
-    interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`). ``prior``: ``"none"`` (the
+    interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`). Identified from fewer than
+    :data:`~addedinertia_env.identify.memory.MIN_STRETCHES` stretches of free motion (one reverse run alone):
+    the corrected value with an interval of +- the whole correction (``memory_interval`` says why). ``prior``: ``"none"`` (the
     records alone) or ``"bem"`` (:mod:`~addedinertia_env.identify.memory_prior`), stated as ``prior``."""
     from addedinertia_env.identify.memory_prior import identify_memory_with_prior  # noqa: PLC0415
 
