@@ -227,6 +227,8 @@ def test_one_reverse_run_alone_gets_the_whole_correction_in_its_interval(tmp_pat
     assert correction > 0.01 * a0  # the memory's bias is several per cent: a real widening
     assert (lo, hi) == pytest.approx((res.lambda66 - correction, res.lambda66 + correction), rel=1e-12)
     assert lo <= a0 <= hi
+    ec, (lo_e, hi_e) = res.details["lambda66_energy_corrected"], res.details["lambda66_energy_corrected_ci95"]
+    assert lo_e <= a0 <= hi_e and hi_e - lo_e == pytest.approx(2 * abs(ec - res.details["lambda66_uncorrected"]))
 
 
 def test_energy_correction_removes_the_memory_bias_on_one_cummins_episode(tmp_path, capsys):

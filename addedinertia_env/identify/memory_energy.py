@@ -331,6 +331,8 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
                 # records bound the correction only by its own size, and the interval holds it whole
                 half = abs(value - result.lambda66)
                 ci = (value - half, value + half)
+                half_e = abs(corrected.value - result.lambda66)  # the corrected balance's likewise
+                details["lambda66_energy_corrected_ci95"] = [corrected.value - half_e, corrected.value + half_e]
                 details["memory_interval"] = (
                     f"+- the whole memory correction ({100 * half / abs(value):.2f} %): "
                     f"{mem.n_stretches} stretch(es) of free motion, at least {MIN_STRETCHES} needed to estimate the "
