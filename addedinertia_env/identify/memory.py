@@ -897,19 +897,25 @@ def family_intervals(best: FamilyFit, families: list[FamilyFit], weight: dict[st
     reported). A66(inf) on the log scale (a positive quantity; its interval never reaches zero), its standard
     errors scaled to Student's t with ``n_stretches - 1`` degrees of freedom (its variance is clustered by
     stretch of free motion)."""
-    w = np.array([weight[f.family] for f in families])
-    ci = {}
-    for key in ("A66_zero", "A66_swing"):
-        x = np.array([getattr(f, _attr(key)) for f in families])
-        s = np.array([f.sigma[key] for f in families])
-        lo, hi = mixture_interval(x, s, w)
-        v = getattr(best, _attr(key))
-        ci[key] = (float(min(lo, v)), float(max(hi, v)))
     t = _t95(n_stretches) / Z95
-    x = np.log([f.A_inf for f in families])  # passive families have A66(inf) > 0
-    s = np.array([t * f.sigma["A66_inf"] / f.A_inf for f in families])
-    lo, hi = mixture_interval(x, s, w)
-    ci["A66_inf"] = (float(min(math.exp(lo), best.A_inf)), float(max(math.exp(hi), best.A_inf)))
+    ci = {}
+    for key in ("A66_zero", "A66_swing", "A66_inf"):
+        if key == "A66_inf":  # passive families have A66(inf) > 0
+            x = np.log([f.A_inf for f in families])
+            s = np.array([t * f.sigma[key] / f.A_inf for f in families])
+        else:
+            x = np.array([getattr(f, _attr(key)) for f in families])
+            s = np.array([f.sigma[key] for f in families])
+        w = np.array([weight[f.family] for f in families])
+        ok = np.isfinite(x) & np.isfinite(s) & (w > 0)  # a family whose covariance failed has no interval to give
+        v = getattr(best, _attr(key))
+        if not ok.any():
+            ci[key] = (math.nan, math.nan)
+            continue
+        lo, hi = mixture_interval(x[ok], s[ok], w[ok])
+        if key == "A66_inf":
+            lo, hi = math.exp(lo), math.exp(hi)
+        ci[key] = (float(min(lo, v)), float(max(hi, v)))
     return ci
 
 

@@ -186,7 +186,9 @@ class _FamilyUnion:
 
         if self.best is None:
             return None
-        lo, hi = mixture_interval(self.values, self.sigmas, self.weights)
+        x, s, w = (np.asarray(a, float) for a in (self.values, self.sigmas, self.weights))
+        ok = np.isfinite(x) & np.isfinite(s) & (w > 0)  # a family without a finite interval gives none to mix
+        lo, hi = mixture_interval(x[ok], s[ok], w[ok]) if ok.any() else (math.nan, math.nan)
         return CorrectedEstimate(self.best[0], (min(lo, self.best[0]), max(hi, self.best[0])), self.out, self.best[1])
 
 
