@@ -51,10 +51,13 @@ amplitude-dependent swing can pass for memory).
 Intervals: per family, the coefficients' covariance is clustered by window (the integral
 form's residuals are correlated within a window), the pole positions' share added by
 perturbing them along the fit's Jacobian; the reported 95 % interval of each quantity is
-the union over the accepted families (passive, within :data:`FAMILY_RSS_TOLERANCE` of the
-best residual). A66(inf)'s variance is clustered by stretch of free motion (its evidence is the instants after
-each start from rest) with Student's t, and its interval holds the reported family's jackknife over those
-stretches (:func:`jackknife_a_inf`).
+that of the mixture of the passive families' estimates, each weighted by its Akaike weight
+with the windows as the independent pieces of evidence (:mod:`~addedinertia_env.identify.model_average`;
+before: the union over every family within :data:`FAMILY_RSS_TOLERANCE` of the best residual, which the
+worst family kept sized). A66(inf)'s variance is clustered by stretch of free motion (its evidence is the
+instants after each start from rest) with Student's t; its interval is built on log A66(inf) (a positive
+quantity whose families' estimates spread by factors, not by amounts) and holds the reported family's
+jackknife over those stretches (:func:`jackknife_a_inf`).
 
 Only the records' samples and ``rig`` blocks are read; never ``truth``.
 """
@@ -68,6 +71,7 @@ from typing import Any
 
 import numpy as np
 
+from addedinertia_env.identify.model_average import akaike_weights, mixture_interval
 from addedinertia_env.records.record import RunRecord, braked
 
 # The passive families searched: each a tuple of sections, 'r' one real pole, 'c' a complex pair.
@@ -80,7 +84,9 @@ MAX_STARTS = 2  # starting pole sets per family (a slow and a fast section, both
 WINDOW_S = 1.5  # s: integral-form windows (long against the memory's ~0.1-1 s, short against drift)
 ROW_STEP_S = 0.02  # s: one equation row every 20 ms (the integral form is smooth)
 MEMORY_RSS_RATIO = 0.05  # memory declared when a passive model leaves < 5 % of the memory-free residual
-FAMILY_RSS_TOLERANCE = 1.25  # families within 25 % of the best residual are kept in the interval
+FAMILY_RSS_TOLERANCE = 1.25  # the reported family: the simplest within 25 % of the best residual
+MIN_FAMILY_WEIGHT = 1e-3  # families with a smaller Akaike weight are left out of the average (and its corrections)
+MIN_STRETCHES = 3  # stretches of free motion needed to estimate the memory model's error from the records
 PASSIVE_GAP = 2.0  # a non-passive fit better than this many times the best passive one: memory not pinned down
 PASSIVITY_TOLERANCE = 0.02  # min Re K(jw) >= -2 % of max |Re K(jw)| on the grid (fit noise)
 OMEGA_GRID = np.logspace(-2, 3, 300)  # rad/s, passivity grid
@@ -710,6 +716,9 @@ class MemoryIdentification:
     prior_note: str = ""  # with a prior: its source and whether the records accepted it
     rss_stiffening: float = math.nan  # memory-free with a stiffening rod (STIFFENING_POWERS), where memory was in question
     rss_memory_and_stiffening: float = math.nan  # the best memory model with the stiffening rod too
+    weights: dict[str, float] = field(default_factory=dict)  # Akaike weight of each family in ``accepted``
+    n_stretches: int = 0  # stretches of free motion (starts from rest, mostly) the equation's rows come from
+    n_windows: int = 0  # the equation's windows: the independent pieces of evidence the weights count
 
     @property
     def identified(self) -> bool:
@@ -731,6 +740,8 @@ class MemoryIdentification:
                 "kind": "passive state-space radiation kernel K(s) = s sum theta_i G_i(s) (identify/memory.py)",
                 "family": self.best.family, "swing_omega_rad_s": self.swing_omega,
                 "families_kept": [f.family for f in self.accepted],
+                "family_weights": {f.family: self.weights.get(f.family, math.nan) for f in self.accepted},
+                "stretches_of_free_motion": self.n_stretches, "windows": self.n_windows,
                 "fits": [f.summary() for f in self.fits], "rss_memory_free": self.rss_none,
                 "prior": self.prior, "free_motion_s": self.free_s, **self._stiffening_json()}
             if self.prior_note:
@@ -843,14 +854,19 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
                        f"times the residual of a non-passive one ({best_any.family}); the records do not pin the "
                        "memory down (expected longer free motion: a free decay beside the reverse runs)")
         return base
-    accepted = [f for f in passive if f.rss <= FAMILY_RSS_TOLERANCE * best.rss]
+    within = [f for f in passive if f.rss <= FAMILY_RSS_TOLERANCE * best.rss]
     # the one reported: the simplest of those that fit (fewest pole parameters and free coefficients, then the
     # smaller residual): a kernel without an instantaneous part where the records do not need one
-    best = min(accepted, key=lambda f: (f.n_params, f.rss))
+    best = min(within, key=lambda f: (f.n_params, f.rss))
+    # the interval: every passive family, by its Akaike weight (the windows are the independent evidence)
+    weights = akaike_weights([f.rss for f in passive], [f.n_params for f in passive], data.n_windows)
+    accepted = [f for f, w in zip(passive, weights) if w >= MIN_FAMILY_WEIGHT or f is best]
+    weight = {f.family: float(w) for f, w in zip(passive, weights) if any(f is g for g in accepted)}
     note = ""
     if prior is not None:
-        if prior_fit is not None and any(f is prior_fit for f in accepted):
+        if prior_fit is not None and any(f is prior_fit for f in within):
             best, accepted = prior_fit, [prior_fit]  # the prior's shape, which the records accept, pins the family
+            weight = {prior_fit.family: 1.0}
             note = (f"{prior.source}: its poles kept (residual {prior_fit.rss / min(f.rss for f in passive):.2f} "
                     "x the best passive family's); coefficients and A66 from the records")
         else:
@@ -858,21 +874,49 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
                    f"residual {prior_fit.rss / min(f.rss for f in passive):.2f} x the best passive family's, over "
                    f"{FAMILY_RSS_TOLERANCE}" if prior_fit is not None else "could not be fitted")
             note = f"{prior.source}: rejected by the records ({why}); the records alone"
-    ci = {}
-    for key in ("A66_inf", "A66_zero", "A66_swing"):
-        z = _t95(data.n_segments) if key == "A66_inf" else Z95
-        lo = min(getattr(f, _attr(key)) - z * f.sigma[key] for f in accepted)
-        hi = max(getattr(f, _attr(key)) + z * f.sigma[key] for f in accepted)
-        ci[key] = (float(lo), float(hi))
-    # A66(inf) also within the reported family's jackknife over the starts from rest (t with g - 1 dof)
+    ci = family_intervals(best, accepted, weight, data.n_segments)
+    # A66(inf) also within the reported family's jackknife over the starts from rest (t with g - 1 dof), on the
+    # log scale as the families' mixture
     jack = jackknife_a_inf(data, best)
     if math.isfinite(jack):
-        half = _t95(data.n_segments) * jack
-        ci["A66_inf"] = (min(ci["A66_inf"][0], best.A_inf - half), max(ci["A66_inf"][1], best.A_inf + half))
+        half = _t95(data.n_segments) * jack / best.A_inf
+        lo, hi = ci["A66_inf"]
+        ci["A66_inf"] = (min(lo, best.A_inf * math.exp(-half)), max(hi, best.A_inf * math.exp(half)))
         best.sigma["A66_inf_jackknife"] = jack
     return MemoryIdentification("identified", w_s, best.A_zero, best.A_inf, best.A_swing, ci, best, accepted, fits,
                                 rss_none, data.free_s, "none" if prior is None else prior.name, note,
-                                base.rss_stiffening, base.rss_memory_and_stiffening)
+                                base.rss_stiffening, base.rss_memory_and_stiffening, weight, data.n_segments,
+                                data.n_windows)
+
+
+def family_intervals(best: FamilyFit, families: list[FamilyFit], weight: dict[str, float],
+                     n_stretches: int) -> dict[str, tuple[float, float]]:
+    """The 95 % intervals of A66(0), A66 at the swing and A66(inf) (kg m^2): the central 95 % of the mixture of
+    ``families``' estimates, each normal with its own standard error and weighted by ``weight`` (Akaike,
+    :mod:`~addedinertia_env.identify.model_average`), widened where needed to hold ``best``'s value (the one
+    reported). A66(inf) on the log scale (a positive quantity; its interval never reaches zero), its standard
+    errors scaled to Student's t with ``n_stretches - 1`` degrees of freedom (its variance is clustered by
+    stretch of free motion)."""
+    t = _t95(n_stretches) / Z95
+    ci = {}
+    for key in ("A66_zero", "A66_swing", "A66_inf"):
+        if key == "A66_inf":  # passive families have A66(inf) > 0
+            x = np.log([f.A_inf for f in families])
+            s = np.array([t * f.sigma[key] / f.A_inf for f in families])
+        else:
+            x = np.array([getattr(f, _attr(key)) for f in families])
+            s = np.array([f.sigma[key] for f in families])
+        w = np.array([weight[f.family] for f in families])
+        ok = np.isfinite(x) & np.isfinite(s) & (w > 0)  # a family whose covariance failed has no interval to give
+        v = getattr(best, _attr(key))
+        if not ok.any():
+            ci[key] = (math.nan, math.nan)
+            continue
+        lo, hi = mixture_interval(x[ok], s[ok], w[ok])
+        if key == "A66_inf":
+            lo, hi = math.exp(lo), math.exp(hi)
+        ci[key] = (float(min(lo, v)), float(max(hi, v)))
+    return ci
 
 
 def _t95(n_clusters: int) -> float:

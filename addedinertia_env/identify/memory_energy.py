@@ -16,8 +16,8 @@ and each run's value is corrected by the model's bias at the same angles and wei
 
 ``A66(inf)`` cancels; the bias is linear in the memory coefficients for given poles, so its
 variance comes from their (window-clustered) covariance, and the reported interval is the
-union over the memory families that fit the records (the extrapolation to zero frequency
-is where they differ). Never reads ``truth``.
+mixture of the memory families that fit the records, by their Akaike weights (the extrapolation
+to zero frequency is where they differ). Never reads ``truth``.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from addedinertia_env.records.record import RunRecord, motion_phase
-from addedinertia_env.identify.memory import SMOOTH_HALF, FamilyFit, MemoryIdentification, _basis, _smooth
+from addedinertia_env.identify.memory import (MIN_STRETCHES, SMOOTH_HALF, FamilyFit, MemoryIdentification, _basis,
+                                              _smooth)
 
 FRACTIONS = (0.25, 0.75)  # the energy method's default dense range of boundary angles (energy.DEFAULT_FRACTIONS)
 N_ANGLES = 41
@@ -160,31 +161,42 @@ class CorrectedEstimate:
 
 
 class _FamilyUnion:
-    """Each accepted family's corrected value and interval, their union, and the best family's value."""
+    """Each averaged family's corrected value and interval, their Akaike-weighted mixture's 95 % interval
+    (the memory fit's weights, :func:`~addedinertia_env.identify.memory.family_intervals`), and the best
+    family's value."""
 
     def __init__(self, memory: MemoryIdentification):
-        self.memory, self.out, self.lo, self.hi, self.best = memory, {}, math.inf, -math.inf, None
+        self.memory, self.out, self.best = memory, {}, None
+        self.values, self.sigmas, self.weights = [], [], []
 
     def add(self, fit: FamilyFit, value: float, half: float, biases: list[float]) -> None:
         """One family's corrected ``value`` with its 95 % ``half``-width and its runs' memory ``biases``."""
         lo, hi, bias = value - half, value + half, float(np.mean(biases))
-        self.out[fit.family] = {"lambda66": value, "ci95": [lo, hi], "bias": bias}
-        self.lo, self.hi = min(self.lo, lo), max(self.hi, hi)
+        self.out[fit.family] = {"lambda66": value, "ci95": [lo, hi], "bias": bias,
+                                "weight": self.memory.weights.get(fit.family, 1.0)}
+        self.values.append(value)
+        self.sigmas.append(half / Z95)
+        self.weights.append(self.memory.weights.get(fit.family, 1.0))
         if fit is self.memory.best:
             self.best = (value, bias)
 
     def estimate(self) -> CorrectedEstimate | None:
-        """The best family's value with the union of the families' intervals (None: no family corrected)."""
+        """The best family's value with the families' mixture interval (None: no family corrected)."""
+        from addedinertia_env.identify.model_average import mixture_interval  # noqa: PLC0415
+
         if self.best is None:
             return None
-        return CorrectedEstimate(self.best[0], (self.lo, self.hi), self.out, self.best[1])
+        x, s, w = (np.asarray(a, float) for a in (self.values, self.sigmas, self.weights))
+        ok = np.isfinite(x) & np.isfinite(s) & (w > 0)  # a family without a finite interval gives none to mix
+        lo, hi = mixture_interval(x[ok], s[ok], w[ok]) if ok.any() else (math.nan, math.nan)
+        return CorrectedEstimate(self.best[0], (min(lo, self.best[0]), max(hi, self.best[0])), self.out, self.best[1])
 
 
 def corrected_energy(records: list[RunRecord], details: dict, memory: MemoryIdentification,
                      fractions=FRACTIONS) -> CorrectedEstimate | None:
     """lambda66 = A66(0) from the energy method's per-angle values (``details``: the energy result's, with its
     ``intervals`` and ``per_run_sigma_parts``) corrected angle by angle by each accepted family's memory bias;
-    the interval is the union over the families.
+    the interval is the families' mixture, weighted as the memory fit's.
 
     The bias at each angle is the memory's work over the energy method's *own* kinetic denominator (its
     crossing rates), so a rate error scales the balance and its memory term together, as in water without
@@ -246,7 +258,7 @@ def _corrected_from_runs(records: list[RunRecord], per_run: list[float], per_run
                          memory: MemoryIdentification, fractions=FRACTIONS) -> CorrectedEstimate | None:
     """:func:`corrected_energy` from the runs' values alone (an energy result made without its per-angle
     intervals, ``interval_details=False``): each run's Hann-weighted value corrected by the family's bias
-    at the run's own dense angles; the interval is the union over the families."""
+    at the run's own dense angles; the interval is the families' weighted mixture."""
     from addedinertia_env.identify.common import pooled_interval  # noqa: PLC0415
 
     union = _FamilyUnion(memory)
@@ -294,7 +306,9 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
     ``lambda66`` becomes A66(0) (:func:`combine`); the JSON adds ``A66_swing``, ``A66_inf`` (each with ``ci95``),
     the memory model, and the uncorrected value. Memory-free water (``memory: "none"``):
     the energy method's numbers unchanged. Not identifiable: the uncorrected value with its
-    interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`). ``prior``: ``"none"`` (the
+    interval widened by the bias memory may carry (:data:`UNIDENTIFIED_BIAS`). Identified from fewer than
+    :data:`~addedinertia_env.identify.memory.MIN_STRETCHES` stretches of free motion (one reverse run alone):
+    the corrected value with an interval of +- the whole correction (``memory_interval`` says why). ``prior``: ``"none"`` (the
     records alone) or ``"bem"`` (:mod:`~addedinertia_env.identify.memory_prior`), stated as ``prior``."""
     from addedinertia_env.identify.memory_prior import identify_memory_with_prior  # noqa: PLC0415
 
@@ -313,6 +327,18 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
             details["lambda66_energy_corrected"] = corrected.value
             details["lambda66_energy_corrected_ci95"] = list(corrected.ci95)
             value, ci = combine(corrected.value, corrected.ci95, mem.A_zero, mem.ci95["A66_zero"])
+            if mem.n_stretches < MIN_STRETCHES:
+                # too few starts from rest to estimate the model's error: its variances are clustered by stretch
+                # (and by 2-4 windows), so neither a family's interval nor their mixture means anything; the
+                # records bound the correction only by its own size, and the interval holds it whole
+                half = abs(value - result.lambda66)
+                ci = (value - half, value + half)
+                half_e = abs(corrected.value - result.lambda66)  # the corrected balance's likewise
+                details["lambda66_energy_corrected_ci95"] = [corrected.value - half_e, corrected.value + half_e]
+                details["memory_interval"] = (
+                    f"+- the whole memory correction ({100 * half / abs(value):.2f} %): "
+                    f"{mem.n_stretches} stretch(es) of free motion, at least {MIN_STRETCHES} needed to estimate the "
+                    "memory model's error (hand identify the hull's free decays beside its reverse runs)")
         else:
             details["memory"] = "not identifiable: no forward and reverse stroke to correct in the reverse runs"
     if str(details.get("memory", "")).startswith("not identifiable"):
