@@ -60,6 +60,8 @@ def _seeds(text: str) -> list[int]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Print the rest-after-release table (both fits against the simulator's true angle, in encoder counts);
+    ``argv`` as on the command line; returns 0."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--preset", default="wigley-2m")
     p.add_argument("--seeds", default="1-8", help="drawn hulls, e.g. 1-8")
