@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from addedinertia_env.identify.energy_cogging import drops_beside
 from addedinertia_env.records.record import RunRecord
 
 NAMES = ("mesh_loss", "gear_drag", "cogging", "backlash", "supply_limit")
@@ -261,16 +262,7 @@ def cogging_scan(s: Span, lag: float) -> dict[str, Any]:
     excess = 1.0
     if len(raw) >= 20:
         top = max(raw, key=raw.get)
-        Qn, _ = np.linalg.qr(cols[top])
-        yn = y - Qn @ (Qn.T @ y)
-        rest = []
-        for k, Ck in cols.items():
-            if k == top:
-                continue
-            Ck = Ck - Qn @ (Qn.T @ Ck)
-            ck, *_ = np.linalg.lstsq(Ck, yn, rcond=None)
-            f = Ck @ ck
-            rest.append(float(f @ f) / s2)
+        rest = [d / s2 for d in drops_beside(cols, y, top)]
         excess = max(1.0, float(np.median(rest)) / (2.0 * math.log(2.0)))
     drops = {n: raw[float(n)] / excess for n in COGGING_PERIODS if float(n) in raw}
     amps = {n: (amp[float(n)][0], amp[float(n)][1] * math.sqrt(excess)) for n in drops}

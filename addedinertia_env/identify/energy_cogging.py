@@ -128,6 +128,25 @@ def _inflation(r: np.ndarray) -> float:
     return math.sqrt((1.0 + rho) / (1.0 - rho))
 
 
+
+def drops_beside(columns: dict, y: np.ndarray, best) -> list[float]:
+    """The residual-sum drop (units of ``y`` squared) each period's columns (``columns``: period -> its
+    column pair) still gives once the ``best`` period's columns are projected out of them and of ``y``: what
+    every other period fits of what the best one leaves, the null against which the best one must stand out.
+    A real cogging leaks into every period (where the rotor creeps, every period's column is slow alike), so
+    the null is taken with it removed. Shared with discovery's cogging word (discover/drive_flaws.py)."""
+    Qb, _ = np.linalg.qr(columns[best])
+    yb = y - Qb @ (Qb.T @ y)
+    rest = []
+    for n, C in columns.items():
+        if n == best:
+            continue
+        C = C - Qb @ (Qb.T @ C)
+        c, *_ = np.linalg.lstsq(C, yb, rcond=None)
+        f = C @ c
+        rest.append(float(f @ f))
+    return rest
+
 def cogging_fit(t: np.ndarray, theta: np.ndarray, psi_s: np.ndarray, i: np.ndarray, a: int, b: int, J_f: float,
                 k_t: float, f_visc: float, f_coul: float, lag: float, gear_ratio: float) -> Cogging | None:
     """The cogging over samples ``a..b`` (see module doc), or None where the records do not show it."""
@@ -176,16 +195,7 @@ def cogging_fit(t: np.ndarray, theta: np.ndarray, psi_s: np.ndarray, i: np.ndarr
     if len(drops) < MIN_PERIODS_FOR_NULL:
         return None
     best = max(drops, key=drops.get)
-    Qb, _ = np.linalg.qr(pairs[best])
-    yb = y - Qb @ (Qb.T @ y)
-    rest = []
-    for n, C in pairs.items():
-        if n == best:
-            continue
-        C = C - Qb @ (Qb.T @ C)
-        c, *_ = np.linalg.lstsq(C, yb, rcond=None)
-        f = C @ c
-        rest.append(float(f @ f))
+    rest = drops_beside(pairs, y, best)
     null = float(np.median(rest)) / (2.0 * math.log(2.0))  # the median of chi-square 2 is 2 ln 2
     ratio = drops[best] / max(null, 1e-300)
     threshold = float(chi2.isf(FALSE_ALARM / len(drops), 2))
