@@ -30,6 +30,9 @@ NOT_IN_MAKE_DOCS = {
                                               "archives (--data), which a clone has none of",
     "addedinertia_env.reports.release_rest": "a measurement in the prose (the rest after the release against the "
                                              "simulator's true angle, docs/ENERGY_METHOD.md item 4), not a table",
+    "addedinertia_env.reports.lab_requantise": "reads the developers' foreign-lab archives (a lab's own records, "
+                                               "re-read at random encoder offsets: docs/INTERVALS.md), which a "
+                                               "clone has none of",
     "addedinertia_env.reports.digests": "a check that numbers are unchanged across a refactoring "
                                         "(docs/ARCHITECTURE.md), not a table of the docs",
     "addedinertia_env.reports.ars_curves": "needs the training runs of `make hard-policy` (it exports a shipped policy)",
