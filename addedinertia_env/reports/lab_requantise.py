@@ -71,7 +71,7 @@ def requantised_runs(case_dir: Path, run: str, offsets: np.ndarray) -> list[dict
     rev = read_record(case_dir / f"{run}.csv")
     decays = [read_record(p) for p in sorted(case_dir.glob("*.csv"))
               if json.loads(p.with_suffix(".json").read_text())["experiment"]["kind"] == "free-decay"]
-    counts = rev.rig["encoder_counts"]["phi"]
+    counts = rev.known.phi_counts
     q = 2.0 * np.pi / counts
     smooth = smooth_angle(rev["phi"], np.asarray(rev["phase"]), q)
     out = []
