@@ -19,10 +19,7 @@ The truth (the records' ``truth`` block, the lab's ``answers.json``) is read to 
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import tarfile
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +28,7 @@ from addedinertia_env.identify import identify
 from addedinertia_env.identify.memory import FAMILY_RSS_TOLERANCE, Z95, identify_memory
 from addedinertia_env.identify.model_average import mixture_interval
 from addedinertia_env.records.record import read_record
+from addedinertia_env.reports.interval_calibration import lab_reverse_runs
 
 RULES = ("union+floor", "mixture+floor", "mixture", "mixture+test")
 
@@ -67,22 +65,9 @@ def runs(sets: Path, seeds: int, foreign: list[str]):
             if all(f.exists() for f in files):
                 yield f"cum-{preset}-h{s}", files, read_record(files[0]).meta["truth"]["lambda66"]
     for archive in foreign:
-        with tempfile.TemporaryDirectory() as tmp:
-            with tarfile.open(archive) as tar:
-                tar.extractall(tmp, filter="data")
-            answers_path = next(Path(tmp).rglob("answers.json"))
-            answers = json.loads(answers_path.read_text())
-            answers = answers.get("cases", answers)
-            for case in sorted(p for p in answers_path.parent.iterdir() if p.is_dir()):
-                a = answers[case.name]
-                if a.get("A66_inf") is None:
-                    continue
-                recs = sorted(case.glob("*.csv"))
-                kind = {p: json.loads(p.with_suffix(".json").read_text())["experiment"]["kind"] for p in recs}
-                decays = [p for p in recs if kind[p] == "free-decay"]
-                for p in recs:
-                    if kind[p] == "reverse-symmetric":
-                        yield f"{case.name}-{p.stem}", [p, *decays], a["lambda66"]
+        for case, p, decays, a in lab_reverse_runs(Path(archive)):
+            if a.get("A66_inf") is not None:
+                yield f"{case.name}-{p.stem}", [p, *decays], a["lambda66"]
 
 
 def main() -> None:

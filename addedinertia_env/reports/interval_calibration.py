@@ -153,33 +153,39 @@ def identify_row(label: str, water: str, files: list[Path], truth: dict | None) 
             "result": res, "truth": truth}
 
 
-def foreign_rows(archive: Path, done: set[str]):
-    """Rows of a lab's archive: each reverse run of each case with that case's free decays beside it."""
+def lab_reverse_runs(archive: Path):
+    """Each reverse run of each case of a lab's archive (extracted to a temporary folder for the time of the
+    iteration), as ``(case folder, reverse run's CSV, that case's free decays' CSVs, the case's answers)``; the
+    answers are read to score only."""
     with tempfile.TemporaryDirectory() as tmp:
         with tarfile.open(archive) as tar:
             tar.extractall(tmp, filter="data")
         answers_path = next(Path(tmp).rglob("answers.json"))
         answers = json.loads(answers_path.read_text())
         answers = answers.get("cases", answers)
-        lab = archive.name.split(".")[0]
         for case in sorted(p for p in answers_path.parent.iterdir() if p.is_dir()):
-            a = answers[case.name]
-            memory = a.get("A66_inf") is not None
-            water = "memory" if memory else "memory-free"
-            truth = {"lambda66": a["lambda66"], "A66_swing": a.get("A66_swing"), "A66_inf": a.get("A66_inf"),
-                     "cause": a["cause"]}
             runs = sorted(case.glob("*.csv"))
             kinds = {p: json.loads(p.with_suffix(".json").read_text())["experiment"]["kind"] for p in runs}
             decays = [p for p in runs if kinds[p] == "free-decay"]
             for p in runs:
-                if kinds[p] != "reverse-symmetric":
-                    continue
-                label = f"{lab}-{case.name}-{p.stem}"
-                if label in done:
-                    continue
-                row = identify_row(label, water, [p, *decays], truth)
-                row["files"] = [f"{lab}/{case.name}/{Path(f).name}" for f in row["files"]]
-                yield row
+                if kinds[p] == "reverse-symmetric":
+                    yield case, p, decays, answers[case.name]
+
+
+def foreign_rows(archive: Path, done: set[str]):
+    """Rows of a lab's archive: each reverse run of each case with that case's free decays beside it."""
+    lab = archive.name.split(".")[0]
+    for case, p, decays, a in lab_reverse_runs(archive):
+        memory = a.get("A66_inf") is not None
+        water = "memory" if memory else "memory-free"
+        truth = {"lambda66": a["lambda66"], "A66_swing": a.get("A66_swing"), "A66_inf": a.get("A66_inf"),
+                 "cause": a["cause"]}
+        label = f"{lab}-{case.name}-{p.stem}"
+        if label in done:
+            continue
+        row = identify_row(label, water, [p, *decays], truth)
+        row["files"] = [f"{lab}/{case.name}/{Path(f).name}" for f in row["files"]]
+        yield row
 
 
 def run(rows_path: str, sets: str, seeds: int, foreign: list[str], waters: tuple[str, ...] = tuple(WATERS)) -> None:
