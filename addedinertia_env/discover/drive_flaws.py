@@ -287,6 +287,10 @@ def backlash_fit(rec: RunRecord) -> dict[str, Any] | str:
 
     if rec.experiment.get("kind") != "reverse-symmetric":
         return "not a reverse-symmetric run"
+    if rec.known.gear_ratio <= 1.0:
+        # the gap is the gearbox's (run-record.md: a gearbox shows as rig.gear_ratio); on a direct drive a
+        # voltage residual at the reversals is the DAQ's (a current logged held-previous at 250 Hz made one)
+        return "no gearbox (rig.gear_ratio 1): no gear gap to cross"
     if "u" not in rec.samples:
         return "no voltage channel"
     try:

@@ -188,6 +188,8 @@ class MemoryData:
         self.free_s = 0.0
         self.releases = 0
         for k, s in enumerate(self.series):
+            if len(s.phi) < 2:
+                continue  # no rate to read: a record cut to one sample holds no free motion (it is not identifiable)
             w = np.gradient(s.phi, s.dt)
             step = max(1, int(round(row_step_s / s.dt)))
             n_win = max(2, int(round(window_s / s.dt)))

@@ -217,6 +217,7 @@ def evaluate(model, eval_env, eval_seed: int, n_episodes: int) -> dict[str, Any]
     rel = [r for r in rel_all if np.isfinite(r)]
     if rel_all:
         result["failed_estimates"] = len(rel_all) - len(rel)
+        result["failure_rate"] = result["failed_estimates"] / len(rel_all)  # as the periodic curve rows say it
     if rel:
         result["mean_abs_rel_error"] = float(np.mean(rel))
         result["median_abs_rel_error"] = float(np.median(rel))
