@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from addedinertia_env.identify.series_kernels import count_crossings
+from addedinertia_env.identify.series_kernels import count_crossings, twice_integrated
 from addedinertia_env.identify.fit_kernels import lstsq as rounded_lstsq
 
 
@@ -91,10 +91,8 @@ def released_fit(t: np.ndarray, phi: np.ndarray, k: int, span_s: float, q: float
     if not len(tau) or b - k < 2:
         return None
     s = t[k:b + 1] - t[k]
-    h = np.diff(s)
     f = np.asarray(torque[k:b + 1], dtype=float)
-    rate = np.concatenate([[0.0], np.cumsum(0.5 * h * (f[1:] + f[:-1]))])  # J x the hull's rate
-    G = np.concatenate([[0.0], np.cumsum(0.5 * h * (rate[1:] + rate[:-1]))])  # J x the angle moved
+    G = twice_integrated(f[None, :], 0.5 * np.diff(s))[0]  # J x the angle moved (trapezoid, twice)
     X = np.column_stack([np.ones(len(tau)), np.interp(tau, s, G)])
     coef, *_ = rounded_lstsq(X, levels, rcond=None)
     if not coef[1] > 0.0:

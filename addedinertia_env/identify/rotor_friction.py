@@ -68,9 +68,11 @@ def creep_rate_scale(t, psi, i, a: int, b: int, J_f: float, f_visc: float, f_cou
     w_flat, omega = W.ravel(), S.ravel().copy()
     angle = np.zeros((len(tau), len(w_flat)))
     h = np.diff(tau)
+
+    def slowing(o):  # the coast's deceleration, rad/s^2, for every (w, start) pair
+        return (f_visc * o + f_coul * np.tanh(o / w_flat)) / J_f
+
     for k in range(len(h)):  # midpoint steps of the coast (the rate only falls; it stops at zero)
-        def slowing(o):
-            return (f_visc * o + f_coul * np.tanh(o / w_flat)) / J_f
         mid = np.maximum(omega - 0.5 * h[k] * slowing(omega), 0.0)
         new = np.maximum(omega - h[k] * slowing(mid), 0.0)
         angle[k + 1] = angle[k] + 0.5 * h[k] * (omega + new)
