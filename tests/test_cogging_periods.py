@@ -79,8 +79,8 @@ def test_the_columns_are_the_twice_integrated_tapered_sines():
         m = n * 5.4
         seen = 1.0 / (1.0 + (m * dpsi * MIN_SAMPLES_PER_CYCLE / (2 * math.pi)) ** 8)
         scale = np.abs(twice(np.ones_like(psi))).max()
-        np.testing.assert_allclose(X[:, 2 * k], twice(seen * np.sin(m * psi)), rtol=0, atol=1e-11 * scale)
-        np.testing.assert_allclose(X[:, 2 * k + 1], twice(seen * np.cos(m * psi)), rtol=0, atol=1e-11 * scale)
+        np.testing.assert_allclose(X[:, k], twice(seen * np.sin(m * psi)), rtol=0, atol=1e-11 * scale)
+        np.testing.assert_allclose(X[:, len(ns) + k], twice(seen * np.cos(m * psi)), rtol=0, atol=1e-11 * scale)
         assert cycles[k] == pytest.approx(float(np.sum(m * dpsi * seen)) / (2 * math.pi), rel=1e-12)
 
 
@@ -91,10 +91,10 @@ def test_a_dependent_pair_falls_back_to_lstsq():
     rng = np.random.default_rng(4)
     u = rng.standard_normal(300)
     y = rng.standard_normal(300)
-    X = np.column_stack([u, 2 * u, u, rng.standard_normal(300)])
+    X = np.column_stack([u, u, 2 * u, rng.standard_normal(300)])  # pairs (columns k, K + k): (u, 2u), (u, noise)
     B = np.zeros((300, 0))
     d = _drops(X, B, y, np.array([0, 1]))
     assert d[0] == pytest.approx((u @ y) ** 2 / (u @ u), rel=1e-12)
-    C = X[:, 2:]
+    C = X[:, [1, 3]]
     f = C @ np.linalg.lstsq(C, y, rcond=None)[0]
     assert d[1] == pytest.approx(f @ f, rel=1e-10)

@@ -6,19 +6,19 @@ the flywheel), how much of the balance's residual ``y`` the pair of cogging colu
 ``Q``, to which ``y`` is orthogonal) are projected out of them: the drop ``|P y|^2``, ``P`` the
 projection onto the pair's span. For the null it asks the same of every other period once the best
 period's pair is projected out as well. The loop this replaces built each period's columns with
-its own numpy calls and ran a 2-column ``lstsq`` (LAPACK's SVD) per period, twice: ~55 CPU-ms of
+its own numpy calls and ran a 2-column ``lstsq`` (LAPACK's SVD) per period, twice: ~60 CPU-ms of
 a drive-v1 record's identification, once per episode of the drive trainer (learning/score_ars.py;
 docs/PERFORMANCE.md).
 
-Here one compiled pass over the samples builds every period's pair (columns ``2k``, ``2k + 1`` of
-an array (samples, 2 periods)): ``exp(i n N psi)`` by one complex product per period from the
-previous period's (so no sine per period and sample), the taper ``seen``, and the two trapezoid
-integrals, as the loop did. Another pass projects them and takes each pair's drop by Gram-Schmidt
-(``|u.y|^2 / u.u + |w.y|^2 / w.w``, ``w`` the part of the second column orthogonal to the first):
-the projection onto a 2-column span, exact in real arithmetic and equal to the SVD's to rounding
-where the pair is well conditioned. Where a pair is nearly dependent (``w.w`` below
-:data:`DEPENDENT` of the column's square, where the SVD's cut-off could drop a direction) that pair
-is fitted by ``np.linalg.lstsq`` as before.
+Here one compiled pass over the samples builds every period's pair (columns ``k`` and ``K + k`` of
+an array (samples, 2 K) for ``K`` periods): ``exp(i n N psi)`` by one complex product per period
+from the previous period's (so no sine per period and sample), the taper ``seen``, and the two
+trapezoid integrals, as the loop did. Another pass projects them and sums, per pair, ``u.u``,
+``u.v``, ``v.v``, ``u.y`` and ``v.y``; the drop follows by Gram-Schmidt,
+``(u.y)^2 / u.u + (w.y)^2 / w.w`` with ``w`` the part of ``v`` orthogonal to ``u``: the projection
+onto a 2-column span, exact in real arithmetic and equal to the SVD's to rounding where the pair is
+well conditioned. Where a pair is nearly dependent (``w.w`` below :data:`DEPENDENT` of ``v.v``: the
+sums would lose digits, and the SVD's cut-off could drop a direction) that pair is fitted by ``np.linalg.lstsq`` as before.
 
 The drops differ from the loop's at rounding level only (the recurrence's phase error is ~1e-13
 rad after 120 periods, below what ``m psi`` itself carries at thousands of rad), and only the
@@ -35,13 +35,15 @@ import math
 import numpy as np
 from numba import njit
 
-DEPENDENT = 1e-10  # w.w / v.v below which a pair goes to lstsq (sin^2 of the angle between its columns)
+# w.w / v.v (sin^2 of the angle between a pair's columns) below which the pair goes to lstsq: w.w is taken as
+# v.v - (u.v)^2 / u.u, which carries a relative error of about eps v.v / w.w, kept below ~1e-12 here
+DEPENDENT = 1e-4
 
 
 @njit(cache=True, error_model="numpy")
 def period_columns(psi, dpsi, gear_ratio, periods, half_dt, scale, samples_per_cycle):
-    """Every period's pair of columns, unprojected: ``out[:, 2k]`` = ``twice(seen sin(m psi)) / scale``,
-    ``out[:, 2k + 1]`` the same with ``cos`` (``periods`` consecutive integers, ``m = n gear_ratio``,
+    """Every period's pair of columns, unprojected: ``out[:, k]`` = ``twice(seen sin(m psi)) / scale``,
+    ``out[:, K + k]`` the same with ``cos`` (``K`` periods, consecutive integers ``n``; ``m = n gear_ratio``;
     ``twice`` the trapezoid integral of the trapezoid integral from 0, intervals ``2 half_dt``), and the
     seen cycles of each period, ``sum(m dpsi seen) / 2 pi``."""
     n = len(psi)
@@ -84,35 +86,26 @@ def period_columns(psi, dpsi, gear_ratio, periods, half_dt, scale, samples_per_c
             f_c[k] = fc
             x_s[k] = xs
             x_c[k] = xc
-            out[j, 2 * k] = s_s[k] / scale
-            out[j, 2 * k + 1] = s_c[k] / scale
+            out[j, k] = s_s[k] / scale
+            out[j, K + k] = s_c[k] / scale
     for k in range(K):
         cycles[k] /= two_pi
     return out, cycles
 
 
 @njit(cache=True, error_model="numpy")
-def _projected_row(X, B, A, j, row):
-    """Sample ``j`` of ``X``'s columns with ``B``'s span projected out (``A = B^T X``), into ``row``."""
-    c = X.shape[1]
-    for col in range(c):
-        row[col] = X[j, col]
-    for i in range(B.shape[1]):
-        b = B[j, i]
-        for col in range(c):
-            row[col] -= b * A[i, col]
-
-
-@njit(cache=True, error_model="numpy")
 def projected_pair_drops(X, B, y):
-    """Per pair ``k`` (columns ``2k``, ``2k + 1`` of ``X``): ``|P y|^2``, ``P`` the projection onto the span
-    of the pair with ``B``'s span (orthonormal columns) projected out; ``y`` orthogonal to ``B``. Also ``w.w / v.v`` (``v`` the second column projected, ``w`` its part orthogonal to the first):
-    where it is small the pair is nearly dependent (module doc)."""
+    """Per pair ``k`` (columns ``k`` and ``K + k`` of ``X``, ``K`` pairs): ``|P y|^2``, ``P`` the projection onto
+    the span of the pair with ``B``'s span (orthonormal columns) projected out; ``y`` orthogonal to ``B``. By
+    Gram-Schmidt on the pair's sums (``u.u``, ``u.v``, ``v.v``, ``u.y``, ``v.y`` of the projected columns), and
+    ``w.w / v.v`` (``w`` the part of ``v`` orthogonal to ``u``): where it is small the pair is nearly dependent
+    and the sums lose digits (module doc)."""
     n, c = X.shape
     K = c // 2
-    A = np.zeros((B.shape[1], c))
+    q = B.shape[1]
+    A = np.zeros((q, c))
     for j in range(n):
-        for i in range(B.shape[1]):
+        for i in range(q):
             b = B[j, i]
             for col in range(c):
                 A[i, col] += b * X[j, col]
@@ -120,27 +113,34 @@ def projected_pair_drops(X, B, y):
     uv = np.zeros(K)
     vv = np.zeros(K)
     uy = np.zeros(K)
+    vy = np.zeros(K)
     row = np.empty(c)
     for j in range(n):
-        _projected_row(X, B, A, j, row)
+        for col in range(c):
+            row[col] = X[j, col]
+        for i in range(q):
+            b = B[j, i]
+            for col in range(c):
+                row[col] -= b * A[i, col]
         yj = y[j]
         for k in range(K):
-            u, v = row[2 * k], row[2 * k + 1]
+            u = row[k]
+            v = row[K + k]
             uu[k] += u * u
             uv[k] += u * v
             vv[k] += v * v
             uy[k] += u * yj
+            vy[k] += v * yj
     r = uv / uu
-    ww = np.zeros(K)
-    wy = np.zeros(K)
-    for j in range(n):
-        _projected_row(X, B, A, j, row)
-        yj = y[j]
-        for k in range(K):
-            w = row[2 * k + 1] - r[k] * row[2 * k]
-            ww[k] += w * w
-            wy[k] += w * yj
+    ww = vv - r * uv
+    wy = vy - r * uy
     return uy * uy / uu + wy * wy / ww, ww / vv
+
+
+def _pair(X: np.ndarray, k: int) -> np.ndarray:
+    """Pair ``k``'s two columns (samples, 2) of an array laid out as :func:`period_columns` writes it."""
+    K = X.shape[1] // 2
+    return X[:, [k, K + k]]
 
 
 def _drops(X: np.ndarray, B: np.ndarray, y: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -150,7 +150,7 @@ def _drops(X: np.ndarray, B: np.ndarray, y: np.ndarray, rows: np.ndarray) -> np.
         drops, indep = projected_pair_drops(X, np.ascontiguousarray(B), np.ascontiguousarray(y))
     drops = drops[rows]
     for k in np.flatnonzero(~(np.isfinite(drops) & (indep[rows] > DEPENDENT))):
-        C = X[:, 2 * rows[k]:2 * rows[k] + 2]
+        C = _pair(X, rows[k])
         C = C - B @ (B.T @ C)
         c, *_ = np.linalg.lstsq(C, y, rcond=None)
         f = C @ c
@@ -179,7 +179,7 @@ class PeriodScan:
         of ``y`` (``energy_cogging.drops_beside``), in the periods' order."""
         k = self.periods.index(best)
         row = self.rows[k]
-        C = self.X[:, 2 * row:2 * row + 2]
+        C = _pair(self.X, row)
         Qb, _ = np.linalg.qr(C - self.Q @ (self.Q.T @ C))
         yb = self.y - Qb @ (Qb.T @ self.y)
         others = np.delete(self.rows, k)
