@@ -123,13 +123,16 @@ drive-policy: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.score_ars_curves --runs out/train/score-ars-$(DRIVE_SUITE) \
 	  out/train/score-ars-$(DRIVE_SUITE)-pid --figure docs/figures/learning_drive_ars.png --summary docs/figures/learning_drive_ars.json
 
-# docs/ENVIRONMENT.md's reward alignment on drive-v0, and docs/LEARNING.md's drive curves: the shipped
-# drive-v1 run (make drive-policy) beside a drive-v0 comparison run of the same trainer.
+# docs/ENVIRONMENT.md's reward alignment on drive-v0, and a drive-v0 comparison run of the same trainer
+# (docs/LEARNING.md, "Also tried earlier") with its curves beside the shipped drive-v1 run's (make drive-policy).
+# The comparison figure goes to out/figures: docs/figures/learning_drive_ars.png is drive-policy's (lqr and pid runs).
 docs-drive: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.reward_alignment --suite drive-v0 --scenarios 32 --json out/reward_alignment_drive-v0.json
 	nice -n 10 $(BIN)/python -m addedinertia_env.learning.score_ars --suite drive-v0 --seed 0 --cpu-minutes 4 --generations 200 \
 	  --validate 64 --out out/train/score-ars-drive-v0-s0
-	$(BIN)/python -m addedinertia_env.reports.score_ars_curves --runs out/train/score-ars-drive-v1 out/train/score-ars-drive-v0-s0 --figure docs/figures/learning_drive_ars.png --summary docs/figures/learning_drive_ars.json
+	mkdir -p out/figures
+	$(BIN)/python -m addedinertia_env.reports.score_ars_curves --runs out/train/score-ars-drive-v1 out/train/score-ars-drive-v0-s0 \
+	  --figure out/figures/learning_drive_ars_v1_v0.png --summary out/figures/learning_drive_ars_v1_v0.json
 
 accuracy-table: $(STAMP)
 	$(BIN)/python -m addedinertia_env.reports.accuracy_table --hulls 24 --out docs/ACCURACY.md

@@ -70,3 +70,29 @@ def test_an_exported_policy_runs_at_100_hz_on_its_base_and_matches_its_card(tmp_
     obs = np.random.default_rng(2).normal(size=(50, len(OBSERVATION_FIELDS))).astype(np.float32)
     np.testing.assert_allclose(policy.network(obs).reshape(-1), linear(obs), atol=1e-5)
     assert np.any(np.abs(linear(obs)) > 0.01)  # a real correction, not a constant
+
+
+def test_the_trainers_share_their_run_arguments_and_export_only_when_asked(tmp_path, capsys):
+    """add_run_arguments / export_and_report (ars_residual, score_ars): --out is required, --onnx optional;
+    the export runs and is reported only when --onnx is given."""
+    import argparse  # noqa: PLC0415
+
+    from addedinertia_env.learning.ars_residual import add_run_arguments, export_and_report  # noqa: PLC0415
+
+    parser = argparse.ArgumentParser()
+    add_run_arguments(parser)
+    args = parser.parse_args(["--out", str(tmp_path)])
+    assert args.out == tmp_path and args.onnx is None
+    with pytest.raises(SystemExit):
+        parser.parse_args([])
+    calls = []
+
+    def export(run, onnx):
+        calls.append((run, onnx))
+        return {"size_bytes": 12, "parity_max_abs_diff": 3e-8}
+
+    export_and_report(export, args.out, args.onnx)
+    assert calls == [] and capsys.readouterr().out == ""
+    export_and_report(export, args.out, tmp_path / "p.onnx")
+    assert calls == [(tmp_path, tmp_path / "p.onnx")]
+    assert capsys.readouterr().out == f"wrote {tmp_path / 'p.onnx'} (12 bytes, parity 3.00e-08)\n"

@@ -8,11 +8,12 @@ import json
 import pytest
 
 from addedinertia_env.cli import main
-from addedinertia_env.reports.perf import measure_batched, render_markdown
+from addedinertia_env.reports.perf import KEPT, measure_batched, render_markdown, with_kept_part
 
 
 def test_perf_json_has_the_contract_fields(capsys, tmp_path):
     out = tmp_path / "PERF.md"
+    out.write_text("an old report, replaced\n\n" + KEPT + "\n\n## A figure measured by hand (kept)\n")
     assert main(["perf", "--max-envs", "16", "--seconds", "0.01", "--repeats", "1", "--vector-envs", "4",
                  "--vector-steps", "120", "--vector-warmup", "2", "--vector-seconds", "0.2", "--vector-repeats", "2", "--json",
                  "--out", str(out)]) == 0
@@ -35,6 +36,7 @@ def test_perf_json_has_the_contract_fields(capsys, tmp_path):
     assert result["memory"]["bytes_per_env_arrays"] > 0
     assert result["machine"]["nproc"] >= 1 and result["machine"]["cpu"]
     text = out.read_text()
+    assert "an old report" not in text and text.endswith(KEPT + "\n\n## A figure measured by hand (kept)\n")
     assert "addedinertia perf" in text and result["machine"]["cpu"] in text and "GPU" in text
     if result["vector_workers"] > 1:  # the headline row (2 processes on a 2-core machine): the median of 2 runs
         head = result["vector_task"]["rows"][2]
@@ -96,3 +98,9 @@ def test_the_headline_is_the_median_run_and_keeps_every_run():
     assert row["tag"] == 2 and row["repeat_samples_per_s"] == [7.0, 9.0, 8.0]
     assert median_run(runs[:2])["tag"] == 0  # even count: the lower middle run, never the best
     assert "repeat_samples_per_s" not in runs[2]  # the runs themselves are left as they were
+
+
+def test_the_kept_part_follows_the_fresh_report_and_nothing_else_of_the_old_page():
+    assert with_kept_part("new\n", None) == "new\n"
+    assert with_kept_part("new\n", "old page without the marker\n") == "new\n"
+    assert with_kept_part("new\n\n", "old\n" + KEPT + "\nkept 1\nkept 2\n") == "new\n\n" + KEPT + "\nkept 1\nkept 2\n"

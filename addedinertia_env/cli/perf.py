@@ -35,7 +35,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run ``addedinertia perf`` with the parsed ``args``; measures steps per second of the single and the batched rig and prints the table (``--out``: writes it); returns 0; bad input raises (the caller, :func:`~addedinertia_env.cli.main`, turns it into one line and exit 2)."""
-    from addedinertia_env.reports.perf import plot_time_vs_n, render_markdown, run_perf  # noqa: PLC0415
+    from addedinertia_env.reports.perf import plot_time_vs_n, render_markdown, run_perf, with_kept_part  # noqa: PLC0415
 
     if not (0 < args.seconds <= 60):
         raise BadInput(f"--seconds {args.seconds!r}: expected a time in (0, 60] s")
@@ -75,7 +75,7 @@ def run(args) -> int:
             + ([f"--vector-workers {args.vector_workers}"] if args.vector_workers is not None else [])
             + [f"--out {args.out}"])
         text = render_markdown(result, command, os.path.relpath(fig, out.parent))
-        atomic_write_text(out, text)
+        atomic_write_text(out, with_kept_part(text, out.read_text() if out.is_file() else None))
         info(f"wrote {out} and {fig}")
     if args.json:
         emit_json(result)

@@ -49,6 +49,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from addedinertia_env.identify.cogging_periods import PeriodScan
 from addedinertia_env.identify.energy_gear import GearLoss
 from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE
 from addedinertia_env.identify.series_kernels import calibration_target, twice_integrated
@@ -134,7 +135,8 @@ def drops_beside(columns: dict, y: np.ndarray, best) -> list[float]:
     column pair) still gives once the ``best`` period's columns are projected out of them and of ``y``: what
     every other period fits of what the best one leaves, the null against which the best one must stand out.
     A real cogging leaks into every period (where the rotor creeps, every period's column is slow alike), so
-    the null is taken with it removed. Shared with discovery's cogging word (discover/drive_flaws.py)."""
+    the null is taken with it removed. Discovery's cogging word uses it (discover/drive_flaws.py); the fit
+below takes the same drops in one pass over every period (cogging_periods.PeriodScan.null_drops)."""
     Qb, _ = np.linalg.qr(columns[best])
     yb = y - Qb @ (Qb.T @ y)
     rest = []
@@ -181,21 +183,13 @@ def cogging_fit(t: np.ndarray, theta: np.ndarray, psi_s: np.ndarray, i: np.ndarr
     Q, _ = np.linalg.qr(base / np.linalg.norm(base, axis=0).clip(1e-300))
     y = target - Q @ (Q.T @ target)
     dpsi = np.abs(np.diff(psi, append=psi[-1]))
-    pairs, drops = {}, {}
-    for n in PERIODS:
-        m = n * gear_ratio
-        seen = _seen(m, dpsi)
-        if float(np.sum(m * dpsi * seen)) / (2 * math.pi) < MIN_CYCLES:
-            continue
-        C = np.column_stack([twice(seen * np.sin(m * psi)), twice(seen * np.cos(m * psi))])
-        C = C - Q @ (Q.T @ C)
-        c, *_ = np.linalg.lstsq(C, y, rcond=None)
-        f = C @ c
-        pairs[n], drops[n] = C, float(f @ f)
+    # every period in one pass (cogging_periods.py: a 2-column lstsq's drop per period, to rounding)
+    scan = PeriodScan(psi, dpsi, half, J_f, Q, y, gear_ratio, PERIODS, MIN_CYCLES, MIN_SAMPLES_PER_CYCLE)
+    drops = scan.drops
     if len(drops) < MIN_PERIODS_FOR_NULL:
         return None
     best = max(drops, key=drops.get)
-    rest = drops_beside(pairs, y, best)
+    rest = scan.null_drops(best)
     null = float(np.median(rest)) / (2.0 * math.log(2.0))  # the median of chi-square 2 is 2 ln 2
     ratio = drops[best] / max(null, 1e-300)
     threshold = float(chi2.isf(FALSE_ALARM / len(drops), 2))

@@ -296,6 +296,20 @@ def add_search_arguments(parser: argparse.ArgumentParser, *, suite: str, base: s
     parser.add_argument("--noise", type=float, default=noise)
 
 
+def add_run_arguments(parser: argparse.ArgumentParser) -> None:
+    """The run folder and the optional export, shared by the ARS trainers (this one and score_ars)."""
+    parser.add_argument("--out", type=Path, required=True, help="run folder (curve.jsonl, policy.npz, card)")
+    parser.add_argument("--onnx", type=Path, help="also export the final policy here (with its .json card)")
+
+
+def export_and_report(export, run: Path, onnx: Path | None) -> None:
+    """Where ``onnx`` is given, export ``run``'s policy there with the trainer's ``export(run, onnx) -> card``
+    and say what was written."""
+    if onnx:
+        card = export(run, onnx)
+        print(f"wrote {onnx} ({card['size_bytes']} bytes, parity {card['parity_max_abs_diff']:.2e})")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line: train one seed (and optionally export it); returns the exit status."""
     parser = argparse.ArgumentParser(prog="python -m addedinertia_env.learning.ars_residual",
@@ -305,17 +319,14 @@ def main(argv: list[str] | None = None) -> int:
                          top=2, noise=0.03)
     parser.add_argument("--cap", type=float, default=0.005, help="per-episode cost cap (relative, 0.005 = 0.5 %%)")
     parser.add_argument("--cpu-minutes", type=float, default=30.0, help="stop after this much CPU time")
-    parser.add_argument("--out", type=Path, required=True, help="run folder (curve.jsonl, policy.npz, card)")
-    parser.add_argument("--onnx", type=Path, help="also export the final policy here (with its .json card)")
+    add_run_arguments(parser)
     args = parser.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     train(args.out, suite_name=args.suite, base=args.base, seed=args.seed, scale=args.scale,
           generations=args.generations, scenarios=args.scenarios, directions=args.directions, top=args.top,
           step=args.step, noise=args.noise, cap=args.cap, cpu_minutes=args.cpu_minutes,
           log=lambda m: print(m, flush=True))
-    if args.onnx:
-        card = export_onnx(args.out, args.onnx)
-        print(f"wrote {args.onnx} ({card['size_bytes']} bytes, parity {card['parity_max_abs_diff']:.2e})")
+    export_and_report(export_onnx, args.out, args.onnx)
     return 0
 
 

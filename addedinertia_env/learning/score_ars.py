@@ -54,8 +54,8 @@ from addedinertia_env.bench.versions import row_fields as version_fields
 from addedinertia_env.sim.forces import gear_ratio
 from addedinertia_env.experiment.task import OBSERVATION_FIELDS
 from addedinertia_env.foundation.atomic import atomic_write_text
-from addedinertia_env.learning.ars_residual import (add_search_arguments, ars_step, base_factory, base_params,
-                                                    close_generation)
+from addedinertia_env.learning.ars_residual import (add_run_arguments, add_search_arguments, ars_step, base_factory,
+                                                    base_params, close_generation, export_and_report)
 from addedinertia_env.learning.paired_batch import run_batch
 
 CLIP_X = 5.0  # normalised observations are clipped to +-5
@@ -315,25 +315,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--action-limit", type=float, default=1.0,
                    help="the policy's own current limit, a fraction of i_max in (0, 1]: base + correction is clipped "
                         "to it (below 1: a margin from the drive's limit, where the energy method rejects samples)")
-    p.add_argument("--out", type=Path, required=True, help="run folder (curve.jsonl, policy.npz, card)")
-    p.add_argument("--onnx", type=Path, help="also export the final policy here (with its .json card)")
+    add_run_arguments(p)
     p.add_argument("--finish", action="store_true", help="do not train: validate the run in --out that was stopped "
                                                          "before its end (then export with --onnx)")
     args = p.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     if args.finish:
         finish(args.out, validate=args.validate, log=lambda m: print(m, flush=True))
-        if args.onnx:
-            card = export_onnx(args.out, args.onnx)
-            print(f"wrote {args.onnx} ({card['size_bytes']} bytes, parity {card['parity_max_abs_diff']:.2e})")
+        export_and_report(export_onnx, args.out, args.onnx)
         return 0
     train(args.out, suite_name=args.suite, base=args.base, seed=args.seed, scale=args.scale,
           generations=args.generations, scenarios=args.scenarios, directions=args.directions, top=args.top,
           step=args.step, noise=args.noise, cpu_minutes=args.cpu_minutes, action_repeat=args.action_repeat,
           validate=args.validate, action_limit=args.action_limit, log=lambda m: print(m, flush=True))
-    if args.onnx:
-        card = export_onnx(args.out, args.onnx)
-        print(f"wrote {args.onnx} ({card['size_bytes']} bytes, parity {card['parity_max_abs_diff']:.2e})")
+    export_and_report(export_onnx, args.out, args.onnx)
     return 0
 
 

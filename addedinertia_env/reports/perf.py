@@ -175,6 +175,17 @@ def _time_shares(shares: list[dict[str, float]]) -> str:
     return ", ".join(f"{k} " + " / ".join(f"{100 * sh.get(k, 0.0):.0f}" for sh in shares) + " %" for k in names)
 
 
+KEPT = "<!-- kept below: written by hand, not by `addedinertia perf`, which keeps it when it rewrites the page -->"
+
+
+def with_kept_part(text: str, old: str | None) -> str:
+    """``text`` (a fresh report) followed by what ``old`` (the page it replaces, None if none) holds from the
+    marker :data:`KEPT` on: the measured figures other commands made, with their commands."""
+    if not old or KEPT not in old:
+        return text
+    return text.rstrip("\n") + "\n\n" + old[old.index(KEPT):]
+
+
 def render_markdown(result: dict[str, Any], command: str, figure: str | None) -> str:
     """docs/PERFORMANCE.md from a :func:`run_perf` result: the machine and what a step is, the headline
     figures, how time grows with n (``figure``: the plot's path, or None), the whole task when it was
