@@ -48,6 +48,9 @@ def test_drive_v2_tuned_gains_load_for_every_classical_entry(controller):
     ("loop: {link_delay_s: 0.01}", "loop.link_delay_s"),
     ("drive: {supply: [12, 24]}", "drive.supply = 12: missing unit"),
     ("drive: {supply: ['5 V', '7 V']}", "expected more than R i_max = 7.5 V"),
+    # a range that reaches below R i_max is refused when loaded, not on the first seed that draws there
+    ("drive: {supply: ['6 V', '12 V']}", "drive.supply = 6 V at its low end: expected more than R i_max = 7.5 V"),
+    ("drive: {supply: ['9 V', '12 V']}\nmotor: {i_max: [10.0, 20.0]}", "R i_max = 10 V"),
 ])
 def test_a_bad_supply_or_link_block_is_refused_by_name(tmp_path, block, words):
     path = tmp_path / "bad-drive.yaml"
