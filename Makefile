@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: interval-table pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive tune-hard hard-policy hard-policy-dagger drive-policy docs-drive demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
+.PHONY: interval-table pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive leaderboard-drive-v2 tune-drive-v2 tune-hard hard-policy hard-policy-dagger drive-policy docs-drive demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -186,6 +186,20 @@ tune-drive: $(STAMP)
 	  $(BIN)/addedinertia bench tune --suite drive-v1 --controller $$c --candidates 8 --scenarios 8 --seed 0 \
 	    --jobs $(BENCH_JOBS) --no-progress || exit 1; \
 	done
+
+# docs/LEADERBOARD_drive-v2.md: drive-v2, drive-v1's drive on a 12-24 V supply behind a 1-16 ms link
+# (configs/suites/drive-v2.yaml, docs/DRIVE.md "drive-v2"); `make tune-drive-v2` first (same budget as
+# tune-drive: 8 candidates x 8 tuning scenarios, configs/controllers/tuned-drive-v2.yaml).
+DRIVE_V2_CONTROLLERS ?= oracle zero pd pid lqr feedforward-pd drive-aware backlash-inversion pid-antiwindup cogging-ff
+tune-drive-v2: $(STAMP)
+	for c in $(DRIVE_TUNED); do \
+	  $(BIN)/addedinertia bench tune --suite drive-v2 --controller $$c --candidates 8 --scenarios 8 --seed 0 \
+	    --jobs $(BENCH_JOBS) --no-progress || exit 1; \
+	done
+leaderboard-drive-v2:
+	$(MAKE) leaderboard BENCH_SUITE=drive-v2 LEADERBOARD_DOC=docs/LEADERBOARD_drive-v2.md \
+	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v2.html LEARNED_POLICIES= \
+	  BENCH_CONTROLLERS="$(DRIVE_V2_CONTROLLERS)"
 
 # Re-tune every classical controller on hard-v0's tuning split with one budget
 # (configs/controllers/tuned-hard-v0.yaml; about 25 min on 2 shared cores).

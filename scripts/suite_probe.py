@@ -38,7 +38,7 @@ def main() -> None:
     """Run the probe; print one JSON row per episode."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("suite")
-    ap.add_argument("--split", default="tuning")
+    ap.add_argument("--split", default="tuning", help="tuning, test, or train (seeds outside both)")
     ap.add_argument("--first", type=int, default=0, help="index of the first scenario of the split")
     ap.add_argument("--count", type=int, default=4)
     ap.add_argument("--jobs", type=int, default=1)
@@ -47,7 +47,10 @@ def main() -> None:
                     help="drive flaws switched off in every scenario")
     a = ap.parse_args()
     suite = load_suite(a.suite)
-    scenarios = suite.scenarios(a.split)[a.first:a.first + a.count]
+    if a.split == "train":  # seeds outside both splits (suite.split_seed): never a tuning or test scenario
+        scenarios = [suite.scenario(suite.split_seed("train", k)) for k in range(a.first, a.first + a.count)]
+    else:
+        scenarios = suite.scenarios(a.split)[a.first:a.first + a.count]
     tasks = []
     for sc in scenarios:
         sc = without(sc, a.without)

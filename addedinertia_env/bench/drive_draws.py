@@ -78,3 +78,26 @@ def apply_drive(scenario, spec: dict[str, tuple[float, float]]):
             raise ValueError(f"drive.supply {supply:g} V: expected more than R i_max = {motor.R * motor.i_max:g} V")
         motor = dataclasses.replace(motor, u_max=supply)
     return dataclasses.replace(scenario, rig=rig.replace(drive=drive, motor=motor))
+
+
+def check_supply_floor(spec: dict[str, tuple[float, float]], motor_block: dict[str, Any], presets, path: Path) -> None:
+    """Refuse, when the suite is loaded, a ``drive.supply`` range whose low end cannot drive the current
+    limit through the winding at rest (``R i_max`` of each preset, with the suite's ``motor`` overrides at
+    their largest), rather than on the first seed that draws it; ConfigError naming ``path`` and the key."""
+    if "supply" not in spec:
+        return
+    from addedinertia_env.sim.presets import load_preset, rig_from_mapping  # noqa: PLC0415
+
+    low = spec["supply"][0]
+
+    def largest(key: str, default: float) -> float:
+        v = motor_block.get(key, default)
+        return float(max(v)) if isinstance(v, list) else float(v)
+
+    for preset in presets:
+        motor = rig_from_mapping(load_preset(preset)).motor
+        floor = largest("R", motor.R) * largest("i_max", motor.i_max)
+        if not low > floor:
+            raise ConfigError(f"{path}: drive.supply = {low:g} V at its low end: expected more than R i_max = "
+                              f"{floor:g} V on preset {preset!r} (the voltage that drives the current limit "
+                              "through the winding with the flywheel at rest)")

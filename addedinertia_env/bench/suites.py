@@ -39,6 +39,7 @@ from addedinertia_env.foundation.config_io import check_keys, read_yaml
 from addedinertia_env.sim.presets import CONFIG_DIR, ConfigError, config_path
 from addedinertia_env.experiment.scenarios import RANGE_KEYS, Scenario, load_ranges, make_scenario
 from addedinertia_env.bench.scenario_draws import apply_extras, validate_extras
+from addedinertia_env.bench.drive_draws import check_supply_floor
 
 SUITE_DIR = CONFIG_DIR / "suites"
 SUITE_KEYS = {"name", "description", "presets", "ranges", "fixed", "splits", "effects", "loop", "motor", "cycles",
@@ -201,6 +202,7 @@ def load_suite(name: str) -> Suite:
     if ranked not in RANKED_SCORES:
         raise ConfigError(f"{path}: ranked = {ranked!r}; expected one of {', '.join(RANKED_SCORES)}")
     extras = validate_extras(data, path)
+    check_supply_floor(extras["drive"], extras["motor"], presets, path)
     extras = {k: v for k, v in extras.items() if v}
     suite = Suite(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
                   presets=tuple(presets), ranges=ranges, fixed=dict(fixed), splits=splits, extras=extras,
