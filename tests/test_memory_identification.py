@@ -152,6 +152,33 @@ def test_a66_inf_interval_holds_the_jackknife_over_starts_from_rest():
     assert lo <= 7.0 <= hi
 
 
+def test_a66_zero_interval_holds_the_stratified_jackknife_over_stretches_of_one_kind():
+    # A66(0)'s interval is at least the reported family's stratified jackknife over the stretches of free motion
+    # (t with its degrees of freedom); three decays are three stretches of one kind (2 degrees of freedom), and a
+    # reverse run's two strokes would be two kinds: a lone stretch of a kind gives no spread and no freedom
+    from addedinertia_env.identify.cluster_jackknife import stratified_jackknife, t95
+    from addedinertia_env.identify.memory import MemoryData, jackknife_a_zero, jackknife_refits
+
+    kernel = kernel_first_order(5.0, 0.25)
+    recs = [synthetic_record(7.0, kernel, phi0=a, seed=k, name=f"r{k}", hold=h)
+            for k, (a, h) in enumerate(((0.1, 0.3), (0.06, 0.5), (0.08, 0.2)))]
+    data = MemoryData(recs)
+    assert data.stretch_kinds() == [("free-decay", 0)] * 3
+    got = identify_memory(recs, families={"r1": ("r",), "c1": ("c",)})
+    assert got.identified and got.best.family == "r1"
+    refits = jackknife_refits(data, got.best, got.swing_omega)
+    assert sorted(refits) == [0, 1, 2]
+    sd, dof = jackknife_a_zero(data, refits)
+    assert dof == 2 and sd == pytest.approx(stratified_jackknife([refits[k][1] for k in range(3)], ["d"] * 3)[0])
+    assert got.best.sigma["A66_zero_jackknife"] == pytest.approx(sd, rel=1e-9) and 0.0 < sd < 0.5
+    lo, hi = got.ci95["A66_zero"]
+    assert lo <= got.A_zero - t95(2) * sd * (1 - 1e-12) and hi >= got.A_zero + t95(2) * sd * (1 - 1e-12)
+    assert lo <= 12.0 <= hi  # A66(0) = A66(inf) + d_a
+    # one decay alone: no kind with two stretches, so no jackknife and the families' interval as it was
+    one = identify_memory(recs[:1], families={"r1": ("r",), "c1": ("c",)})
+    assert "A66_zero_jackknife" not in one.best.sigma
+
+
 def test_model_averaged_interval_is_narrower_than_the_union_and_covers():
     # three decays of first-order water, every family searched: the Akaike-weighted mixture of the families'
     # A66(0) is narrower than the union over the families within the old residual tolerance, and holds A66(0)
