@@ -43,3 +43,16 @@ def test_no_stratum_of_two_gives_no_estimate_and_bad_input_is_refused():
     with pytest.raises(ValueError, match="dof"):
         t95(0)
     assert t95(2) == pytest.approx(4.302653, rel=1e-6)
+
+
+def test_the_corrected_balance_is_a_check_not_a_floor():
+    # the reported A66(0) keeps the memory fit's own interval however far the corrected balance reads; their
+    # difference is reported over the two half-widths together (1.96: the intervals just agree at 95 %)
+    from addedinertia_env.identify.memory_energy import balance_check, combine
+
+    value, ci = combine(10.30, (10.28, 10.32), 10.00, (9.99, 10.02))
+    assert value == 10.00 and ci == (9.99, 10.02)
+    check = balance_check(10.30, (10.28, 10.32), 10.00, (9.99, 10.02))
+    assert check["difference"] == pytest.approx(0.30)
+    assert check["z"] == pytest.approx(0.30 / (math.hypot(0.02, 0.02) / 1.959963984540054))
+    assert balance_check(10.0, (9.9, 10.1), 10.0, (9.9, 10.1))["z"] == 0.0
