@@ -90,7 +90,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", required=True, type=Path)
     ap.add_argument("--seeds", type=int, default=13, help="the last drawn hull's seed")
-    ap.add_argument("--first", type=int, default=1, help="the first drawn hull's seed (14: the hulls drawn after the rule was chosen)")
+    ap.add_argument("--first", type=int, default=1,
+                    help="the first drawn hull's seed (14: the hulls drawn after the rule was chosen)")
     ap.add_argument("--foreign", action="append", default=[])
     args = ap.parse_args()
     err, half = [], {r: [] for r in RULES}

@@ -12,9 +12,10 @@ The jackknife needs the clusters it leaves out to be *exchangeable*: repeats of 
 A hull's stretches are not all alike (a free decay's long swing, the stroke after a reverse run's release
 from its hold, the stroke after the brake lets go at rest: each informs the memory model at other
 frequencies), and leaving out the one decay of a set refits a different experiment, not a resample of the
-same one (it moved A66(0) by 1-11 % on drawn hulls whose error is 0.03-0.06 %). So the clusters are grouped
-into strata of one kind each, and the variance is the stratified jackknife's (Wolter 2007, *Introduction to
-Variance Estimation*, 2nd ed., section 4.5; Kish & Frankel 1974, JRSS B 36: 1-37):
+same one (it moved A66(0) by 0.7-11 % on 8 of 25 drawn hulls whose errors are at most 0.13 %). So the
+clusters are grouped into strata of one kind each, and the variance is the stratified jackknife's
+(Wolter 2007, *Introduction to Variance Estimation*, 2nd ed., section 4.5; Kish & Frankel 1974, JRSS B 36:
+1-37):
 
     v = sum_h (n_h - 1) / n_h  sum_{i in h} (x_(hi) - mean_h)^2,
 

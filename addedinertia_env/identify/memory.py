@@ -211,7 +211,8 @@ class MemoryData:
                 if b - a < n_win // 3:
                     continue
                 n_segments += 1
-                self._stretch_kinds.append((_record_kind(records[k]), sum(1 for kk in self._stretch_kinds_series if kk == k)))
+                place = sum(1 for kk in self._stretch_kinds_series if kk == k)  # the record's stretches before it
+                self._stretch_kinds.append((_record_kind(records[k]), place))
                 self._stretch_kinds_series.append(k)
                 self.free_s += (b - a) * s.dt
                 for a0 in range(a, b - n_win // 3, n_win):
