@@ -18,7 +18,7 @@ same fits, and each rule's coverage and ratio (median half-width / median |error
 
     python scripts/memory_width_study.py --sets SETS --foreign PATH/foreign-lab-2.tar.xz [--seeds 13] [--first 1]
 
-The truth (the records' ``truth`` block, the lab's ``answers.json``) is read to score only. About 3 CPU-s a run.
+The truth (the records' ``truth`` block, the lab's ``answers.json``) is read to score only. About 10 CPU-s a run.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from addedinertia_env.identify import identify
 from addedinertia_env.identify.cluster_jackknife import t95
 from addedinertia_env.identify.memory import (FAMILY_RSS_TOLERANCE, Z95, MemoryData, family_intervals, identify_memory,
                                               jackknife_refits)
-from addedinertia_env.identify.model_average import mixture_interval
+from addedinertia_env.identify.memory_energy import corrected_energy
 from addedinertia_env.records.record import read_record
 from addedinertia_env.reports.interval_calibration import lab_reverse_runs
 
@@ -47,10 +47,12 @@ def half_widths(files: list[Path]) -> dict | None:
     mem = identify_memory(recs)
     if not mem.identified:
         return None
-    res = identify(recs, "energy", memory=True)
-    ec = res.details.get("lambda66_energy_corrected")
-    if ec is None:
+    # the corrected balance as identify makes it (memory_energy.with_memory), from this one memory fit
+    reverse = [r for r in recs if r.experiment.get("kind") != "free-decay"]
+    corrected = corrected_energy(reverse, identify(reverse, "energy", memory="off").details, mem)
+    if corrected is None:
         return None
+    ec, (lo_e, hi_e) = corrected.value, corrected.ci95
     v = mem.A_zero
     passive = [f for f in mem.fits if f.passive]
     kept = [f for f in passive if f.rss <= FAMILY_RSS_TOLERANCE * min(g.rss for g in passive)]
@@ -63,7 +65,6 @@ def half_widths(files: list[Path]) -> dict | None:
     plain = np.array([q[1] for q in refits.values()])
     g = len(plain)
     h_plain = t95(g - 1) * math.sqrt((g - 1) / g * np.sum((plain - plain.mean()) ** 2)) if g >= 3 else 0.0
-    lo_e, hi_e = res.details["lambda66_energy_corrected_ci95"]
     h_e, d = max(ec - lo_e, hi_e - ec), abs(ec - v)
     return {"value": v, "half": {"union+floor": max(h_union, 0.5 * Z95 * d), "mixture+floor": max(h_mix, 0.5 * Z95 * d),
                                  "mixture": h_mix,
