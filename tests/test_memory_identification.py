@@ -179,6 +179,23 @@ def test_a66_zero_interval_holds_the_stratified_jackknife_over_stretches_of_one_
     assert "A66_zero_jackknife" not in one.best.sigma
 
 
+def test_a66_zero_interval_is_never_narrower_than_the_fits_resolution(monkeypatch):
+    # on records without noise every variance estimate vanishes; A66(0)'s interval is still at least +- RESOLUTION
+    # of the memory's part of A66(0) (docs/INTERVALS.md, session 12). Made to bind here by a larger share.
+    from addedinertia_env.identify import memory
+
+    assert 0.0 < memory.RESOLUTION < 1e-4  # a resolution, not a width: it binds only on noise-free records
+    kernel = kernel_first_order(5.0, 0.25)
+    recs = [synthetic_record(7.0, kernel, phi0=a, seed=k, name=f"r{k}", hold=h)
+            for k, (a, h) in enumerate(((0.1, 0.3), (0.06, 0.5), (0.08, 0.2)))]
+    monkeypatch.setattr(memory, "RESOLUTION", 0.2)
+    got = identify_memory(recs, families={"r1": ("r",)})
+    assert got.identified
+    res = 0.2 * (got.A_zero - got.A_inf)
+    assert res > 0.5  # kg m^2: wider than any other part of this interval
+    assert got.ci95["A66_zero"] == pytest.approx((got.A_zero - res, got.A_zero + res), rel=1e-12)
+
+
 def test_model_averaged_interval_is_narrower_than_the_union_and_covers():
     # three decays of first-order water, every family searched: the Akaike-weighted mixture of the families'
     # A66(0) is narrower than the union over the families within the old residual tolerance, and holds A66(0)

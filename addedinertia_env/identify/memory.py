@@ -86,6 +86,12 @@ ROW_STEP_S = 0.02  # s: one equation row every 20 ms (the integral form is smoot
 MEMORY_RSS_RATIO = 0.05  # memory declared when a passive model leaves < 5 % of the memory-free residual
 FAMILY_RSS_TOLERANCE = 1.25  # the reported family: the simplest within 25 % of the best residual
 MIN_FAMILY_WEIGHT = 1e-3  # families with a smaller Akaike weight are left out of the average (and its corrections)
+# The memory fit's own resolution, as a share of the memory's part of A66(0) (A66(0) - A66(inf)): on records
+# without noise every variance estimate vanishes, and what is left is the fit's discretisation against the
+# water's (Tustin sections, the Hann smoothing). Measured on the noise-free drawn hulls of the interval calibration
+# (docs/INTERVALS.md, session 12): errors of 2-6 parts per million of A66(0), up to 1.2e-5 of its memory part;
+# A66(0)'s interval is never narrower than +- this share of it.
+RESOLUTION = 2e-5
 MIN_STRETCHES = 3  # stretches of free motion needed to estimate the memory model's error from the records
 PASSIVE_GAP = 2.0  # a non-passive fit better than this many times the best passive one: memory not pinned down
 PASSIVITY_TOLERANCE = 0.02  # min Re K(jw) >= -2 % of max |Re K(jw)| on the grid (fit noise)
@@ -935,6 +941,9 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
         ci["A66_zero"] = (min(lo, best.A_zero - half), max(hi, best.A_zero + half))
         best.sigma["A66_zero_jackknife"] = jack0
         best.sigma["A66_zero_jackknife_dof"] = float(dof0)
+    res = RESOLUTION * abs(best.A_zero - best.A_inf)  # the fit's own resolution (noise-free records)
+    lo, hi = ci["A66_zero"]
+    ci["A66_zero"] = (min(lo, best.A_zero - res), max(hi, best.A_zero + res))
     if math.isfinite(jack):
         half = _t95(data.n_segments) * jack / best.A_inf
         lo, hi = ci["A66_inf"]
