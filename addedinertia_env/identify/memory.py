@@ -86,6 +86,12 @@ ROW_STEP_S = 0.02  # s: one equation row every 20 ms (the integral form is smoot
 MEMORY_RSS_RATIO = 0.05  # memory declared when a passive model leaves < 5 % of the memory-free residual
 FAMILY_RSS_TOLERANCE = 1.25  # the reported family: the simplest within 25 % of the best residual
 MIN_FAMILY_WEIGHT = 1e-3  # families with a smaller Akaike weight are left out of the average (and its corrections)
+# The memory fit's own resolution, as a share of the memory's part of A66(0) (A66(0) - A66(inf)): on records
+# without noise every variance estimate vanishes, and what is left is the fit's discretisation against the
+# water's (Tustin sections, the Hann smoothing). Measured on the noise-free drawn hulls of the interval calibration
+# (docs/INTERVALS.md, session 12): errors of 2-6 parts per million of A66(0), up to 1.2e-5 of its memory part;
+# A66(0)'s interval is never narrower than +- this share of it.
+RESOLUTION = 2e-5
 MIN_STRETCHES = 3  # stretches of free motion needed to estimate the memory model's error from the records
 PASSIVE_GAP = 2.0  # a non-passive fit better than this many times the best passive one: memory not pinned down
 PASSIVITY_TOLERANCE = 0.02  # min Re K(jw) >= -2 % of max |Re K(jw)| on the grid (fit noise)
@@ -138,6 +144,15 @@ def _series(rec: RunRecord) -> _Series:
                    known.J_hull, known.J_flywheel, known.c_torsion, known.phi_neutral)
 
 
+def _record_kind(rec: RunRecord) -> str:
+    """The kind of run a record is, for grouping its stretches of free motion: the experiment's ``kind`` where the
+    record states it, else ``reverse-symmetric`` where a reverse stroke is in its phases, else ``free-decay``."""
+    kind = (rec.meta.get("experiment") or {}).get("kind") if isinstance(rec.meta, dict) else None
+    if isinstance(kind, str) and kind:
+        return kind
+    return "reverse-symmetric" if "reverse" in set(np.asarray(rec.phase).astype(str)) else "free-decay"
+
+
 SMOOTH_HALF = 10  # samples: half-width of the Hann smoothing applied to phi and psi before the equation
 
 
@@ -185,6 +200,8 @@ class MemoryData:
         base, ys, stiff = [], [], []
         segment_of_window: list[int] = []  # which stretch of free motion (a start from rest, mostly) each window is in
         n_segments = 0
+        self._stretch_kinds: list[tuple[str, int]] = []  # (its record's kind, its place in the record) per stretch
+        self._stretch_kinds_series: list[int] = []
         self.free_s = 0.0
         self.releases = 0
         for k, s in enumerate(self.series):
@@ -200,6 +217,9 @@ class MemoryData:
                 if b - a < n_win // 3:
                     continue
                 n_segments += 1
+                place = sum(1 for kk in self._stretch_kinds_series if kk == k)  # the record's stretches before it
+                self._stretch_kinds.append((_record_kind(records[k]), place))
+                self._stretch_kinds_series.append(k)
                 self.free_s += (b - a) * s.dt
                 for a0 in range(a, b - n_win // 3, n_win):
                     b0 = min(a0 + n_win, b)
@@ -315,6 +335,12 @@ class MemoryData:
         out.Q, _ = np.linalg.qr(out.X / out.scale)
         out.Yp = out.Y - out.Q @ (out.Q.T @ out.Y)
         return out
+
+    def stretch_kinds(self) -> list[tuple[str, int]]:
+        """Each stretch of free motion's kind: its record's kind (:func:`_record_kind`) and its place among that
+        record's stretches (a reverse run's first is the stroke after the release from the hold, its second the
+        stroke after the brake lets go at rest). Stretches of one kind are repeats of one measurement."""
+        return list(self._stretch_kinds)
 
     @property
     def segment_of_row(self) -> np.ndarray:
@@ -592,18 +618,18 @@ def fit_family(data: MemoryData, name: str, kinds: tuple[str, ...], swing_omega:
                      T @ V[:n_mem, :n_mem] @ T.T, strict, best.x.copy(), pole_sigma)
 
 
-def jackknife_a_inf(data: MemoryData, fit: FamilyFit) -> float:
-    """The jackknife standard deviation of ``fit``'s A66(inf) over the stretches of free motion (each left out in
-    turn, the family's poles searched again from its own): A66(inf) is carried by the instants after each start from
-    rest, and a bias the noise leaves in the pole positions moves with the stretches; nan with fewer than 3."""
+def jackknife_refits(data: MemoryData, fit: FamilyFit, swing_omega: float = 1.0) -> dict[int, np.ndarray]:
+    """``fit``'s family refitted without each stretch of free motion in turn (its poles searched again from its
+    own): ``{stretch: (A66(inf), A66(0), A66 at swing_omega)}`` for every stretch whose refit converged (none with
+    fewer than 3 stretches)."""
     from scipy.optimize import least_squares  # noqa: PLC0415
 
     g = data.n_segments
     if g < 3 or fit.x is None:
-        return math.nan
+        return {}
     kinds = tuple(sec[0] for sec in fit.sections)
     lb, ub = _bounds(kinds)
-    values = []
+    out = {}
     for k in range(g):
         sub_data = data.without_segment(k)
         if sub_data.n_windows < 2:
@@ -611,15 +637,38 @@ def jackknife_a_inf(data: MemoryData, fit: FamilyFit) -> float:
         try:
             r = least_squares(lambda x: sub_data.projected_residual(_unpack(kinds, x), fit.strict),
                               np.clip(fit.x, lb, ub), bounds=(lb, ub), **POLE_SEARCH)
-            coef, _, _ = sub_data.solve(_unpack(kinds, r.x), fit.strict)
+            sections = _unpack(kinds, r.x)
+            coef, _, _ = sub_data.solve(sections, fit.strict)
         except (ValueError, np.linalg.LinAlgError):
             continue
-        n_mem = len(coef) - sub_data.X.shape[1]
-        values.append(float(coef[n_mem]))  # A66(inf): the first base coefficient after the memory's
-    if len(values) < 3:
+        out[k] = _quantities(sections, coef, swing_omega, fit.strict) @ coef
+    return out
+
+
+def jackknife_a_inf(data: MemoryData, fit: FamilyFit, refits: dict[int, np.ndarray] | None = None) -> float:
+    """The jackknife standard deviation of ``fit``'s A66(inf) over the stretches of free motion (each left out in
+    turn, the family's poles searched again from its own): A66(inf) is carried by the instants after each start from
+    rest, and a bias the noise leaves in the pole positions moves with the stretches; nan with fewer than 3.
+    ``refits``: :func:`jackknife_refits`' (computed when not given)."""
+    refits = jackknife_refits(data, fit) if refits is None else refits
+    if len(refits) < 3:
         return math.nan
-    v = np.asarray(values)
+    v = np.array([q[0] for q in refits.values()])  # A66(inf)
     return float(math.sqrt((len(v) - 1) / len(v) * np.sum((v - v.mean()) ** 2)))
+
+
+def jackknife_a_zero(data: MemoryData, refits: dict[int, np.ndarray]) -> tuple[float, int]:
+    """The stratified jackknife standard deviation of A66(0) over the stretches of free motion and its degrees of
+    freedom (:func:`~addedinertia_env.identify.cluster_jackknife.stratified_jackknife`): each stretch's stratum is
+    its kind (:meth:`MemoryData.stretch_kinds`), since only stretches of one kind are repeats of one measurement;
+    ``(nan, 0)`` where no kind has two stretches refitted."""
+    from addedinertia_env.identify.cluster_jackknife import stratified_jackknife  # noqa: PLC0415
+
+    kinds = data.stretch_kinds()
+    ks = sorted(refits)
+    if len(ks) < 2:
+        return math.nan, 0
+    return stratified_jackknife([float(refits[k][1]) for k in ks], [kinds[k] for k in ks])
 
 
 def _refit_rss(data: MemoryData, fit: FamilyFit) -> float:
@@ -879,7 +928,22 @@ def identify_memory(records: list[RunRecord], families: dict[str, tuple[str, ...
     ci = family_intervals(best, accepted, weight, data.n_segments)
     # A66(inf) also within the reported family's jackknife over the starts from rest (t with g - 1 dof), on the
     # log scale as the families' mixture
-    jack = jackknife_a_inf(data, best)
+    refits = jackknife_refits(data, best, w_s)
+    jack = jackknife_a_inf(data, best, refits)
+    # A66(0) also within the reported family's stratified jackknife over the stretches of one kind (t with its
+    # degrees of freedom): the reported value's own sampling error, read from its refits (docs/INTERVALS.md)
+    jack0, dof0 = jackknife_a_zero(data, refits)
+    if math.isfinite(jack0) and dof0 >= 1:
+        from addedinertia_env.identify.cluster_jackknife import t95  # noqa: PLC0415
+
+        half = t95(dof0) * jack0
+        lo, hi = ci["A66_zero"]
+        ci["A66_zero"] = (min(lo, best.A_zero - half), max(hi, best.A_zero + half))
+        best.sigma["A66_zero_jackknife"] = jack0
+        best.sigma["A66_zero_jackknife_dof"] = float(dof0)
+    res = RESOLUTION * abs(best.A_zero - best.A_inf)  # the fit's own resolution (noise-free records)
+    lo, hi = ci["A66_zero"]
+    ci["A66_zero"] = (min(lo, best.A_zero - res), max(hi, best.A_zero + res))
     if math.isfinite(jack):
         half = _t95(data.n_segments) * jack / best.A_inf
         lo, hi = ci["A66_inf"]
