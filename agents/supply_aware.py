@@ -15,9 +15,11 @@ sample of the stroke bounds the pre-spin ``Omega_0`` to an interval::
 (``h(t)`` the flywheel's change of rate the plan implies, ``m`` = :attr:`margin` the share of
 the supply the plan may use; the rest is the feedback's). The entry takes the pre-spin of
 :class:`~agents.feedforward_pd.FeedforwardPD` scaled by ``prespin_fraction`` (1: the symmetric
-one) and moves it into the intersection of these intervals; where the intersection is empty
-(the stroke's swing needs more than the supply's room) it takes the pre-spin that minimises the
-plan's peak ``|u|`` (the middle of the two binding bounds), which is never worse than no pre-spin.
+one) where it lies in the intersection of these intervals; where it does not, the pre-spin that
+minimises the plan's peak ``|u|`` (the middle of the two binding bounds: the middle of the
+intersection where there is one, so the most room on both sides for what the plan does not predict;
+where the stroke's swing needs more than the supply's room, the least excess), which is never worse
+than no pre-spin.
 :class:`~agents.drive_aware.DriveAwarePD` cuts instead on ``R i_max`` throughout and breaks when
 the swing exceeds the room (docs/DRIVE.md, drive-v2).
 
@@ -54,16 +56,17 @@ def stroke_plan(context: ControllerContext, J: float, n: int = 400) -> tuple[np.
 
 
 def plan_prespin(i: np.ndarray, h: np.ndarray, R: float, k_t: float, u_limit: float, target: float) -> float:
-    """The pre-spin (rad/s) nearest ``target`` that keeps ``|R i + k_t (Omega_0 + h)| <= u_limit`` at every
-    sample of the plan (the rest before the stroke included, ``i = h = 0``); where no pre-spin does, the one
-    that minimises the plan's peak ``|u|``."""
+    """``target`` (rad/s) where it keeps ``|R i + k_t (Omega_0 + h)| <= u_limit`` at every sample of the plan
+    (the rest before the stroke included, ``i = h = 0``); else the pre-spin that minimises the plan's peak
+    ``|u|`` (the middle of the interval of pre-spins that fit, where there is one)."""
     i = np.concatenate([[0.0], np.asarray(i, float)])
     h = np.concatenate([[0.0], np.asarray(h, float)])
     lo = float(np.max((-u_limit - R * i) / k_t - h))
     hi = float(np.min((u_limit - R * i) / k_t - h))
-    if lo <= hi:
-        return float(min(max(target, lo), hi))
-    # the plan's excess over u_limit is k_t max(Omega_0 - hi, lo - Omega_0): least at the middle
+    if lo <= target <= hi:
+        return float(target)
+    # the plan's excess over u_limit, k_t max(Omega_0 - hi, lo - Omega_0), is least at the middle, which also
+    # leaves the most room on both sides where the fit is feasible (the plan predicts the current, not the loop's)
     return 0.5 * (lo + hi)
 
 
