@@ -43,14 +43,16 @@ from agents.feedforward_pd import FeedforwardPD
 
 
 def stroke_plan(context: ControllerContext, J: float, n: int = 400) -> tuple[np.ndarray, np.ndarray]:
-    """The feed-forward current ``i(t)`` (A, cut to the current limit) over the reverse stroke and the
-    flywheel's change of rate ``h(t)`` (rad/s, from 0 at the stroke's start) that it implies."""
+    """The feed-forward current ``i(t)`` (A, cut to the current limit) over the reverse stroke, in the
+    stroke's order, and the flywheel's change of rate ``h(t)`` (rad/s, from 0 at the stroke's start) that it
+    implies. The reverse stroke retraces the free stroke's law backwards in time
+    (:class:`~addedinertia_env.experiment.reference.MirroredReference`: from its stop to its start)."""
     rig, law = context.rig, context.reference.law
-    s = np.linspace(law.t_start, law.t_stop, n)
+    s = np.linspace(law.t_stop, law.t_start, n)  # the law's time, in the reverse stroke's order
     torque = -2.0 * (J * law.accel(s) + rig.c_torsion * (law.phi(s) - rig.phi_neutral))  # N m on the flywheel
     i_lim = min(context.i_max, rig.current_limit) if rig.current_limit is not None else context.i_max
     i = np.clip(torque / context.k_t, -i_lim, i_lim)
-    dt = np.diff(s)
+    dt = -np.diff(s)  # s, positive: the stroke's own time steps
     h = np.concatenate([[0.0], np.cumsum(0.5 * (i[1:] + i[:-1]) * dt)]) * context.k_t / rig.J_flywheel
     return i, h
 

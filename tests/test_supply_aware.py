@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from addedinertia_env.experiment.reference import MirroredReference
 from agents import make_controller
 from agents.supply_aware import plan_prespin, stroke_plan
 
@@ -19,18 +20,19 @@ W = 2.0 * math.pi / 4.0  # rad/s: a 4 s oscillation
 
 def _context(u_max: float, t_stop: float = 3.0):
     """A stroke that swings the flywheel one way, then back past its start: phi = 0.1 cos(W t), 0..t_stop s."""
-    law = SimpleNamespace(t_start=0.0, t_stop=t_stop, phi=lambda s: 0.1 * np.cos(W * s),
-                          accel=lambda s: -0.1 * W**2 * np.cos(W * s))
+    law = SimpleNamespace(t_start=0.0, t_stop=t_stop, duration=t_stop, phi=lambda s: 0.1 * np.cos(W * s),
+                          accel=lambda s: -0.1 * W**2 * np.cos(W * s), rate=lambda s: -0.1 * W * np.sin(W * s))
     rig = SimpleNamespace(u_max=u_max, R=R, c_torsion=C, phi_neutral=0.0, J_flywheel=J_F, current_limit=15.0)
-    return SimpleNamespace(rig=rig, reference=SimpleNamespace(law=law), i_max=15.0, k_t=K_T)
+    return SimpleNamespace(rig=rig, reference=MirroredReference(law=law, t_begin=5.0), i_max=15.0, k_t=K_T)
 
 
 def _peak_voltage(ctx, omega0: float, n: int = 20000) -> float:
-    """Peak |R i + k_t Omega| over the stroke with the flywheel integrated by explicit Euler."""
-    law = ctx.reference.law
-    s = np.linspace(law.t_start, law.t_stop, n)
-    i = -2.0 * (J * law.accel(s) + C * law.phi(s)) / K_T
-    omega = omega0 + np.concatenate([[0.0], np.cumsum(K_T * i[:-1] * np.diff(s) / J_F)])
+    """Peak |R i + k_t Omega| over the reverse stroke, the reference read as the controller reads it (the
+    task's MirroredReference, in the stroke's own time) and the flywheel integrated by explicit Euler."""
+    ref = ctx.reference
+    t = np.linspace(ref.t_begin, ref.t_end, n)
+    i = -2.0 * (J * ref.accel(t) + C * ref.phi(t)) / K_T
+    omega = omega0 + np.concatenate([[0.0], np.cumsum(K_T * i[:-1] * np.diff(t) / J_F)])
     return float(max(abs(K_T * omega0), np.max(np.abs(R * i + K_T * omega))))
 
 
