@@ -20,6 +20,7 @@ CLASSICAL: dict[str, str] = {
     "backlash-inversion": "agents.backlash_inversion:BacklashInversionPD",
     "pid-antiwindup": "agents.voltage_antiwindup:VoltageAntiWindupPID",
     "cogging-ff": "agents.cogging_ff:CoggingFeedforwardPD",
+    "supply-aware": "agents.supply_aware:SupplyAwarePD",
 }
 
 

@@ -6,6 +6,8 @@ scenarios and sensor noise; one JSON row per episode (rel_error, failure, wear) 
 
 ``--without cogging`` (or ``backlash``, ``mesh``, ``drag``, ``driver``) runs the same scenarios with
 that flaw of the drawn drive switched off, the rest as drawn (the flaw's effect on each entry).
+``--supply 12`` (``--flywheel 0.05``) runs them on that supply voltage, V (flywheel inertia, kg m^2) instead of the drawn one (a constructed weak-supply
+variant, e.g. of the tuning split, to develop against the supply without touching held-out seeds).
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ def main() -> None:
     ap.add_argument("--controllers", nargs="+", required=True, help='"name" or "name@knob=value,..."')
     ap.add_argument("--without", nargs="*", default=[], choices=sorted(SWITCHES),
                     help="drive flaws switched off in every scenario")
+    ap.add_argument("--supply", type=float, default=None, help="supply voltage, V, replacing the drawn one")
+    ap.add_argument("--flywheel", type=float, default=None, help="flywheel inertia, kg m^2, replacing the drawn one")
     a = ap.parse_args()
     suite = load_suite(a.suite)
     if a.split == "train":  # seeds outside both splits (suite.split_seed): never a tuning or test scenario
@@ -54,6 +58,16 @@ def main() -> None:
     tasks = []
     for sc in scenarios:
         sc = without(sc, a.without)
+        if a.supply is not None:
+            motor = sc.rig.motor
+            if not a.supply > motor.R * motor.i_max:
+                raise SystemExit(f"--supply {a.supply:g} V: expected more than R i_max = {motor.R * motor.i_max:g} V")
+            sc = dataclasses.replace(sc, rig=sc.rig.replace(motor=dataclasses.replace(motor, u_max=a.supply)))
+        if a.flywheel is not None:
+            if not a.flywheel > 0:
+                raise SystemExit(f"--flywheel {a.flywheel:g} kg m^2: expected a positive inertia")
+            motor = dataclasses.replace(sc.rig.motor, J_flywheel=a.flywheel)
+            sc = dataclasses.replace(sc, rig=sc.rig.replace(motor=motor))
         for c in a.controllers:
             name, _, knobs = c.partition("@")
             kwargs = {k: float(v) for k, v in (kv.split("=") for kv in knobs.split(",") if kv)}
@@ -61,7 +75,7 @@ def main() -> None:
     keys = ("controller", "controller_kwargs", "seed", "preset", "rel_error", "failure", "current_sign_changes",
             "chatter_a", "wall_s")
     run_tasks(tasks, jobs=a.jobs, progress=False,
-              on_row=lambda r: print(json.dumps({**{k: r.get(k) for k in keys}, "without": a.without}), flush=True))
+              on_row=lambda r: print(json.dumps({**{k: r.get(k) for k in keys}, "without": a.without, "supply": a.supply, "flywheel": a.flywheel}), flush=True))
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ def test_drive_v2_draws_its_supply_link_and_drive_within_the_stated_ranges():
 
 
 @pytest.mark.parametrize("controller", ["pd", "pid", "lqr", "feedforward-pd", "drive-aware", "backlash-inversion",
-                                        "pid-antiwindup"])
+                                        "pid-antiwindup", "supply-aware"])
 def test_drive_v2_tuned_gains_load_for_every_classical_entry(controller):
     from addedinertia_env.bench.runner import episode_controller
 
