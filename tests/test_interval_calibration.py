@@ -29,6 +29,20 @@ def test_a_calibrated_gaussian_interval_covers_95_percent_with_ratio_2_9():
     errors1, half1 = np.random.default_rng(1).normal(0, 1e-4, 20000), np.full(20000, ic.Z95 * 1e-4)
     assert ic.calibration(errors1, half1).ratio == pytest.approx(ic.CALIBRATED_RATIO, rel=0.03)
     assert ic.CALIBRATED_RATIO == pytest.approx(2.906, abs=1e-3)
+    assert c.median_abs_z == pytest.approx(0.674, abs=0.02)
+
+
+def test_median_z_reads_per_run_calibration_where_sigmas_differ_by_orders():
+    # runs whose sigmas span four decades, each interval calibrated: the ratio of the two medians is
+    # not 2.9 (it depends on which runs hold the medians), the median |z| still is 0.674
+    rng = np.random.default_rng(4)
+    sigma = 10.0 ** rng.uniform(-6, -2, 20000)
+    errors = rng.normal(0.0, sigma)
+    c = ic.calibration(errors, ic.Z95 * sigma)
+    assert c.median_abs_z == pytest.approx(0.674, abs=0.02)
+    assert c.coverage == pytest.approx(0.95, abs=0.006)
+    wide = ic.calibration(errors, 2 * ic.Z95 * sigma)
+    assert wide.median_abs_z == pytest.approx(0.337, abs=0.01)
 
 
 @pytest.mark.parametrize("scale", [2.0, 0.5])
@@ -46,6 +60,7 @@ def test_coverage_counts_the_runs_inside_and_the_medians_are_of_absolute_values(
     assert c.median_abs_error == pytest.approx(1.5)
     assert c.median_half_width == pytest.approx(1.5)
     assert c.ratio == pytest.approx(1.0)
+    assert c.median_abs_z == pytest.approx(ic.Z95 * np.median([3.0, 0.5, 1.0, 5.0]))  # |e| / h: 3, .5, 1, 5
 
 
 @pytest.mark.parametrize("errors, half", [([], []), ([1.0], [1.0, 2.0]), ([np.nan], [1.0]), ([1.0], [-1.0])])

@@ -18,8 +18,10 @@ case's reverse runs are identified one at a time with the case's free decays bes
 One JSON line per run goes to ``ROWS`` (labels already there are skipped), with the
 truth for scoring only (the simulated record's ``truth``, or the lab's ``answers.json``);
 the estimators never see it. ``render`` prints (or writes between the doc's markers) the
-table: per water, runs, median |error| against A66(0), median half-width, their ratio and
-the coverage, and with ``--before`` the same for rows made by earlier code.
+table: per water, runs, median |error| against A66(0), median half-width, their ratio, the
+median of each run's ``|error| / (half-width / 1.96)`` (``|z|``: 0.674 for calibrated Gaussian
+intervals whatever each run's own sigma, where the ratio of the two medians reads 2.9 only when the
+runs share one sigma) and the coverage, and with ``--before`` the same for rows made by earlier code.
 """
 
 from __future__ import annotations
@@ -48,8 +50,11 @@ ENERGY_TRANSPARENT_CAUSES = {"none", "sensor_delay", "torque_constant", "bearing
 Z95 = 1.959963984540054  # two-sided 95 % point of the normal
 CALIBRATED_RATIO = Z95 / 0.6744897501960817  # half-width / median |error| of a calibrated Gaussian interval
 BEGIN, END = "<!-- interval-calibration:begin -->", "<!-- interval-calibration:end -->"
-COMMAND = ("python -m addedinertia_env.reports.interval_calibration run ROWS.jsonl --sets SETS --seeds 13 \\\n"
-           "    --foreign PATH/foreign-lab.tar.xz --foreign PATH/foreign-lab-2.tar.xz\n"
+COMMAND = ("python -m addedinertia_env.reports.interval_calibration run ROWS-mem.jsonl --sets SETS --seeds 18 "
+           "--water cummins \\\n    --foreign PATH/foreign-lab-2.tar.xz\n"
+           "python -m addedinertia_env.reports.interval_calibration run ROWS-free.jsonl --sets SETS --seeds 18 "
+           "--water constant \\\n    --foreign PATH/foreign-lab.tar.xz --foreign PATH/foreign-lab-2.tar.xz\n"
+           "cat ROWS-free.jsonl ROWS-mem.jsonl > ROWS.jsonl\n"
            "python -m addedinertia_env.reports.interval_calibration render ROWS.jsonl --before BEFORE.jsonl "
            "--out docs/INTERVALS.md")
 
@@ -66,6 +71,7 @@ class Calibration:
     covered: int
     coverage: float
     coverage_ci: tuple[float, float]  # 95 % Wilson interval of the coverage over these runs
+    median_abs_z: float  # median over runs of |error| / (half-width / 1.96); 0.674 for calibrated Gaussian intervals
 
 
 def calibration(errors, half_widths) -> Calibration:
@@ -80,7 +86,10 @@ def calibration(errors, half_widths) -> Calibration:
         raise ValueError("calibration(): errors and half-widths must be finite, half-widths >= 0")
     n, k = len(e), int(np.sum(e <= h))
     med_e, med_h = float(np.median(e)), float(np.median(h))
-    return Calibration(n, med_e, med_h, med_h / med_e if med_e > 0 else math.inf, k, k / n, wilson(k, n))
+    with np.errstate(divide="ignore", invalid="ignore"):  # a zero half-width: z infinite (or 0 for a zero error)
+        z = np.where(h > 0, Z95 * e / np.where(h > 0, h, 1.0), np.where(e > 0, math.inf, 0.0))
+    return Calibration(n, med_e, med_h, med_h / med_e if med_e > 0 else math.inf, k, k / n, wilson(k, n),
+                       float(np.median(z)))
 
 
 def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
@@ -255,25 +264,26 @@ def _pct(x: float, digits: int = 3) -> str:
 def table(rows: list[dict], before: list[dict] | None = None) -> str:
     """The Markdown table of :func:`calibration` per water (and per subgroup), with earlier rows beside."""
     now, old = scored(rows), scored(before) if before else {}
-    head = ("| water | runs | median abs error | median half-width | ratio (2.9 calibrated) | covered | coverage "
-            "(95 % CI) |")
-    lines = [head, "|---|---|---|---|---|---|---|"]
+    head = ("| water | runs | median abs error | median half-width | ratio (2.9 calibrated) | median \\|z\\| "
+            "(0.67 calibrated) | covered | coverage (95 % CI) |")
+    lines = [head, "|---|---|---|---|---|---|---|---|"]
     refused = sum(1 for r in rows if "error" in r["result"])
     for key in sorted(now, key=lambda k: (":" in k, k)):
         c = calibration([e for _, e, _ in now[key]], [h for _, _, h in now[key]])
         name = f"**{key}**" if ":" not in key else key
         cell = (f"| {name} | {c.runs} | {_pct(c.median_abs_error)} | {_pct(c.median_half_width)} | {c.ratio:.1f} | "
-                f"{c.covered}/{c.runs} | {100 * c.coverage:.0f} % ({100 * c.coverage_ci[0]:.0f}-"
+                f"{c.median_abs_z:.2f} | {c.covered}/{c.runs} | {100 * c.coverage:.0f} % ({100 * c.coverage_ci[0]:.0f}-"
                 f"{100 * c.coverage_ci[1]:.0f} %) |")
         if key in old:
             b = calibration([e for _, e, _ in old[key]], [h for _, _, h in old[key]])
             cell += (f" before: {_pct(b.median_abs_error)}, {_pct(b.median_half_width)}, ratio {b.ratio:.1f}, "
-                     f"{b.covered}/{b.runs} |")
+                     f"\\|z\\| {b.median_abs_z:.2f}, {b.covered}/{b.runs} |")
         lines.append(cell)
     if before:
-        lines[0] += " before (median abs error, half-width, ratio, covered) |"
+        lines[0] += " before (median abs error, half-width, ratio, median \\|z\\|, covered) |"
         lines[1] += "---|"
-        lines = [ln if ln.count("|") == lines[0].count("|") else ln + " - |" for ln in lines]
+        cells = lambda ln: ln.count("|") - ln.count("\\|")  # an escaped pipe is text, not a cell's edge
+        lines = [ln if cells(ln) == cells(lines[0]) else ln + " - |" for ln in lines]
     cpu = [r["cpu_s"] for r in rows]
     note = (f"\n{len(rows)} runs, {refused} refused (their reasons are in the rows); identify: median "
             f"{statistics.median(cpu):.1f} CPU-s per run" if cpu else "")
