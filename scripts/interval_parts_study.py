@@ -142,19 +142,7 @@ def memory_study(sets: Path, foreign: list[str], seeds: int, rows_path: str | No
     from addedinertia_env.identify.cluster_jackknife import t95  # noqa: PLC0415
     from addedinertia_env.identify.memory import RESOLUTION, family_intervals, identify_memory  # noqa: PLC0415
     from addedinertia_env.records.record import read_record  # noqa: PLC0415
-    from addedinertia_env.reports.interval_calibration import lab_reverse_runs  # noqa: PLC0415
-
-    def runs():
-        for preset in ("wigley-2m", "spheroid-7"):
-            for s in range(1, seeds + 1):
-                base = sets / "cummins" / preset / f"h{s}"
-                files = [base / "rev-a" / "run-0000.csv", base / "rev-b" / "run-0000.csv", base / "decay" / "run-0000.csv"]
-                if all(f.exists() for f in files):
-                    yield f"cum-{preset}-h{s}", files, read_record(files[0]).meta["truth"]["lambda66"]
-        for archive in foreign:
-            for case, p, decays, a in lab_reverse_runs(Path(archive)):
-                if a.get("A66_inf") is not None:
-                    yield f"{Path(archive).name.split('.')[0]}-{case.name}-{p.stem}", [p, *decays], a["lambda66"]
+    from addedinertia_env.reports.interval_calibration import memory_runs  # noqa: PLC0415
 
     stored = {}
     if rows_path:  # the stored rows: a run they refused is skipped, and the reported interval checked against theirs
@@ -175,7 +163,7 @@ def memory_study(sets: Path, foreign: list[str], seeds: int, rows_path: str | No
     rules = ["reported", "mixture alone", "jackknife alone", "resolution alone", "mixture|resolution"]
     scores: dict[str, dict[str, list[float]]] = {}
     setter: dict[str, int] = {}
-    for label, files, a0 in runs():
+    for label, files, a0 in memory_runs(sets, seeds, foreign):
         row = stored_row(label) if rows_path else None
         if rows_path and (row is None or "lambda66" not in row["result"]):
             print(f"{label}: not in the rows or refused there: skipped", flush=True)

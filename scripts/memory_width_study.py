@@ -35,7 +35,7 @@ from addedinertia_env.identify.memory import (FAMILY_RSS_TOLERANCE, Z95, MemoryD
                                               jackknife_refits)
 from addedinertia_env.identify.memory_energy import corrected_energy
 from addedinertia_env.records.record import read_record
-from addedinertia_env.reports.interval_calibration import lab_reverse_runs
+from addedinertia_env.reports.interval_calibration import memory_runs
 
 RULES = ("union+floor", "mixture+floor", "mixture", "mixture+test", "mixture|jackknife", "mixture|jackknife+floor",
          "jackknife (unstratified)")
@@ -73,20 +73,6 @@ def half_widths(files: list[Path]) -> dict | None:
                                  "jackknife (unstratified)": max(h_mix, h_plain)}}
 
 
-def runs(sets: Path, seeds: int, foreign: list[str], first: int = 1):
-    """(label, files, A66(0)) of every memory run: the drawn hulls' sets, then each lab's memory cases."""
-    for preset in ("wigley-2m", "spheroid-7"):
-        for s in range(first, seeds + 1):
-            base = sets / "cummins" / preset / f"h{s}"
-            files = [base / "rev-a" / "run-0000.csv", base / "rev-b" / "run-0000.csv", base / "decay" / "run-0000.csv"]
-            if all(f.exists() for f in files):
-                yield f"cum-{preset}-h{s}", files, read_record(files[0]).meta["truth"]["lambda66"]
-    for archive in foreign:
-        for case, p, decays, a in lab_reverse_runs(Path(archive)):
-            if a.get("A66_inf") is not None:
-                yield f"{case.name}-{p.stem}", [p, *decays], a["lambda66"]
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", required=True, type=Path)
@@ -96,7 +82,7 @@ def main() -> None:
     ap.add_argument("--foreign", action="append", default=[])
     args = ap.parse_args()
     err, half = [], {r: [] for r in RULES}
-    for label, files, a0 in runs(args.sets, args.seeds, args.foreign, args.first):
+    for label, files, a0 in memory_runs(args.sets, args.seeds, args.foreign, args.first):
         try:
             got = half_widths(files)
         except Exception as e:  # noqa: BLE001 - a refused run is reported and skipped

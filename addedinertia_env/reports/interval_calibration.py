@@ -181,6 +181,26 @@ def lab_reverse_runs(archive: Path):
                     yield case, p, decays, answers[case.name]
 
 
+def memory_runs(sets: Path, seeds: int, foreign: list[str], first: int = 1):
+    """``(label, files, A66(0))`` of every memory run the table counts, for the studies that rebuild its widths
+    (scripts/memory_width_study.py, scripts/interval_parts_study.py): the drawn hulls' kept sets under ``sets``
+    (seeds ``first`` to ``seeds``, each preset; a set not simulated yet is skipped), then each memory case's reverse
+    runs of each lab archive in ``foreign`` with the case's free decays; labels as the table's rows. A66(0) is read
+    from the records' truth or the lab's answers, to score only."""
+    from addedinertia_env.records.record import read_record  # noqa: PLC0415
+
+    for preset in PRESETS:
+        for s in range(first, seeds + 1):
+            base = sets / "cummins" / preset / f"h{s}"
+            files = [base / "rev-a" / "run-0000.csv", base / "rev-b" / "run-0000.csv", base / "decay" / "run-0000.csv"]
+            if all(f.exists() for f in files):
+                yield f"cum-{preset}-h{s}", files, read_record(files[0]).meta["truth"]["lambda66"]
+    for archive in foreign:
+        for case, p, decays, a in lab_reverse_runs(Path(archive)):
+            if a.get("A66_inf") is not None:
+                yield f"{Path(archive).name.split('.')[0]}-{case.name}-{p.stem}", [p, *decays], a["lambda66"]
+
+
 def foreign_rows(archive: Path, done: set[str]):
     """Rows of a lab's archive: each reverse run of each case with that case's free decays beside it."""
     lab = archive.name.split(".")[0]
