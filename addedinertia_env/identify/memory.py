@@ -201,12 +201,12 @@ class MemoryData:
         segment_of_window: list[int] = []  # which stretch of free motion (a start from rest, mostly) each window is in
         n_segments = 0
         self._stretch_kinds: list[tuple[str, int]] = []  # (its record's kind, its place in the record) per stretch
-        self._stretch_kinds_series: list[int] = []
         self.free_s = 0.0
         self.releases = 0
         for k, s in enumerate(self.series):
             if len(s.phi) < 2:
                 continue  # no rate to read: a record cut to one sample holds no free motion (it is not identifiable)
+            place = 0  # this record's stretches so far
             w = np.gradient(s.phi, s.dt)
             step = max(1, int(round(row_step_s / s.dt)))
             n_win = max(2, int(round(window_s / s.dt)))
@@ -217,9 +217,8 @@ class MemoryData:
                 if b - a < n_win // 3:
                     continue
                 n_segments += 1
-                place = sum(1 for kk in self._stretch_kinds_series if kk == k)  # the record's stretches before it
                 self._stretch_kinds.append((_record_kind(records[k]), place))
-                self._stretch_kinds_series.append(k)
+                place += 1
                 self.free_s += (b - a) * s.dt
                 for a0 in range(a, b - n_win // 3, n_win):
                     b0 = min(a0 + n_win, b)
@@ -989,9 +988,9 @@ def family_intervals(best: FamilyFit, families: list[FamilyFit], weight: dict[st
 def _t95(n_clusters: int) -> float:
     """The two-sided 95 % point for a variance clustered over ``n_clusters`` stretches of free motion: Student's t
     with ``n_clusters - 1`` degrees of freedom (a few starts from rest carry A66(inf)), the normal's past 30."""
-    from scipy import stats  # noqa: PLC0415
+    from addedinertia_env.identify.cluster_jackknife import t95  # noqa: PLC0415
 
-    return Z95 if n_clusters > 30 else float(stats.t.ppf(0.975, max(n_clusters - 1, 1)))
+    return Z95 if n_clusters > 30 else t95(max(n_clusters - 1, 1))
 
 
 def _attr(key: str) -> str:

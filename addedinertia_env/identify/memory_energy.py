@@ -283,11 +283,11 @@ def _corrected_from_runs(records: list[RunRecord], per_run: list[float], per_run
     return union.estimate()
 
 
-def combine(energy: float, energy_ci, fit: float, fit_ci) -> tuple[float, tuple[float, float]]:
+def combine(fit: float, fit_ci) -> tuple[float, tuple[float, float]]:
     """A66(0) from the two estimates the records give under the identified memory: the memory fit's own
     ``A66(inf) + sum theta_i G_i(0)`` (the whole records' equation, every unbraked sample of every record) is the
-    value, with the memory fit's interval (the passive families' Akaike mixture, holding the reported family's
-    stratified jackknife over the stretches of free motion: :func:`~addedinertia_env.identify.memory.identify_memory`).
+    value, with the memory fit's interval (the passive families' Akaike mixture with the fit's resolution:
+    :func:`~addedinertia_env.identify.memory.identify_memory`).
     The energy method corrected (the balance at the boundary angles, through the same identified model) is its check,
     reported beside it (:func:`balance_check`), not mixed in.
 
@@ -338,7 +338,7 @@ def with_memory(result, all_records: list[RunRecord], reverse_records: list[RunR
             details["memory_correction"] = corrected.per_family
             details["lambda66_energy_corrected"] = corrected.value
             details["lambda66_energy_corrected_ci95"] = list(corrected.ci95)
-            value, ci = combine(corrected.value, corrected.ci95, mem.A_zero, mem.ci95["A66_zero"])
+            value, ci = combine(mem.A_zero, mem.ci95["A66_zero"])
             details["memory_balance_check"] = balance_check(corrected.value, corrected.ci95, mem.A_zero,
                                                             mem.ci95["A66_zero"])
             if mem.n_stretches < MIN_STRETCHES:

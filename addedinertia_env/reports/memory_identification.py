@@ -152,8 +152,7 @@ def render(rows_path: str, answers_specs: list[str]) -> str:
             # a row made before identify combined the two estimates: the same function on its pieces
             from addedinertia_env.identify.memory_energy import combine  # noqa: PLC0415
 
-            after, ci_after = combine(res["lambda66"], res["ci95"], res["A66_zero_memory_fit"],
-                                      res["A66_zero_memory_fit_ci95"])
+            after, ci_after = combine(res["A66_zero_memory_fit"], res["A66_zero_memory_fit_ci95"])
         e_b, e_a = before / a0 - 1, after / a0 - 1
         fit0 = res.get("A66_zero_memory_fit")
         e_f = fit0 / a0 - 1 if fit0 is not None else None
