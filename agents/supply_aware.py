@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.base import ControllerContext
+from agents.base import ControllerContext, stroke_feedforward_current
 from agents.feedforward_pd import FeedforwardPD
 
 
@@ -49,9 +49,8 @@ def stroke_plan(context: ControllerContext, J: float, n: int = 400) -> tuple[np.
     (:class:`~addedinertia_env.experiment.reference.MirroredReference`: from its stop to its start)."""
     rig, law = context.rig, context.reference.law
     s = np.linspace(law.t_stop, law.t_start, n)  # the law's time, in the reverse stroke's order
-    torque = -2.0 * (J * law.accel(s) + rig.c_torsion * (law.phi(s) - rig.phi_neutral))  # N m on the flywheel
     i_lim = min(context.i_max, rig.current_limit) if rig.current_limit is not None else context.i_max
-    i = np.clip(torque / context.k_t, -i_lim, i_lim)
+    i = np.clip(stroke_feedforward_current(context, law.phi(s) - rig.phi_neutral, law.accel(s), J), -i_lim, i_lim)
     dt = -np.diff(s)  # s, positive: the stroke's own time steps
     h = np.concatenate([[0.0], np.cumsum(0.5 * (i[1:] + i[:-1]) * dt)]) * context.k_t / rig.J_flywheel
     return i, h
