@@ -21,6 +21,7 @@ CLASSICAL: dict[str, str] = {
     "pid-antiwindup": "agents.voltage_antiwindup:VoltageAntiWindupPID",
     "cogging-ff": "agents.cogging_ff:CoggingFeedforwardPD",
     "supply-aware": "agents.supply_aware:SupplyAwarePD",
+    "smith-pd": "agents.smith_pd:SmithPD",
 }
 
 

@@ -13,6 +13,12 @@ Suite keys (all optional; a value is a number, or ``[low, high]`` drawn uniforml
       current_step_A: 0.1            # A
     motor:                   # MotorParams fields replaced (known to the controller: the rig block)
       i_max: [3.0, 5.0]              # A
+    link:                    # the loop's round trip stated to the controllers (needs loop.obs_delay_s)
+      stated: measured               # exact: the drawn obs_delay_s; measured: plus a lab's ping error
+      error_s: 0.001                 # s, that error's bound: uniform in [-error_s, +error_s], drawn per seed
+
+The stated round trip reaches a controller as ``ControllerContext.link_round_trip_s``; without a
+``link:`` block no round trip is stated (the suites before drive-v3).
 """
 
 from __future__ import annotations
@@ -31,10 +37,12 @@ from addedinertia_env.sim.presets import ConfigError
 from addedinertia_env.experiment.scenarios import Scenario
 from addedinertia_env.bench.drive_draws import apply_drive, validate_drive
 
-LOOP_KEYS = tuple(f.name for f in dataclasses.fields(ControlLoop))
+LOOP_KEYS = tuple(f.name for f in dataclasses.fields(ControlLoop) if f.name != "stated_round_trip_s")  # that one: ``link:``
+LINK_STATED = ("exact", "measured")
+LINK_MAX_ERROR_S = 0.005  # s: a loopback ping that is off by more than this is no statement of the round trip
 MOTOR_KEYS = tuple(f.name for f in dataclasses.fields(MotorParams))
 # Spawn keys of the streams (the scenario's own streams are SeedSequence(seed).spawn(3): 0, 1, 2).
-_STREAM = {"effects": 100, "loop": 101, "motor": 102}
+_STREAM = {"effects": 100, "loop": 101, "motor": 102, "link": 103}
 
 
 def _is_value(v: Any) -> bool:
@@ -85,7 +93,33 @@ def validate_extras(data: dict[str, Any], path: Path) -> dict[str, Any]:
                 raise _bad(path, f"{block}.{k}", v, "a number >= 0 or [low, high] with 0 <= low <= high")
         out[block] = dict(spec)
     out["drive"] = validate_drive(data.get("drive"), path)  # the drive's flaws, with units (drive_draws.py)
+    out["link"] = validate_link(data.get("link"), out["loop"], path)
     return out
+
+
+def validate_link(spec: Any, loop: dict[str, Any], path: Path) -> dict[str, Any]:
+    """The suite's ``link:`` block, checked: ``stated`` (``exact`` or ``measured``) and, for ``measured``,
+    ``error_s`` (s, in (0, LINK_MAX_ERROR_S]); it needs a drawn ``loop.obs_delay_s`` to state. {} when absent."""
+    if spec is None:
+        return {}
+    if not isinstance(spec, dict):
+        raise _bad(path, "link", spec, "a mapping {stated: exact | measured, error_s: s}")
+    for k, v in spec.items():
+        if k not in ("stated", "error_s"):
+            raise _bad(path, f"link.{k}", v, "keys among ['stated', 'error_s']")
+    stated = spec.get("stated")
+    if stated not in LINK_STATED:
+        raise _bad(path, "link.stated", stated, f"one of {list(LINK_STATED)} (how the round trip is stated)")
+    if "obs_delay_s" not in loop:
+        raise _bad(path, "link", spec, "a suite whose loop draws obs_delay_s (the round trip to state)")
+    if stated == "exact":
+        if "error_s" in spec:
+            raise _bad(path, "link.error_s", spec["error_s"], "no error_s with stated: exact")
+        return {"stated": "exact", "error_s": 0.0}
+    e = spec.get("error_s")
+    if isinstance(e, bool) or not isinstance(e, (int, float)) or not math.isfinite(e) or not 0 < e <= LINK_MAX_ERROR_S:
+        raise _bad(path, "link.error_s", e, f"a number of seconds in (0, {LINK_MAX_ERROR_S}] (the ping's error bound)")
+    return {"stated": "measured", "error_s": float(e)}
 
 
 def _rng(seed: int, stream: str) -> np.random.Generator:
@@ -121,5 +155,8 @@ def apply_extras(scenario: Scenario, extras: dict[str, Any]) -> Scenario:
     if extras.get("loop"):
         rng = _rng(seed, "loop")
         loop = ControlLoop(**{k: _draw(v, rng) for k, v in sorted(extras["loop"].items())})
+    if extras.get("link") and loop is not None:  # the round trip stated to the controllers (its own stream)
+        error = _rng(seed, "link").uniform(-1.0, 1.0) * extras["link"]["error_s"]
+        loop = dataclasses.replace(loop, stated_round_trip_s=max(0.0, loop.obs_delay_s + float(error)))
     out = dataclasses.replace(scenario, rig=rig, loop=loop)
     return apply_drive(out, extras["drive"]) if extras.get("drive") else out

@@ -15,8 +15,8 @@ The split seed ranges must not overlap: the test seeds are never seen by tuning.
 outside every split belong to the pseudo-split ``train`` (for learned controllers: the
 same distribution, never a tuning or test scenario).
 
-Optional keys: ``effects``, ``loop``, ``motor`` (hidden effects, the control loop, motor
-overrides drawn per seed: :mod:`.scenario_draws`) and ``cycles: N`` (each episode runs N
+Optional keys: ``effects``, ``loop``, ``motor``, ``link`` (hidden effects, the control loop, motor
+overrides, the loop's round trip stated to the controllers, drawn per seed: :mod:`.scenario_draws`) and ``cycles: N`` (each episode runs N
 reverse-symmetric cycles, each with fresh sensor noise, identified jointly), ``tuned:
 FILE`` (the suite's own tuned gains, a file in configs/controllers/ written by
 ``bench tune --suite NAME``; without it controllers use configs/controllers/tuned.yaml), ``ranked:
@@ -43,7 +43,7 @@ from addedinertia_env.bench.drive_draws import check_supply_floor
 
 SUITE_DIR = CONFIG_DIR / "suites"
 SUITE_KEYS = {"name", "description", "presets", "ranges", "fixed", "splits", "effects", "loop", "motor", "cycles",
-              "tuned", "drive", "ranked"}
+              "tuned", "drive", "ranked", "link"}
 RANKED_SCORES = ("as-written", "memory-corrected")  # evaluation/scoring.py's scores a suite may rank
 TUNED_DIR = CONFIG_DIR / "controllers"
 TRAIN_FIRST_SEED = 10**9  # declared splits lie below; seeds from here on are the "train" pseudo-split

@@ -17,7 +17,14 @@ def controller_context(exp: Experiment):
     slow = {"policy_rate_hz": 1.0 / (exp.rig.dt * every), "sample_dt": exp.rig.dt} if every > 1 else {}
     return ControllerContext(rig=exp.known, layout=ReverseStrokeTask.layout, reference=exp.reference,
                              inertia_prior=exp.inertia_prior, dt=exp.rig.dt * every, hold_s=exp.plan.hold_s,
-                             **slow)
+                             link_round_trip_s=stated_round_trip(exp.rig), **slow)
+
+
+def stated_round_trip(rig: Any) -> float | None:
+    """The link's round trip stated to the controllers (s) by a :class:`~addedinertia_env.loop.control_loop.LoopRig`
+    whose loop states one; None otherwise (never the loop's true delay)."""
+    value = getattr(rig, "stated_round_trip_s", None)
+    return float(value) if value is not None else None
 
 
 def command_every(rig: Any) -> int:

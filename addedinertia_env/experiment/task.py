@@ -146,6 +146,7 @@ class ControllerContext:
     policy_rate_hz: float | None = None  # Hz, how often the controller acts (None: every board sample)
     board_mode: str = "zoh"  # what the board does between actions: "zoh" (hold) or "pd" (board-side PD)
     sample_dt: float | None = None  # s, the board's sample period (None: = dt)
+    link_round_trip_s: float | None = None  # s, the link's round trip as the lab states it (a loopback ping; None: not stated)
 
     @property
     def board_dt(self) -> float:

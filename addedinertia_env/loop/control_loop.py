@@ -14,8 +14,12 @@ experiment, the benchmark and the environment all see the same loop:
   ``command_every`` samples from there (``experiment.runner.drive``) never has a command
   discarded.
 * ``current_step_A``: current set-points are rounded to this quantum (a DAC's step).
+* ``stated_round_trip_s``: the round trip the lab states to its controllers (s; measured as a
+  lab measures it, e.g. a loopback ping; None: not stated). It changes no physics; a suite's
+  ``link:`` block draws it (bench/scenario_draws.py) and the controller context carries it
+  (``ControllerContext.link_round_trip_s``).
 
-Nothing here is known to the controller except through its control period (the context's
+Nothing else here is known to the controller except through its control period (the context's
 ``dt`` is ``command_every`` samples). The wrapper passes everything else (``params``,
 ``true_state``, ``truth``, ``k_t``, ...) through to the wrapped rig.
 
@@ -44,12 +48,16 @@ class ControlLoop:
     obs_delay_s: float = 0.0  # s, age of every reading the host receives
     command_period_s: float = 0.0  # s, the drive's set-point period (zero-order hold); 0: every sample
     current_step_A: float = 0.0  # A, quantum of current set-points; 0: none
+    stated_round_trip_s: float | None = None  # s, the round trip stated to the controllers (None: not stated)
 
     def __post_init__(self) -> None:
         for name in ("obs_delay_s", "command_period_s", "current_step_A"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise ValueError(f"ControlLoop.{name} = {value!r}: expected a finite number >= 0")
+        v = self.stated_round_trip_s
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0):
+            raise ValueError(f"ControlLoop.stated_round_trip_s = {v!r}: expected None or a finite number >= 0 (s)")
 
     @property
     def ideal(self) -> bool:
@@ -66,8 +74,11 @@ class ControlLoop:
 
     def to_dict(self) -> dict[str, float]:
         """The loop as ``{obs_delay_s, command_period_s (s), current_step_A (A)}`` for the ``truth`` block."""
-        return {"obs_delay_s": self.obs_delay_s, "command_period_s": self.command_period_s,
-                "current_step_A": self.current_step_A}
+        out = {"obs_delay_s": self.obs_delay_s, "command_period_s": self.command_period_s,
+               "current_step_A": self.current_step_A}
+        if self.stated_round_trip_s is not None:  # what the controllers were told, beside the truth
+            out["stated_round_trip_s"] = self.stated_round_trip_s
+        return out
 
 
 def quantise_current(value, step_A):
@@ -190,6 +201,11 @@ class LoopRig:
     def known(self) -> Any:
         """The wrapped rig's known constants."""
         return self.rig.known
+
+    @property
+    def stated_round_trip_s(self) -> float | None:
+        """The link's round trip as stated to the controllers, s (None: not stated); never the truth."""
+        return self.loop.stated_round_trip_s
 
     def reset(self, phi0: float = 0.0, psi0: float = 0.0, omega0: float = 0.0, brake: bool = True) -> Reading:
         """Reset the wrapped rig (angles in rad, ``omega0`` rad/s) and fill the delay line with its first reading; returns it."""
