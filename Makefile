@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # For a GPU install see docs/INSTALL.md.
 TORCH_PIN ?= torch==2.13.0
 
-.PHONY: interval-table pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive leaderboard-drive-v2 tune-drive-v2 tune-hard hard-policy hard-policy-dagger drive-policy docs-drive demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
+.PHONY: interval-table pair-table docs docs-quick docs-environment docs-reports docs-accuracy docs-learning foreign-lab-table leaderboard-realistic leaderboard-hard leaderboard-drive tune-drive leaderboard-drive-v2 tune-drive-v2 leaderboard-drive-v3 tune-drive-v3 tune-hard hard-policy hard-policy-dagger drive-policy docs-drive demo test test-slow test-all bench leaderboard policy policy-100hz accuracy-table perf clean detection-table protocol-study
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -200,6 +200,22 @@ leaderboard-drive-v2:
 	$(MAKE) leaderboard BENCH_SUITE=drive-v2 LEADERBOARD_DOC=docs/LEADERBOARD_drive-v2.md \
 	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v2.html LEARNED_POLICIES= \
 	  BENCH_CONTROLLERS="$(DRIVE_V2_CONTROLLERS)"
+
+# drive-v3: drive-v2's physics with the link's round trip stated to the controllers (+-1 ms), a fresh
+# 64-scenario test split (configs/suites/drive-v3.yaml, docs/DRIVE.md "drive-v3 and smith-pd"). Its
+# tuning split is drive-v2's, so tuned-drive-v3.yaml carries drive-v2's gains for the older entries;
+# `make tune-drive-v3` tunes only the entries new on drive-v3, with the same budget.
+DRIVE_V3_TUNED ?= smith-pd
+DRIVE_V3_CONTROLLERS ?= oracle zero pd pid lqr feedforward-pd drive-aware backlash-inversion pid-antiwindup cogging-ff supply-aware smith-pd
+tune-drive-v3: $(STAMP)
+	for c in $(DRIVE_V3_TUNED); do \
+	  $(BIN)/addedinertia bench tune --suite drive-v3 --controller $$c --candidates 8 --scenarios 8 --seed 0 \
+	    --jobs $(BENCH_JOBS) --no-progress || exit 1; \
+	done
+leaderboard-drive-v3:
+	$(MAKE) leaderboard BENCH_SUITE=drive-v3 LEADERBOARD_DOC=docs/LEADERBOARD_drive-v3.md \
+	  LEADERBOARD_HTML=out/bench/leaderboard-drive-v3.html LEARNED_POLICIES= \
+	  BENCH_CONTROLLERS="$(DRIVE_V3_CONTROLLERS)"
 
 # Re-tune every classical controller on hard-v0's tuning split with one budget
 # (configs/controllers/tuned-hard-v0.yaml; about 25 min on 2 shared cores).

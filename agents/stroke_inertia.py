@@ -13,9 +13,10 @@ inertia that makes the stroke closest to an undamped one, the least-squares solu
 
     J_fit = -c  sum f''(t) (f(t) - phi_n)  /  sum f''(t)^2
 
-is biased by the damping (low: the damping torque opposes the rate and correlates with ``-f''`` over a
-decelerating stroke), but not by a constant torque alone only where ``sum f''`` is small; measured on those
-32 seeds it reads 0.71-0.96 times the truth. Sensor data and the known stiffness only; never the truth.
+is biased low by the damping (exact on an undamped oscillator, 0.6-1 of it with 5 % viscous damping:
+tests/test_smith_pd.py), but it rests on every sample of the stroke rather than on the fitted law's last
+one, where the fit is least constrained and a dry friction torque is largest against the spring's.
+Measured on those 32 seeds it reads 0.71-0.96 times the truth. Sensor data and the known stiffness only; never the truth.
 """
 
 from __future__ import annotations
