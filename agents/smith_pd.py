@@ -9,6 +9,12 @@ What a control engineer brings to a slow link and a short supply:
   sent (:class:`~agents.dead_time.DeadTimePredictor` on the hull observer), so its crossover is not
   bounded by the link's phase lag. The flywheel's reported rate is predicted the same way,
   ``Omega(k) = Omega(k - n) + (k_t / J_f) dt sum i`` over the n commands since.
+* **The whole stroke's inertia, and room for the feedback.** The loop, the observer and the feed-forward run
+  on the whole free stroke's inertia (:mod:`agents.stroke_inertia`), not the task's prior read at the stop,
+  which a geared drive's dry friction biases by up to 2.3 times (docs/DRIVE.md). On that inertia the
+  feed-forward ``-2 (J f'' + c (f - phi_n)) / k_t`` is an estimate (at the stroke's start, the free stroke's
+  stop, it steps to the stop's residual torque, up to the current limit); it is cut to
+  ``(1 - feedback_reserve) i_max`` so the feedback always has ``feedback_reserve i_max`` to correct it with.
 * **A pre-spin planned on the supply with the feedback's share.** The stroke's plan
   (:func:`~agents.supply_aware.stroke_plan`: the feed-forward current and the flywheel's path) must keep
   ``|R i + k_t Omega| <= m u_max - R i_fb`` at every sample, where ``i_fb = feedback_reserve i_max`` is the
@@ -33,11 +39,10 @@ from typing import Any
 
 import numpy as np
 
-from agents.base import ControllerContext
+from agents.base import ControllerContext, stroke_feedforward_current
 from agents.dead_time import DeadTimePredictor
 from agents.feedforward_pd import FeedforwardPD
 from agents.stroke_inertia import stroke_fit_inertia
-from agents.supply_aware import stroke_plan
 
 MAX_ROUND_TRIP_S = 0.2  # s: a link slower than this is no loop to close at the stroke's 0.5-2 s
 
@@ -68,8 +73,10 @@ class SmithPD(FeedforwardPD):
     name = "smith-pd"
     DEFAULTS: dict[str, Any] = {**FeedforwardPD.DEFAULTS, "omega_c": 25.0, "margin": 0.9, "feedback_reserve": 0.3,
                                 "inertia": "stroke-fit"}
-    KNOBS = {"omega_c": (8.0, 60.0, "log"), "zeta": (0.5, 2.0, "lin"), "observer_bandwidth": (2.0, 80.0, "log"),
-             "feedback_reserve": (0.0, 0.6, "lin")}
+    # feedforward-pd's loop knobs and ranges (its crossover bounded by the encoder's quantisation through the gains,
+    # physics.md section 7; a first tuning over 8-60 rad/s picked 59.7, whose gain turns one encoder count into
+    # ~20 A: docs/DRIVE.md), and the feedback's share of the current and the supply
+    KNOBS = {**FeedforwardPD.KNOBS, "feedback_reserve": (0.0, 0.6, "lin")}
 
     def __init__(self, tuned: bool = True, **overrides: Any):
         super().__init__(tuned=tuned, **overrides)
@@ -95,14 +102,30 @@ class SmithPD(FeedforwardPD):
         self.sent: list[float] = []  # every command sent this episode, A (the flywheel's prediction)
         rig = context.rig
         self.plan_peak_v = None
+        self.i_ff_max = (1.0 - float(self.feedback_reserve)) * context.i_max  # A, the feed-forward's share
         if rig.u_max is not None and self.prespin:
-            i, h = stroke_plan(context, self.J)
+            i, h = self.stroke_plan()
             u_lim = float(self.margin) * rig.u_max - rig.R * float(self.feedback_reserve) * context.i_max
             i0, h0 = np.concatenate([[0.0], i]), np.concatenate([[0.0], h])
             lo = float(np.max((-u_lim - rig.R * i0) / context.k_t - h0))
             hi = float(np.min((u_lim - rig.R * i0) / context.k_t - h0))
             self.omega_start = fit_prespin(lo, hi, self.omega_start)
             self.plan_peak_v = float(np.max(np.abs(rig.R * i + context.k_t * (self.omega_start + h))))
+
+    def feedforward_current(self, obs: dict[str, float]) -> float:
+        """:meth:`FeedforwardPD.feedforward_current` cut to ``(1 - feedback_reserve) i_max`` (module doc)."""
+        return float(np.clip(super().feedforward_current(obs), -self.i_ff_max, self.i_ff_max))
+
+    def stroke_plan(self, n: int = 400) -> tuple[np.ndarray, np.ndarray]:
+        """The feed-forward current (A, cut to its share of the current limit) over the reverse stroke in its own order, and the
+        flywheel's change of rate (rad/s) it implies (as :func:`agents.supply_aware.stroke_plan`, from zero at the start)."""
+        ctx, rig = self.ctx, self.ctx.rig
+        law = ctx.reference.law
+        s = np.linspace(law.t_stop, law.t_start, n)
+        i_lim = min(self.i_ff_max, rig.current_limit) if rig.current_limit is not None else self.i_ff_max
+        i = np.clip(stroke_feedforward_current(ctx, law.phi(s) - rig.phi_neutral, law.accel(s), self.J), -i_lim, i_lim)
+        h = np.concatenate([[0.0], np.cumsum(0.5 * (i[1:] + i[:-1]) * -np.diff(s))]) * ctx.k_t / rig.J_flywheel
+        return i, h
 
     def flywheel_now(self, obs: dict[str, float]) -> float:
         """The flywheel's rate now, rad/s: the reported (``n`` samples old) plus the commands' impulse since."""
