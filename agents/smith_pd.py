@@ -72,7 +72,7 @@ class SmithPD(FeedforwardPD):
 
     name = "smith-pd"
     DEFAULTS: dict[str, Any] = {**FeedforwardPD.DEFAULTS, "omega_c": 25.0, "margin": 0.9, "feedback_reserve": 0.3,
-                                "inertia": "stroke-fit"}
+                                "inertia": "stroke-fit", "dead_time_compensation": True}
     # feedforward-pd's loop knobs and ranges (its crossover bounded by the encoder's quantisation through the gains,
     # physics.md section 7; a first tuning over 8-60 rad/s picked 59.7, whose gain turns one encoder count into
     # ~20 A: docs/DRIVE.md), and the feedback's share of the current and the supply
@@ -93,7 +93,7 @@ class SmithPD(FeedforwardPD):
     def reset(self, context: ControllerContext) -> None:
         """As :class:`FeedforwardPD` on the whole-stroke inertia (``inertia: stroke-fit``; :mod:`agents.stroke_inertia`),
         with the link's delay taken from the context and the pre-spin planned."""
-        self.delay = link_delay_samples(context)
+        self.delay = link_delay_samples(context) if self.dead_time_compensation else 0  # False: an ablation only
         self.inertia_source = context.inertia_prior
         if self.inertia == "stroke-fit":
             context = dataclasses.replace(context, inertia_prior=stroke_fit_inertia(context))

@@ -36,6 +36,14 @@ def without(scenario, flaws: list[str]):
     return dataclasses.replace(scenario, rig=scenario.rig.replace(drive=d))
 
 
+def _value(text: str):
+    """A knob's value: a number where it reads as one, else the word (``smith-pd@inertia=prior``)."""
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
 def main() -> None:
     """Run the probe; print one JSON row per episode."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -70,7 +78,7 @@ def main() -> None:
             sc = dataclasses.replace(sc, rig=sc.rig.replace(motor=motor))
         for c in a.controllers:
             name, _, knobs = c.partition("@")
-            kwargs = {k: float(v) for k, v in (kv.split("=") for kv in knobs.split(",") if kv)}
+            kwargs = {k: _value(v) for k, v in (kv.split("=") for kv in knobs.split(",") if kv)}
             tasks.append(suite.task(sc, name, kwargs or None))
     keys = ("controller", "controller_kwargs", "seed", "preset", "rel_error", "failure", "current_sign_changes",
             "chatter_a", "wall_s")
