@@ -113,8 +113,10 @@ def slot_context(pool: ExperimentPool, k: int, action_repeat: int) -> Controller
     dt = pool.dt * action_repeat
     slow = {"policy_rate_hz": 1.0 / dt, "sample_dt": pool.dt} if action_repeat > 1 else {}
     reference = pool.reference(k)
+    link = sc.loop.stated_round_trip_s if sc.loop is not None else None  # the round trip a suite states (drive-v3)
     return ControllerContext(rig=sc.rig.known(), layout=ReverseStrokeTask.layout, reference=reference,
-                             inertia_prior=float(pool.inertia_prior[k]), dt=dt, hold_s=sc.plan.hold_s, **slow)
+                             inertia_prior=float(pool.inertia_prior[k]), dt=dt, hold_s=sc.plan.hold_s,
+                             link_round_trip_s=link, **slow)
 
 
 def run_batch(suite, seeds: Sequence[int], make_base: Callable[[], Controller] | None, *, split: str = "train",
