@@ -171,3 +171,15 @@ def test_a_link_block_needs_a_drawn_round_trip(tmp_path):
     path.write_text("name: t\nsplits: {test: {first_seed: 1, count: 2}}\nlink: {stated: exact}\n")
     with pytest.raises(ConfigError, match="obs_delay_s"):
         load_suite(str(path))
+
+
+@pytest.mark.parametrize("controller", ["smith-pd", "pd", "pid", "lqr", "feedforward-pd", "supply-aware"])
+def test_drive_v3_tuned_gains_load_and_the_older_entries_keep_drive_v2s(controller):
+    from addedinertia_env.bench.runner import episode_controller
+
+    v2, v3 = load_suite("drive-v2"), load_suite("drive-v3")
+    task = v3.task(v3.scenarios("tuning")[0], controller)
+    assert task.controller_kwargs  # the suite's own file holds gains for the entry
+    episode_controller(controller, task.controller_kwargs, None)  # unknown or stale keys would raise
+    if controller != "smith-pd":
+        assert task.controller_kwargs == v2.task(v2.scenarios("tuning")[0], controller).controller_kwargs
