@@ -71,6 +71,7 @@ class SmithPD(FeedforwardPD):
     """Feed-forward + PD on the Smith-predicted hull, with a supply plan that keeps room for the feedback."""
 
     name = "smith-pd"
+    needs_stated_link = True  # reset refuses a context without link_round_trip_s (the CLI says so up front)
     DEFAULTS: dict[str, Any] = {**FeedforwardPD.DEFAULTS, "omega_c": 25.0, "margin": 0.9, "feedback_reserve": 0.3,
                                 "inertia": "stroke-fit", "dead_time_compensation": True}
     # feedforward-pd's loop knobs and ranges (its crossover bounded by the encoder's quantisation through the gains,

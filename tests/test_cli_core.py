@@ -138,6 +138,7 @@ def test_simulate_bad_preset_file_exits_2(tmp_path, capsys):
 @pytest.mark.parametrize("argv, fragments", [
     (["simulate", "--rig", "no-such-rig"], ["unknown rig 'no-such-rig'", "wigley-2m"]),
     (["simulate", "--controller", "nosuch"], ["--controller", "nosuch"]),
+    (["simulate", "--controller", "smith-pd"], ["--controller 'smith-pd'", "link_round_trip_s"]),
     (["simulate", "--hold", "-1"], ["--hold", "expected"]),
     (["simulate", "--seed", "-1"], ["--seed", "expected an integer >= 0"]),
     (["demo", "--rig", "no-such-rig"], ["unknown rig 'no-such-rig'"]),

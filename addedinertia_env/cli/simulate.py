@@ -70,11 +70,15 @@ def run(args) -> int:
         except ValueError as e:
             raise BadInput(f"--frequencies/--periods/--settle: {e}") from None
     if args.kind == "reverse-symmetric":
-        from agents.registry import CLASSICAL, make_controller  # noqa: PLC0415
+        from agents.registry import CLASSICAL, controller_class, make_controller  # noqa: PLC0415
 
         if ":" not in args.controller and args.controller not in CLASSICAL:
             raise BadInput(f"--controller {args.controller!r}: expected one of {', '.join(sorted(CLASSICAL))}, "
                            "onnx:PATH or module:factory")
+        if args.controller in CLASSICAL and getattr(controller_class(args.controller), "needs_stated_link", False):
+            raise BadInput(f"--controller {args.controller!r} needs the link's round trip stated to it "
+                           "(ControllerContext.link_round_trip_s); simulate runs an ideal loop and states none: "
+                           "run it on a suite that states one, e.g. `addedinertia bench run --suite drive-v3`")
         if ":" in args.controller:
             make_controller(args.controller)  # a policy or factory is loaded and checked before anything runs
     from addedinertia_env.foundation.atomic import remove_stale_temps  # noqa: PLC0415
