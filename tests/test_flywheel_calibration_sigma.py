@@ -64,3 +64,16 @@ def test_calibration_sigma_matches_the_scatter_over_noise_draws(noise_i, noise_t
     assert abs(scales.mean() - SCALE) < 4.0 * spread / np.sqrt(len(scales)) + 2e-6, (scales.mean() - SCALE, spread)
     if noise_i * K_T / J_F > 100 * noise_theta:  # the current's noise dominates: the residuals alone miss it
         assert np.median(white) < 0.5 * spread
+
+
+def test_the_double_integrals_adjoint_is_its_transpose():
+    """The current's share is carried through ``T^T`` (the double trapezoid's adjoint): on an uneven grid it must
+    equal the transpose of ``T`` built column by column."""
+    from addedinertia_env.identify.energy_calibration import _twice_adjoint
+
+    rng = np.random.default_rng(3)
+    m = 40
+    half = 0.5 * rng.uniform(0.5e-3, 1.5e-3, m - 1)
+    T = np.column_stack([twice_integrated(np.eye(m)[j][None, :], half)[0] for j in range(m)])
+    g = rng.standard_normal(m)
+    np.testing.assert_allclose(_twice_adjoint(g, half), T.T @ g, rtol=1e-12, atol=1e-18)

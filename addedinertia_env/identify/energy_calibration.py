@@ -31,6 +31,7 @@ CALIBRATION_HAC_S = 0.4
 # 16 lag-pinned reverse runs of the drawn hulls with noise-free sensors, seeds 1-13, the scale's error has rms
 # 1.0e-4 while the fit's own sigma is 2e-6 to 6e-5 (held out, seeds 14-18: 4 runs, rms 0.7e-4; docs/INTERVALS.md)
 CALIBRATION_MODEL_ERROR = 1.0e-4
+NOISE_SHARE_DRAWS = 16  # draws of the stated current noise for its expected share of the residuals' HAC
 
 
 class FlywheelCalibration(NamedTuple):
@@ -154,19 +155,24 @@ def calibration_sigma(t, tt, lag, y, z, z_lag, scale, gain, noise_i, half_dtt) -
       residual-based estimate with a finite bandwidth recovers: it is carried analytically.
     - residual: the fit's residuals' scores ``X r`` through their Bartlett long-run covariance
       (:func:`bartlett_long_run`, :data:`CALIBRATION_HAC_S`): the encoders' quantisation and the
-      rotor friction's misfit, correlated over the rate filter's window, and the rest of the model's error.
+      rotor friction's misfit, correlated over the rate filter's window, and the rest of the model's error;
+      less the current noise's own expected share of that estimate (:func:`_current_share_of_hac`), which
+      the first part holds already.
+    The calibration model's error (:data:`CALIBRATION_MODEL_ERROR`) is added by the caller. Returns
+    ``(scale sigma from the current, scale sigma from the residuals, lag sigma in s)``.
     """
     X = np.stack([np.asarray(z, float), np.asarray(z_lag, float)])
     A_inv = np.linalg.inv(X @ X.T)
     dt = float(median_step(tt))
-    pos = (np.asarray(tt) + lag - t[0]) / dt  # the lagged current's samples and weights (an even grid)
-    k = np.floor(pos).astype(np.int64)
-    f = pos - k
-    M = np.zeros((2, len(t) + 1))
-    for row, x in zip(M, X):
-        g = _twice_adjoint(x, half_dtt)
-        np.add.at(row, np.clip(k, 0, len(t)), (1.0 - f) * g)
-        np.add.at(row, np.clip(k + 1, 0, len(t)), f * g)
+    # the lagged current's samples and weights, as np.interp takes them (any grid; clamped at the ends)
+    x = np.clip(np.asarray(tt) + lag, t[0], t[-1])
+    k = np.clip(np.searchsorted(t, x, side="right") - 1, 0, len(t) - 2)
+    f = np.clip((x - t[k]) / (t[k + 1] - t[k]), 0.0, 1.0)
+    M = np.zeros((2, len(t)))
+    for row, col in zip(M, X):
+        g = _twice_adjoint(col, half_dtt)
+        np.add.at(row, k, (1.0 - f) * g)
+        np.add.at(row, k + 1, f * g)
     cov_current = (scale * gain * noise_i) ** 2 * (A_inv @ (M @ M.T) @ A_inv)
     r = np.asarray(y, float) - scale * X[0]
     bandwidth = int(round(CALIBRATION_HAC_S / dt))
@@ -177,8 +183,6 @@ def calibration_sigma(t, tt, lag, y, z, z_lag, scale, gain, noise_i, half_dtt) -
     return (float(np.sqrt(max(cov_current[0, 0], 0.0))), float(np.sqrt(max(cov_resid[0, 0], 0.0))),
             float(np.sqrt(max(cov_current[1, 1] + max(cov_resid[1, 1], 0.0), 0.0))))
 
-
-NOISE_SHARE_DRAWS = 16  # draws of the stated current noise for its expected share of the residuals' HAC
 
 
 def _current_share_of_hac(t, tt, k, f, X, A_inv, c, half_dtt, bandwidth) -> np.ndarray:
@@ -192,7 +196,7 @@ def _current_share_of_hac(t, tt, k, f, X, A_inv, c, half_dtt, bandwidth) -> np.n
     total = np.zeros((2, 2))
     for _ in range(NOISE_SHARE_DRAWS):
         e = rng.standard_normal(len(t))
-        lagged = (1.0 - f) * e[np.clip(k, 0, len(t) - 1)] + f * e[np.clip(k + 1, 0, len(t) - 1)]
+        lagged = (1.0 - f) * e[k] + f * e[k + 1]
         dz = project_out_line(twice_integrated(lagged[None, :], half_dtt), Q)[0]
         dr = -c * (dz - X.T @ (A_inv @ (X @ dz)))
         total += A_inv @ bartlett_long_run(X * dr, bandwidth) @ A_inv
