@@ -135,7 +135,8 @@ def bartlett_long_run(U: np.ndarray, bandwidth: int) -> np.ndarray:
     p, n = U.shape
     L = int(min(max(bandwidth, 0), n - 1))
     F = np.fft.rfft(U, 2 * n, axis=1)
-    G = np.fft.irfft(F[:, None, :].conj() * F[None, :, :], 2 * n, axis=2)[:, :, :L + 1]  # G[a, b, k] = sum U_a,t U_b,t+k
+    # G[a, b, k] = sum_t U[a, t] U[b, t + k] (zero-padded, so not circular)
+    G = np.fft.irfft(F[:, None, :].conj() * F[None, :, :], 2 * n, axis=2)[:, :, :L + 1]
     w = 1.0 - np.arange(L + 1) / (L + 1.0)
     S = np.einsum("abk,k->ab", G[:, :, 1:], w[1:])
     return G[:, :, 0] + S + S.T

@@ -44,7 +44,8 @@ class RunEstimate:
     # the rate noise of the per-angle values' slope): what a correction of the per-angle values needs to
     # rebuild the budget (identify/memory_energy.py)
     parts: dict | None = None
-    # the motor work's scale, its relative 1-sigma in the budget and where it came from (RunBalance.torque_scale_summary)
+    # the motor work's scale, its relative 1-sigma in the budget and where it came from
+    # (RunBalance.torque_scale_summary)
     torque_scale: dict | None = None
 
 
