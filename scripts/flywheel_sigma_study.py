@@ -47,9 +47,9 @@ def drawn(sets: Path, seeds: int, out: str | None) -> None:
     print(f"{len(rows)} reverse runs; the flywheel calibration set the scale on {len(fly)}")
     for r in fly:
         e = r["scale"] - r["true"]
-        print(f"  {r['label']:22s} current noise {r['noise_i']:.4f} A  scale - truth {e:+.2e}  sigma {r['sigma']:.2e} "
+        print(f"  {r['label']:22s} current noise {r['noise_i']:.4f} A  scale - truth {e:+.2e}  sigma {r.get('own_sigma', r['sigma']):.2e} "
               f"(current {r['sigma_current']:.1e}, residual {r['sigma_residual']:.1e}, model {CALIBRATION_MODEL_ERROR:.0e})"
-              f"  z {e / r['sigma']:+.2f}  lag {1e3 * r['lag_s']:.3f} +- {1e3 * r['lag_sigma_s']:.3f} ms")
+              f"  z {e / r.get('own_sigma', r['sigma']):+.2f}  lag {1e3 * r['lag_s']:.3f} +- {1e3 * r['lag_sigma_s']:.3f} ms")
     groups = {"noise-free, seeds 1-13": lambda r: r["noise_i"] <= 1e-6 and r["seed"] <= 13,
               "noise-free, seeds 14-18": lambda r: r["noise_i"] <= 1e-6 and r["seed"] > 13,
               "sensor noise, seeds 1-13": lambda r: r["noise_i"] > 1e-6 and r["seed"] <= 13,
@@ -60,7 +60,7 @@ def drawn(sets: Path, seeds: int, out: str | None) -> None:
             continue
         e = np.array([r["scale"] - r["true"] for r in sub])
         own = np.array([math.hypot(r["sigma_current"], r["sigma_residual"]) for r in sub])
-        sig = np.array([r["sigma"] for r in sub])
+        sig = np.array([r.get("own_sigma", r["sigma"]) for r in sub])
         z = e / sig
         print(f"{name}: {len(sub)} runs; rms(scale - truth) {np.sqrt(np.mean(e * e)):.2e}; fit's own sigma median "
               f"{np.median(own):.1e} ({own.min():.1e}-{own.max():.1e}); with the model's error: median {np.median(sig):.2e}, "
