@@ -161,9 +161,10 @@ def test_all_angles_at_once_equal_each_angle_alone(records):
                 assert one.terms["dW"] == pytest.approx(iv.terms["dW"], rel=1e-10, abs=1e-15), name
 
 
-def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul, w_s=None):
+def _calibration_lag_by_lag(t, theta, psi, i, a, b, J_f, k_t, f_visc, f_coul, w_s=None, noise_i=0.0):
     """The flywheel calibration's lag search with one least-squares fit per lag (rss per lag); ``w_s``: the
-    rotor dry friction's rate scale the balance passed (the record's coast, or the default)."""
+    rotor dry friction's rate scale the balance passed (the record's coast, or the default); ``noise_i`` (the
+    current's noise, for the calibration's sigma) does not enter the search."""
     w_s = ROTOR_COULOMB_RATE_SCALE if w_s is None else w_s
     tt, th = t[a:b + 1], theta[a:b + 1]
     om = np.gradient(psi[a:b + 1], tt)

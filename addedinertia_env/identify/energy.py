@@ -129,6 +129,7 @@ def identify_energy(records: list[RunRecord], work: str = "reaction", fractions=
     details = {"work": work, "asymmetry_correction": asymmetry_correction, "n_runs": len(good),
                "per_run": [r.value for r in good], "per_run_sigma": [r.sigma for r in good],
                "per_run_sigma_parts": [r.parts for r in good],
+               "per_run_torque_scale": [r.torque_scale for r in good],
                "rejected": n_all - n_good}
     if interval_details:
         details["intervals"] = [iv.__dict__ for iv in intervals]

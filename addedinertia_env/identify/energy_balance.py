@@ -23,7 +23,8 @@ from addedinertia_env.records.series_stats import median_step
 from addedinertia_env.identify.balance_kernels import angle_uncertainties, angle_values
 from addedinertia_env.identify.common import IdentificationError, SharedSavgol, largest_gap, local_fit, power_fit
 from addedinertia_env.identify.crossings import crossing_fits, first_crossings
-from addedinertia_env.identify.energy_calibration import MAX_LAG_S, flywheel_calibration, scale_at_sampling_rule
+from addedinertia_env.identify.energy_calibration import (MAX_LAG_S, FlywheelCalibration, flywheel_calibration,
+                                                          scale_at_sampling_rule)
 from addedinertia_env.identify.energy_dissipation import DissipationMismatch, forward_damping_law
 from addedinertia_env.identify.energy_cogging import Cogging, cogging_fit
 from addedinertia_env.identify.energy_gear import GearLoss, gear_loss_fit
@@ -62,6 +63,14 @@ CURRENT_GAIN_UNCERTAINTY = 0.005  # relative, current-sensor gain (physics.md se
 # the hull's inertia and the spring constant (whose errors enter lambda66 directly and were never in the
 # interval): the interval is the record's own error, for the rig the block describes (docs/INTERVALS.md).
 CALIBRATED_TORQUE_UNCERTAINTY = 5e-4
+# the flywheel calibration's own per-run 1-sigma (energy_calibration.calibration_sigma) stands for the scale's
+# uncertainty where the calibration set the scale (False: the fixed figure above, as to session 12) and the rotor's
+# dry-friction law near rest was read from the record (the hold's coast, rotor_friction.creep_rate_scale). Where it
+# was not (a driven flywheel in the hold, a quantised coast), the fixed figure stays as a floor: the block's
+# sign-like law then errs in the reaction work by up to 1.7e-4 of lambda66 on records without noise (wigley-2m lqr,
+# drawn hull 1: +0.0172 % with the block's law, -0.0003 % with the simulator's; docs/INTERVALS.md), an error no
+# other part holds and the fixed figure did
+OWN_CALIBRATION_SIGMA = True
 MAX_SATURATED_FRACTION = 0.02  # an angle is rejected when the current sat at its limit over more of k3..k4
 MAX_SPEED_MISMATCH = 0.2  # ... or when its reverse speed differs from the forward speed by more than this
 RATE_HALF_WIDTH = 0.1  # s, window of the local quintic that gives crossing instants and rates
@@ -181,6 +190,7 @@ class RunBalance:
         self.phi_rest2, self.phi_rest3 = self._rest_angles(hold)  # also anchors phi_s at the release
         self.torque_scale, self.current_lag = 1.0, 0.0
         self.scale_sigma: float | None = None  # 1-sigma of a torque scale fitted at the sampling rule (scale_at_sampling_rule)
+        self.calibration: FlywheelCalibration | None = None  # the flywheel calibration, with its own sigma
         self.gear_loss: GearLoss | None = None
         self.cogging: Cogging | None = None
         self._cog_basis: np.ndarray | None = None  # (2, samples): the hull's cumulative work per unit A, B (J / N m)
@@ -192,9 +202,10 @@ class RunBalance:
             # The fit stays inside the reverse stroke with its lag grid (the record may end there).
             end = rev.stop - 1 - _n_samples(dt_median, MAX_LAG_S) - 2
             calib = flywheel_calibration(t, phi + psi, self.psi_s, self.i, start, end, self.J_f, self.k_t,
-                                         self.f_visc, self.f_coul, self.rotor_w_s)
+                                         self.f_visc, self.f_coul, self.rotor_w_s, self.noise_i)
             if calib is not None:
-                self.torque_scale, self.current_lag = calib
+                self.torque_scale, self.current_lag = calib.scale, calib.lag
+                self.calibration = calib
             self.current_lag_calibrated = calib is not None
             if calib is None and SCALE_AT_RULE and not rig.gear_ratio > 1.0:  # a gearbox: its loss is no scale
                 # the lag not pinned (a smooth current): the scale alone, from the release on, with the current
@@ -374,8 +385,7 @@ class RunBalance:
         lam, sat, mismatch = self._values(T, k4s)
         if self._dsq_cum is None:  # sum of the squared angle increments from the first sample
             self._dsq_cum = squared_step_sums(self.phi_s if self.work == "reaction" else self.psi_s)
-        gain_u = (self.scale_sigma if self.scale_sigma is not None
-                  else CALIBRATED_TORQUE_UNCERTAINTY if self.calibrated else CURRENT_GAIN_UNCERTAINTY)
+        gain_u = self.torque_scale_sigma()
         # the motor work's noise over k1..k2 and k3..k4, the rates' sigmas, the gain's and the dissipation
         # model's parts, each over the kinetic denominator (the numpy expressions, compiled)
         s_dW = got["s_dW"]
@@ -625,6 +635,42 @@ class RunBalance:
             shifted = np.interp(t + self.current_lag, t, i)
             return 0.5 * (shifted[1:] + shifted[:-1])
         return interval_mean_current(t, i, self.R, self.L, self.current_sampling)
+
+    def torque_scale_sigma(self) -> float:
+        """The relative 1-sigma of the motor work's scale: the flywheel calibration's own (its fit's, per run:
+        :func:`~.energy_calibration.calibration_sigma`) where it set the scale, at least
+        :data:`CALIBRATED_TORQUE_UNCERTAINTY` where the rotor's friction law was not read (:data:`OWN_CALIBRATION_SIGMA`);
+        through a gearbox (the loss's
+        fit sets the scale) :data:`CALIBRATED_TORQUE_UNCERTAINTY`; the scale fitted at the sampling rule's own;
+        else the current sensor's gain."""
+        if self.scale_sigma is not None:
+            return self.scale_sigma
+        if not self.calibrated:
+            return CURRENT_GAIN_UNCERTAINTY
+        if self.gear_loss is None and self.calibration is not None and OWN_CALIBRATION_SIGMA:
+            if self.rotor_w_s_measured:
+                return self.calibration.sigma
+            return max(self.calibration.sigma, CALIBRATED_TORQUE_UNCERTAINTY)  # the friction law unread: the floor
+        return CALIBRATED_TORQUE_UNCERTAINTY
+
+    def torque_scale_summary(self) -> dict:
+        """The motor work's scale as ``identify --json`` reports it per run: ``scale`` (per ``k_t``), ``sigma``
+        (relative 1-sigma in the budget) and ``source``."""
+        if self.scale_sigma is not None:
+            source = "sampling rule"
+        elif not self.calibrated:
+            source = "current sensor gain"
+        elif self.gear_loss is not None:
+            source = "gear loss fit"
+        else:
+            source = "flywheel calibration"
+        out = {"scale": float(self.torque_scale), "sigma": float(self.torque_scale_sigma()), "source": source}
+        if source == "flywheel calibration" and self.calibration is not None:
+            out.update(own_sigma=float(self.calibration.sigma), friction_law_read=bool(self.rotor_w_s_measured),
+                       lag_s=float(self.current_lag), lag_sigma_s=float(self.calibration.sigma_lag),
+                       sigma_current=float(self.calibration.sigma_current),
+                       sigma_residual=float(self.calibration.sigma_residual))
+        return out
 
     @property
     def calibrated(self) -> bool:

@@ -8,6 +8,8 @@ Part of the energy method (:mod:`addedinertia_env.identify.energy`).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from addedinertia_env.identify.rotor_friction import ROTOR_COULOMB_RATE_SCALE
@@ -18,12 +20,41 @@ from addedinertia_env.identify.fit_kernels import line_basis, project_out_line
 
 MAX_LAG_S = 0.012  # s, the longest current-channel lag the flywheel calibration looks for
 LAG_PRECISION = 0.02  # the current lag must be fitted to this fraction of a sample period to be used
+# s, the Bartlett (Newey-West) bandwidth of the calibration residuals' scores: twice the window of the angles'
+# smoothing (energy_work.WORK_SMOOTHING_S, 0.2 s), through which the rotor friction's rate enters the fitted angle,
+# as the dissipation law's scores are summed over twice its filter's window (energy_dissipation)
+CALIBRATION_HAC_S = 0.4
+# relative, the calibration model's own error, root-sum-squared into every scale's sigma: the balance takes the
+# logged current as linear between samples, shifted by one lag, while the motor's current moves within a sample
+# (its winding's L/R, the drive's steps); the lag then takes up part of that and the scale the rest. Measured on
+# the simulator, where the torque per logged ampere is known (1 / (1 + the current sensor's gain error)): on the
+# 16 lag-pinned reverse runs of the drawn hulls with noise-free sensors, seeds 1-13, the scale's error has rms
+# 1.0e-4 while the fit's own sigma is 2e-6 to 6e-5 (held out, seeds 14-18: 4 runs, rms 0.7e-4; docs/INTERVALS.md)
+CALIBRATION_MODEL_ERROR = 1.0e-4
+NOISE_SHARE_DRAWS = 16  # draws of the stated current noise for its expected share of the residuals' HAC
+
+
+class FlywheelCalibration(NamedTuple):
+    """The flywheel calibration (:func:`flywheel_calibration`): torque per logged ampere relative to ``k_t``
+    (``scale``), the current channel's lag (``lag``, s), the scale's own 1-sigma (``sigma``) and its two parts
+    (``sigma_current``: the logged current's white noise through the fit, lag and scale together;
+    ``sigma_residual``: the fit's residuals, HAC; with :data:`CALIBRATION_MODEL_ERROR` beside them), and the
+    lag's 1-sigma from the first two (s)."""
+
+    scale: float
+    lag: float
+    sigma: float
+    sigma_current: float
+    sigma_residual: float
+    sigma_lag: float
 
 
 def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: float, f_visc: float,
-                         f_coul: float, w_s: float | None = None) -> tuple[float, float] | None:
-    """Torque per logged ampere relative to ``k_t`` (scale) and the current channel's lag (s),
-    from the flywheel's own balance ``J_f theta'' = s k_t i(t - lag) - M_f`` (physics.md s8).
+                         f_coul: float, w_s: float | None = None,
+                         noise_i: float = 0.0) -> FlywheelCalibration | None:
+    """Torque per logged ampere relative to ``k_t`` (scale), the current channel's lag (s) and the
+    scale's own 1-sigma (:class:`FlywheelCalibration`), from the flywheel's own balance
+    ``J_f theta'' = s k_t i(t - lag) - M_f`` (physics.md s8).
 
     ``theta = phi + psi`` is the flywheel's absolute angle; over samples ``a..b`` (the end of
     the hold and the reverse stroke, where the motor drives) it is fitted, twice integrated,
@@ -36,6 +67,7 @@ def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: floa
     sample: a current without fast changes (an ideal tracking controller's) lets a lag
     and a scale trade off, and the fit then lands a few ms and half a percent off. ``w_s``: the
     rotor's dry friction's rate scale (rotor_friction.creep_rate_scale where the record shows it).
+    ``noise_i``: the logged current's white noise (A rms), for the sigma (:func:`calibration_sigma`).
     """
     if b - a < 200:
         return None
@@ -76,7 +108,100 @@ def flywheel_calibration(t, theta, psi, i, a: int, b: int, J_f: float, k_t: floa
     scale = float((z @ y) / (z @ z))
     if not 0.5 < scale < 2.0:
         return None
-    return scale, lag
+    step = 0.1 * float(median_step(tt))  # the lag's column: the model's derivative in the lag, central
+    dz = (projected(k_t * twice(np.interp(tt + lag + step, t, i)) / J_f)
+          - projected(k_t * twice(np.interp(tt + lag - step, t, i)) / J_f)) / (2.0 * step)
+    s_current, s_resid, s_lag = calibration_sigma(t, tt, lag, y, z, scale * dz, scale, k_t / J_f, noise_i, half_dtt)
+    sigma = float(np.sqrt(s_current**2 + s_resid**2 + CALIBRATION_MODEL_ERROR**2))
+    return FlywheelCalibration(scale, lag, sigma, s_current, s_resid, s_lag)
+
+
+def _twice_adjoint(g: np.ndarray, half_dt: np.ndarray) -> np.ndarray:
+    """``T^T g`` for the double trapezoid integral ``T`` of :func:`~.series_kernels.twice_integrated` (sample
+    intervals ``2 half_dt``): what a unit change of each integrated sample does to ``g . (T x)``."""
+    def once(v):  # adjoint of out[k] = sum_{j<k} (x_j + x_{j+1}) h_j
+        suffix = np.concatenate([np.cumsum(v[::-1])[::-1], [0.0]])  # suffix[k] = sum_{j>=k} v_j
+        out = np.zeros_like(v)
+        out[:-1] += half_dt * suffix[1:-1]
+        out[1:] += half_dt * suffix[1:-1]
+        return out
+    return once(once(np.asarray(g, dtype=float)))
+
+
+def bartlett_long_run(U: np.ndarray, bandwidth: int) -> np.ndarray:
+    """The long-run covariance of the sums of the rows of ``U`` (p, n): ``G_0 + sum_k w_k (G_k + G_k^T)`` with
+    Bartlett weights ``w_k = 1 - k / (bandwidth + 1)``, ``G_k = sum_t U[:, t] U[:, t + k]^T`` (Newey & West 1987,
+    Econometrica 55: 703-708; positive semidefinite)."""
+    p, n = U.shape
+    L = int(min(max(bandwidth, 0), n - 1))
+    F = np.fft.rfft(U, 2 * n, axis=1)
+    # G[a, b, k] = sum_t U[a, t] U[b, t + k] (zero-padded, so not circular)
+    G = np.fft.irfft(F[:, None, :].conj() * F[None, :, :], 2 * n, axis=2)[:, :, :L + 1]
+    w = 1.0 - np.arange(L + 1) / (L + 1.0)
+    S = np.einsum("abk,k->ab", G[:, :, 1:], w[1:])
+    return G[:, :, 0] + S + S.T
+
+
+def calibration_sigma(t, tt, lag, y, z, z_lag, scale, gain, noise_i, half_dtt) -> tuple[float, float, float]:
+    """The flywheel calibration's own 1-sigma of the scale, in two parts, and the lag's 1-sigma (s).
+
+    The fit is ``y ~ scale z(lag)`` (both projected off the line), linearised in ``(scale, lag)`` with the
+    columns ``X = (z, z_lag)`` (``z_lag = scale dz/dlag``): lag and scale trade where the current is smooth,
+    so the scale's variance is read from the pair's joint covariance ``A^-1 (...) A^-1``, ``A = X X^T``.
+    - current: the logged current's white noise (``noise_i`` A rms) is in the columns, not in ``y``
+      (errors in variables): it moves ``(scale, lag)`` by ``-A^-1 X^T (scale P T L di) gain`` (``T`` the
+      double integral, ``L`` the lag's interpolation, ``P`` the projection; ``gain = k_t / J_f``), a
+      variance ``(scale gain noise_i)^2 A^-1 (M M^T) A^-1`` with ``M = L^T T^T X`` row by row, exact
+      for white noise. A twice-integrated noise is correlated over the whole span, which no
+      residual-based estimate with a finite bandwidth recovers: it is carried analytically.
+    - residual: the fit's residuals' scores ``X r`` through their Bartlett long-run covariance
+      (:func:`bartlett_long_run`, :data:`CALIBRATION_HAC_S`): the encoders' quantisation and the
+      rotor friction's misfit, correlated over the rate filter's window, and the rest of the model's error;
+      less the current noise's own expected share of that estimate (:func:`_current_share_of_hac`), which
+      the first part holds already.
+    The calibration model's error (:data:`CALIBRATION_MODEL_ERROR`) is added by the caller. Returns
+    ``(scale sigma from the current, scale sigma from the residuals, lag sigma in s)``.
+    """
+    X = np.stack([np.asarray(z, float), np.asarray(z_lag, float)])
+    A_inv = np.linalg.inv(X @ X.T)
+    dt = float(median_step(tt))
+    # the lagged current's samples and weights, as np.interp takes them (any grid; clamped at the ends)
+    x = np.clip(np.asarray(tt) + lag, t[0], t[-1])
+    k = np.clip(np.searchsorted(t, x, side="right") - 1, 0, len(t) - 2)
+    f = np.clip((x - t[k]) / (t[k + 1] - t[k]), 0.0, 1.0)
+    M = np.zeros((2, len(t)))
+    for row, col in zip(M, X):
+        g = _twice_adjoint(col, half_dtt)
+        np.add.at(row, k, (1.0 - f) * g)
+        np.add.at(row, k + 1, f * g)
+    cov_current = (scale * gain * noise_i) ** 2 * (A_inv @ (M @ M.T) @ A_inv)
+    r = np.asarray(y, float) - scale * X[0]
+    bandwidth = int(round(CALIBRATION_HAC_S / dt))
+    cov_resid = A_inv @ bartlett_long_run(X * r, bandwidth) @ A_inv
+    if noise_i > 0.0:  # the current noise's own share of that estimate, already in cov_current: taken out
+        cov_resid = cov_resid - _current_share_of_hac(t, tt, k, f, X, A_inv, scale * gain * noise_i, half_dtt,
+                                                      bandwidth)
+    return (float(np.sqrt(max(cov_current[0, 0], 0.0))), float(np.sqrt(max(cov_resid[0, 0], 0.0))),
+            float(np.sqrt(max(cov_current[1, 1] + max(cov_resid[1, 1], 0.0), 0.0))))
+
+
+
+def _current_share_of_hac(t, tt, k, f, X, A_inv, c, half_dtt, bandwidth) -> np.ndarray:
+    """The expected share of a white current noise (``c`` = scale k_t / J_f x its rms) in the residual-based
+    sandwich ``A^-1 HAC(X r) A^-1``: the noise twice integrated and projected like the fit's columns, less what
+    the fit's two parameters absorb (``(I - H)``, ``H`` the hat matrix of ``X``), its scores' Bartlett covariance,
+    averaged over :data:`NOISE_SHARE_DRAWS` draws (a fixed seed: the estimate is a function of the record).
+    Without it the twice-integrated noise, correlated over the whole span, would count in both parts."""
+    rng = np.random.default_rng(20261128)
+    Q = line_basis(tt)
+    total = np.zeros((2, 2))
+    for _ in range(NOISE_SHARE_DRAWS):
+        e = rng.standard_normal(len(t))
+        lagged = (1.0 - f) * e[k] + f * e[k + 1]
+        dz = project_out_line(twice_integrated(lagged[None, :], half_dtt), Q)[0]
+        dr = -c * (dz - X.T @ (A_inv @ (X @ dz)))
+        total += A_inv @ bartlett_long_run(X * dr, bandwidth) @ A_inv
+    return total / NOISE_SHARE_DRAWS
 
 
 def _lag_rss(t, i, a, b, lags, twice, projected, Q, y):

@@ -44,6 +44,9 @@ class RunEstimate:
     # the rate noise of the per-angle values' slope): what a correction of the per-angle values needs to
     # rebuild the budget (identify/memory_energy.py)
     parts: dict | None = None
+    # the motor work's scale, its relative 1-sigma in the budget and where it came from
+    # (RunBalance.torque_scale_summary)
+    torque_scale: dict | None = None
 
 
 def run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: bool,
@@ -59,8 +62,11 @@ def run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: boo
         cols = balance.interval_columns(phi1)
         estimate = _dense_from_columns(balance, cols, weights)
         if np.isfinite(estimate.value):
+            estimate.torque_scale = balance.torque_scale_summary()
             return estimate
-    return _combine(balance, balance.intervals(phi1), weights)
+    estimate = _combine(balance, balance.intervals(phi1), weights)
+    estimate.torque_scale = balance.torque_scale_summary()
+    return estimate
 
 
 def prepared_balance(rec: RunRecord, work: str = "reaction", fractions=DEFAULT_FRACTIONS,
