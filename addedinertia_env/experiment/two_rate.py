@@ -31,6 +31,7 @@ from addedinertia_env.experiment.task import ControllerContext, ReverseStrokeTas
 from addedinertia_env.experiment.feedforward import stroke_feedforward_current
 from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import Experiment
+from addedinertia_env.experiment.runner import stated_round_trip
 
 KNOTS = 7  # knots per pd segment (6 pieces over HORIZON_PERIODS = 3 host periods)
 
@@ -49,10 +50,11 @@ def default_board_mode(controller: Controller) -> str:
 
 
 def two_rate_context(exp: Experiment, host_rate_hz: float, board_mode: str):
-    """The controller context at the host's rate."""
+    """The controller context at the host's rate (with the link's round trip the rig states, if any)."""
     return ControllerContext(rig=exp.known, layout=ReverseStrokeTask.layout, reference=exp.reference,
                              inertia_prior=exp.inertia_prior, dt=1.0 / host_rate_hz, hold_s=exp.plan.hold_s,
-                             policy_rate_hz=host_rate_hz, board_mode=board_mode, sample_dt=exp.rig.dt)
+                             policy_rate_hz=host_rate_hz, board_mode=board_mode, sample_dt=exp.rig.dt,
+                             link_round_trip_s=stated_round_trip(exp.rig))
 
 
 class SegmentPlanner:
