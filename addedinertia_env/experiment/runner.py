@@ -27,6 +27,13 @@ def stated_round_trip(rig: Any) -> float | None:
     return float(value) if value is not None else None
 
 
+def needs_stated_link(controller: Any) -> bool:
+    """Whether ``controller``, or the classical base under a residual policy (its ``base``), refuses a context
+    without the link's round trip (``needs_stated_link``: smith-pd and policies on it)."""
+    return bool(getattr(controller, "needs_stated_link", False)
+                or getattr(getattr(controller, "base", None), "needs_stated_link", False))
+
+
 def command_every(rig: Any) -> int:
     """Rig samples per controller call: 1, or the drive's set-point period of a
     :class:`~addedinertia_env.loop.control_loop.LoopRig` (a 100 Hz drive on a 1 kHz rig: 10)."""
