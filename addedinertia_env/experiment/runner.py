@@ -9,6 +9,7 @@ from addedinertia_env.rig.interface import Rig
 from addedinertia_env.experiment.task import ControllerContext, ReverseStrokeTask
 from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import Experiment, ExperimentPlan
+from addedinertia_env.experiment.two_rate import stated_round_trip  # noqa: F401  (re-exported: its older home)
 
 
 def controller_context(exp: Experiment):
@@ -18,13 +19,6 @@ def controller_context(exp: Experiment):
     return ControllerContext(rig=exp.known, layout=ReverseStrokeTask.layout, reference=exp.reference,
                              inertia_prior=exp.inertia_prior, dt=exp.rig.dt * every, hold_s=exp.plan.hold_s,
                              link_round_trip_s=stated_round_trip(exp.rig), **slow)
-
-
-def stated_round_trip(rig: Any) -> float | None:
-    """The link's round trip stated to the controllers (s) by a :class:`~addedinertia_env.loop.control_loop.LoopRig`
-    whose loop states one; None otherwise (never the loop's true delay)."""
-    value = getattr(rig, "stated_round_trip_s", None)
-    return float(value) if value is not None else None
 
 
 def needs_stated_link(controller: Any) -> bool:

@@ -31,7 +31,6 @@ from addedinertia_env.experiment.task import ControllerContext, ReverseStrokeTas
 from addedinertia_env.experiment.feedforward import stroke_feedforward_current
 from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import Experiment
-from addedinertia_env.experiment.runner import stated_round_trip
 
 KNOTS = 7  # knots per pd segment (6 pieces over HORIZON_PERIODS = 3 host periods)
 
@@ -55,6 +54,15 @@ def two_rate_context(exp: Experiment, host_rate_hz: float, board_mode: str):
                              inertia_prior=exp.inertia_prior, dt=1.0 / host_rate_hz, hold_s=exp.plan.hold_s,
                              policy_rate_hz=host_rate_hz, board_mode=board_mode, sample_dt=exp.rig.dt,
                              link_round_trip_s=stated_round_trip(exp.rig))
+
+
+def stated_round_trip(rig: Any) -> float | None:
+    """The link's round trip stated to the controllers (s) by a rig that states one (a
+    :class:`~addedinertia_env.loop.control_loop.LoopRig` whose loop states it, a ``TwoRateSimRig`` around one,
+    a bench whose lab stated it: ``deploy --link-round-trip-ms``); None otherwise (never the loop's true delay).
+    Single-rate and two-rate contexts both read it here."""
+    value = getattr(rig, "stated_round_trip_s", None)
+    return float(value) if value is not None else None
 
 
 class SegmentPlanner:
