@@ -108,6 +108,7 @@ class BenchRig:
         self.link = Link(url)
         self.caps: m.Caps | None = None
         self.source = "bench"
+        self.stated_round_trip_s: float | None = None  # s, the link's round trip stated to the controllers (deploy)
         self.sent: list[SentCommand] = []
         self.timing = LoopTiming()
         self.trip: SafetyTrip | None = None

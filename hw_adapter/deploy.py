@@ -24,7 +24,7 @@ import numpy as np
 
 from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import Experiment, ExperimentError
-from addedinertia_env.experiment.runner import drive
+from addedinertia_env.experiment.runner import drive, needs_stated_link
 from addedinertia_env.identify import IdentificationError, identify
 from addedinertia_env.records.record import read_record
 from addedinertia_env.sim.motor import MotorCommand
@@ -49,7 +49,10 @@ class DeployOptions:
     """What ``addedinertia deploy`` was asked to do: the bench URL, the controller, the lab, where to write.
 
     Times in s (``warmup_s``, ``watchdog_s``, ``hold_s``, ``reset_timeout_s``), ``alpha`` in rad,
-    ``host_rate_hz`` in Hz (two-rate mode); ``rtt_pings`` link echoes timed before arming (0: none).
+    ``host_rate_hz`` in Hz (two-rate mode); ``rtt_pings`` link echoes timed before arming (0: none);
+    ``link_round_trip_s``: the link's round trip the lab states to the controllers (s; ``"ping"``: the
+    median of the arming check's echoes, measured by this deploy; None: none stated), as
+    ``ControllerContext.link_round_trip_s`` (:func:`stated_link`).
     """
 
     bench: str  # pyserial URL: /dev/ttyUSB0, socket://127.0.0.1:5555, loop://
@@ -66,6 +69,7 @@ class DeployOptions:
     rtt_pings: int = 20
     host_rate_hz: float | None = None  # two-rate mode: the host acts (sends segments) at this rate
     board_mode: str | None = None  # two-rate: "zoh" or "pd" (None: the controller's own, else zoh)
+    link_round_trip_s: float | str | None = None  # s, stated to the controllers; "ping": the arming pings' median
 
 
 def rate_mismatch(controller: Controller, caps: m.Caps, host_rate_hz: float | None, board_mode: str | None) -> str | None:
@@ -103,6 +107,33 @@ def rate_mismatch(controller: Controller, caps: m.Caps, host_rate_hz: float | No
     return None
 
 
+def check_link_round_trip(value: Any) -> float | str | None:
+    """``value`` as :attr:`DeployOptions.link_round_trip_s` accepts it (None, ``"ping"`` or seconds in
+    [0, 1]); ValueError naming the field and the value otherwise."""
+    if value is None or value == "ping":
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or not 0.0 <= value <= 1.0:
+        raise ValueError(f"link_round_trip_s = {value!r}: expected 'ping' or a finite number of seconds in [0, 1] "
+                         "(the link's round trip as the lab measured it)")
+    return float(value)
+
+
+def stated_link(opts: DeployOptions, checks: list[dict[str, Any]]) -> tuple[float | None, str | None]:
+    """The round trip stated to the controllers (s) and where it comes from (``"stated"``: the lab's value,
+    ``"ping"``: the median of this deploy's arming echoes; None: not stated)."""
+    value = check_link_round_trip(opts.link_round_trip_s)
+    if value is None:
+        return None, None
+    if value != "ping":
+        return value, "stated"
+    ping = next((c for c in checks if c["check"] == "link_round_trip"), None)
+    if ping is None or ping.get("median_ms") is None:
+        raise ValueError("link_round_trip_s = 'ping': no echo of the arming check's pings was timed (rtt_pings = "
+                         f"{opts.rtt_pings}); expected at least one")
+    return 1e-3 * float(ping["median_ms"]), "ping"
+
+
 def loop_stats(intervals: list[float], dt: float, lockstep: bool) -> dict[str, float | None]:
     """Control-loop period and jitter in ms. Jitter is ``|period - nominal|``; the nominal
     is the sample period on a free-running board and the median period in lock-step."""
@@ -122,8 +153,8 @@ def arm_checks(rig: BenchRig, plan, pings: int) -> list[dict[str, Any]]:
     caps, lim = rig.caps, rig.limits
     checks = []
 
-    def add(name: str, ok: bool, detail: str) -> None:
-        checks.append({"check": name, "ok": bool(ok), "detail": detail})
+    def add(name: str, ok: bool, detail: str, **extra: Any) -> None:
+        checks.append({"check": name, "ok": bool(ok), "detail": detail, **extra})
 
     add("sample_rate", 100.0 <= caps.sample_rate <= 20_000.0, f"{caps.sample_rate:g} Hz (expected 100..20000)")
     add("twist_inside_envelope", abs(plan.alpha) <= 0.8 * lim.phi_max,
@@ -153,7 +184,8 @@ def arm_checks(rig: BenchRig, plan, pings: int) -> list[dict[str, Any]]:
         bound, what = ((1.0 / rig.host_rate_hz, "one host period") if rig.two_rate and not rig.lockstep
                        else (rig.watchdog_s / 2, "half the watchdog"))
         add("link_round_trip", len(rtts) == pings and rtt_p99 < bound,
-            f"{len(rtts)}/{pings} echoes, p99 {1e3 * rtt_p99:.2f} ms (must be < {what}, {1e3 * bound:.1f} ms)")
+            f"{len(rtts)}/{pings} echoes, p99 {1e3 * rtt_p99:.2f} ms (must be < {what}, {1e3 * bound:.1f} ms)",
+            median_ms=1e3 * float(np.median(rtts)) if rtts else None)
     return checks
 
 
@@ -187,6 +219,12 @@ def deploy(opts: DeployOptions, controller: Controller) -> tuple[dict[str, Any],
                                "lambda66": None, "ci95": None, "record": None, "safe_stop": False}
     if opts.host_rate_hz is not None:
         summary["host_rate_hz"] = opts.host_rate_hz
+    check_link_round_trip(opts.link_round_trip_s)
+    if opts.link_round_trip_s is None and needs_stated_link(controller):  # before anything is connected
+        refusal = (f"{opts.controller} needs the link's round trip stated to it (ControllerContext.link_round_trip_s): "
+                   "give link_round_trip_s (deploy --link-round-trip-ms MS, or 'ping' to state the arming pings' median)")
+        summary.update(status=f"refused: {refusal}", exit_status=EXIT_BAD_INPUT, refused=refusal)
+        return summary, EXIT_BAD_INPUT
     try:
         rig = BenchRig(opts.bench, opts.lab, watchdog_s=opts.watchdog_s, reset_timeout_s=opts.reset_timeout_s,
                        host_rate_hz=opts.host_rate_hz)
@@ -216,6 +254,13 @@ def deploy(opts: DeployOptions, controller: Controller) -> tuple[dict[str, Any],
                     if any(c["check"] == "no_latched_faults" for c in failed) else "")
             raise rig.stop("arming", "arming check failed: " + "; ".join(f"{c['check']} ({c['detail']})"
                                                                              for c in failed) + hint)
+        try:
+            rtt, rtt_from = stated_link(opts, checks)
+        except ValueError as e:
+            raise rig.stop("arming", str(e)) from None
+        rig.stated_round_trip_s = rtt  # what the controllers are told (experiment/runner.py: stated_round_trip)
+        link = {} if rtt is None else {"link_round_trip_s": rtt, "link_round_trip_from": rtt_from}
+        summary.update(link)
         rig.arm()
         summary["warmup"] = warm_up(rig, opts.warmup_s)
         if opts.dry_run:
@@ -226,7 +271,7 @@ def deploy(opts: DeployOptions, controller: Controller) -> tuple[dict[str, Any],
             recorder.phase = lambda: exp.phase
             recorder.start({"source": rig.source, "rig": rig.known.to_block(),
                             "experiment": {"kind": "reverse-symmetric", **asdict(plan), "controller": opts.controller,
-                                           "bench": opts.bench}})
+                                           "bench": opts.bench, **link}})
             rig.on_sample = recorder.append
             gc.collect()
             gc.disable()  # no collector pauses in the control loop (re-enabled below)
@@ -256,6 +301,9 @@ def deploy(opts: DeployOptions, controller: Controller) -> tuple[dict[str, Any],
         meta = exp.record(opts.run_id).meta
         meta["experiment"]["controller"] = opts.controller
         meta["experiment"]["bench"] = opts.bench
+        if summary.get("link_round_trip_s") is not None:  # what the controllers were told, s, and from where
+            meta["experiment"].update(link_round_trip_s=summary["link_round_trip_s"],
+                                      link_round_trip_from=summary["link_round_trip_from"])
         meta["deploy"] = {k: summary.get(k) for k in ("safe_stop", "safe_state", "watchdog_ms", "limits",
                                                       "arm_checks", "warmup")}
         meta["deploy"].update(_timing(rig), trip=_trip_info(rig))

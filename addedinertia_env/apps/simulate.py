@@ -13,6 +13,7 @@ from agents.registry import DEFAULT_CONTROLLER
 from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import ExperimentPlan
 from addedinertia_env.experiment.runner import run_experiment
+from addedinertia_env.loop.control_loop import ControlLoop, LoopRig
 from addedinertia_env.records.record import RunRecord, write_record
 from addedinertia_env.sim.effects import Effects, draw_effect
 from addedinertia_env.sim.mujoco_rig import MujocoRig
@@ -27,9 +28,12 @@ OTHER_KINDS = {
 
 def simulate_run(rig_params: RigParams, controller: Controller | str = DEFAULT_CONTROLLER, plan: ExperimentPlan | None = None,
                  seed: int | np.random.SeedSequence = 0, kind: str = "reverse-symmetric",
-                 run_id: str = "run") -> RunRecord:
-    """One simulated experiment of ``kind`` on a fresh MuJoCo rig."""
+                 run_id: str = "run", loop: ControlLoop | None = None) -> RunRecord:
+    """One simulated experiment of ``kind`` on a fresh MuJoCo rig (behind ``loop``, if given: e.g. a link
+    whose round trip is simulated as the readings' delay and stated to the controllers)."""
     rig = MujocoRig(rig_params, seed=seed)
+    if loop is not None:
+        rig = LoopRig(rig, loop)
     if kind == "reverse-symmetric":
         if isinstance(controller, str):
             from agents import make_controller  # noqa: PLC0415
@@ -50,14 +54,16 @@ class OutputInUse(ValueError):
 def simulate_to_dir(rig_params: RigParams, out: str | Path, controller: str = DEFAULT_CONTROLLER,
                     plan: ExperimentPlan | None = None, seed: int = 0, cycles: int = 1,
                     kind: str = "reverse-symmetric", signature: dict[str, Any] | None = None,
-                    force: bool = False, kept: list[Path] | None = None) -> list[Path]:
+                    force: bool = False, kept: list[Path] | None = None,
+                    loop: ControlLoop | None = None) -> list[Path]:
     """``cycles`` records (independent sensor noise each) written as ``run-NNNN.csv/.json``.
 
     ``signature`` (what the simulation was asked for, e.g. the command's arguments) is
     stored in each record's ``experiment.simulate``; a record already in ``out`` with the
     same signature and cycle is kept, not simulated again (a killed run resumes; its
     paths are appended to ``kept``), and one with another signature is refused
-    (:class:`OutputInUse`) unless ``force``.
+    (:class:`OutputInUse`) unless ``force``. ``loop``: the control loop every run sits behind (None: ideal);
+    a stated round trip is recorded as ``experiment.link_round_trip_s`` (s), as ``deploy`` records it.
     """
     paths = []
     for k, ss in enumerate(np.random.SeedSequence(seed).spawn(cycles)):
@@ -67,7 +73,9 @@ def simulate_to_dir(rig_params: RigParams, out: str | Path, controller: str = DE
             if kept is not None:
                 kept.append(target)
             continue
-        rec = simulate_run(rig_params, controller, plan, seed=ss, kind=kind, run_id=f"run-{k:04d}")
+        rec = simulate_run(rig_params, controller, plan, seed=ss, kind=kind, run_id=f"run-{k:04d}", loop=loop)
+        if loop is not None and loop.stated_round_trip_s is not None:
+            rec.meta["experiment"].update(link_round_trip_s=loop.stated_round_trip_s, link_round_trip_from="stated")
         rec.meta["experiment"]["seed"] = seed
         rec.meta["experiment"]["cycle"] = k
         if signature is not None:

@@ -40,6 +40,11 @@ def register(sub) -> None:
                         "acts and sends time-stamped segments at this rate, Hz (an exported policy: its card's rate)")
     p.add_argument("--board-mode", choices=("zoh", "pd"), default=None,
                    help="two-rate: what the board does between host actions (default: the policy's card, else zoh)")
+    p.add_argument("--link-round-trip-ms", default=None, metavar="MS|ping",
+                   help="the link's round trip stated to the controllers (ControllerContext.link_round_trip_s), ms, "
+                        "as the lab measured it (a loopback ping); 'ping': the median of this deploy's arming echoes. "
+                        "Needed by controllers that compensate the link (smith-pd and policies on it); "
+                        "recorded as experiment.link_round_trip_s (docs/BENCH.md)")
     p.add_argument("--dry-run", action="store_true", help="connect, arming checks, warm-up at zero current; no motion")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -54,6 +59,24 @@ def _check_url(url: str) -> None:
     except (ValueError, serial.SerialException) as e:
         raise BadInput(f"--bench {url!r}: {e}; expected a pyserial URL such as /dev/ttyUSB0, "
                        "socket://127.0.0.1:5555 or loop://") from None
+
+
+MAX_LINK_ROUND_TRIP_MS = 1000.0  # ms: the longest watchdog; a round trip beyond it stops every run
+
+
+def link_round_trip_s(text: str | None) -> float | str | None:
+    """``--link-round-trip-ms`` as :attr:`hw_adapter.deploy.DeployOptions.link_round_trip_s`: None, ``"ping"`` or s;
+    BadInput naming the option, the value and what was expected otherwise."""
+    if text is None or text.strip() == "ping":
+        return None if text is None else "ping"
+    try:
+        ms = float(text)
+    except ValueError:
+        ms = math.nan
+    if not (math.isfinite(ms) and 0.0 <= ms <= MAX_LINK_ROUND_TRIP_MS):
+        raise BadInput(f"--link-round-trip-ms {text!r}: expected 'ping' or a finite number of ms in "
+                       f"[0, {MAX_LINK_ROUND_TRIP_MS:g}] (the link's round trip as the lab measured it)")
+    return 1e-3 * ms
 
 
 def run(args) -> int:
@@ -76,6 +99,7 @@ def run(args) -> int:
         raise BadInput(f"--host-rate-hz {args.host_rate_hz}: expected 0 < Hz <= 20000 (at most the board's sample rate)")
     if args.board_mode is not None and args.host_rate_hz is None:
         raise BadInput(f"--board-mode {args.board_mode}: only with --host-rate-hz (the two-rate mode)")
+    rtt = link_round_trip_s(args.link_round_trip_ms)
     lab = load_lab(args.lab)
     try:
         lab.plan(hold_s=args.hold, alpha=args.alpha)
@@ -85,11 +109,17 @@ def run(args) -> int:
         controller = make_controller(name)
     except UnknownController as e:
         raise BadInput(f"--controller/--policy: {e}") from None
+    from addedinertia_env.experiment.runner import needs_stated_link  # noqa: PLC0415
+
+    if rtt is None and needs_stated_link(controller):
+        raise BadInput(f"--controller/--policy {name}: needs the link's round trip stated to it "
+                       "(ControllerContext.link_round_trip_s): give --link-round-trip-ms MS (a loopback ping's "
+                       "median) or --link-round-trip-ms ping (this deploy measures it)")
     opts = DeployOptions(bench=args.bench, controller=name, lab=lab, out=Path(args.out), run_id=args.run_id,
                          dry_run=args.dry_run, warmup_s=args.warmup,
                          watchdog_s=None if args.watchdog_ms is None else args.watchdog_ms * 1e-3,
                          hold_s=args.hold, alpha=args.alpha, reset_timeout_s=args.reset_timeout,
-                         host_rate_hz=args.host_rate_hz, board_mode=args.board_mode)
+                         host_rate_hz=args.host_rate_hz, board_mode=args.board_mode, link_round_trip_s=rtt)
     summary, status = deploy(opts, controller)
     if args.json:
         emit_json(summary)

@@ -9,11 +9,14 @@ from pathlib import Path
 from addedinertia_env.sim.effects import effect_names
 from addedinertia_env.sim.presets import SENSOR_QUALITY, load_preset, rig_from_mapping, sensors_for_quality
 from addedinertia_env.experiment.protocol import plan_from_preset
+from addedinertia_env.experiment.runner import needs_stated_link
+from addedinertia_env.loop.control_loop import ControlLoop
 from addedinertia_env.apps.simulate import OTHER_KINDS, OutputInUse, effects_from_name, simulate_to_dir
 from addedinertia_env.cli.common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
 
 
 MAX_CYCLES = 1000  # records per call
+MAX_LINK_ROUND_TRIP_MS = 1000.0  # ms, as deploy's --link-round-trip-ms
 
 
 def register(sub) -> None:
@@ -44,6 +47,11 @@ def register(sub) -> None:
     p.add_argument("--settle", type=non_negative_float, default=None,
                    help="--kind forced-oscillation: s driven at each frequency before its measured periods "
                         "(default 0; docs/RADIATION_MEMORY.md says how long water that remembers needs)")
+    p.add_argument("--link-round-trip-ms", type=non_negative_float, default=None, metavar="MS",
+                   help="--kind reverse-symmetric: a link with this round trip, ms: simulated as the readings' delay "
+                        "(whole samples) and stated to the controllers (ControllerContext.link_round_trip_s; needed by "
+                        "smith-pd); recorded as experiment.link_round_trip_s and truth.control_loop (default: an ideal "
+                        "loop, nothing stated)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
@@ -69,18 +77,30 @@ def run(args) -> int:
             plan = ForcedPlan(alpha=plan.alpha, **{k: v for k, v in forced.items() if v is not None})
         except ValueError as e:
             raise BadInput(f"--frequencies/--periods/--settle: {e}") from None
+    loop = None
+    if args.link_round_trip_ms is not None:
+        if args.kind != "reverse-symmetric":
+            raise BadInput(f"--link-round-trip-ms applies to --kind reverse-symmetric only (a controlled experiment); "
+                           f"got --kind {args.kind}")
+        if args.link_round_trip_ms > MAX_LINK_ROUND_TRIP_MS:
+            raise BadInput(f"--link-round-trip-ms {args.link_round_trip_ms:g}: expected at most "
+                           f"{MAX_LINK_ROUND_TRIP_MS:g} ms (the longest link a controller may be told of)")
+        rtt = 1e-3 * args.link_round_trip_ms
+        loop = ControlLoop(obs_delay_s=rtt, stated_round_trip_s=rtt)
     if args.kind == "reverse-symmetric":
         from agents.registry import CLASSICAL, controller_class, make_controller  # noqa: PLC0415
 
         if ":" not in args.controller and args.controller not in CLASSICAL:
             raise BadInput(f"--controller {args.controller!r}: expected one of {', '.join(sorted(CLASSICAL))}, "
                            "onnx:PATH or module:factory")
-        if args.controller in CLASSICAL and getattr(controller_class(args.controller), "needs_stated_link", False):
-            raise BadInput(f"--controller {args.controller!r} needs the link's round trip stated to it "
-                           "(ControllerContext.link_round_trip_s); simulate runs an ideal loop and states none: "
-                           "run it on a suite that states one, e.g. `addedinertia bench run --suite drive-v3`")
+        needs = args.controller in CLASSICAL and getattr(controller_class(args.controller), "needs_stated_link", False)
         if ":" in args.controller:
-            make_controller(args.controller)  # a policy or factory is loaded and checked before anything runs
+            needs = needs_stated_link(make_controller(args.controller))  # loaded and checked before anything runs
+        if needs and loop is None:
+            raise BadInput(f"--controller {args.controller!r} needs the link's round trip stated to it "
+                           "(ControllerContext.link_round_trip_s); without --link-round-trip-ms simulate runs an "
+                           "ideal loop and states none: give --link-round-trip-ms MS (simulated and stated), or run "
+                           "it on a suite that states one, e.g. `addedinertia bench run --suite drive-v3`")
     from addedinertia_env.foundation.atomic import remove_stale_temps  # noqa: PLC0415
 
     for stale in remove_stale_temps(args.out):
@@ -92,10 +112,13 @@ def run(args) -> int:
             signature[key] = list(value) if isinstance(value, tuple) else value
     if args.hydrodynamics is not None:  # (absent otherwise: earlier records' signatures stay valid)
         signature["hydrodynamics"] = args.hydrodynamics
+    if args.link_round_trip_ms is not None:  # (likewise)
+        signature["link_round_trip_ms"] = args.link_round_trip_ms
     kept: list[Path] = []
     try:
         paths = simulate_to_dir(rig, Path(args.out), controller=args.controller, plan=plan, seed=args.seed,
-                                cycles=args.cycles, kind=args.kind, signature=signature, force=args.force, kept=kept)
+                                cycles=args.cycles, kind=args.kind, signature=signature, force=args.force, kept=kept,
+                                loop=loop)
     except OutputInUse as e:
         raise BadInput(str(e)) from None
     if kept:

@@ -9,6 +9,7 @@ from addedinertia_env.rig.interface import Rig
 from addedinertia_env.experiment.task import ControllerContext, ReverseStrokeTask
 from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import Experiment, ExperimentPlan
+from addedinertia_env.experiment.two_rate import stated_round_trip  # noqa: F401  (re-exported: its older home)
 
 
 def controller_context(exp: Experiment):
@@ -20,11 +21,11 @@ def controller_context(exp: Experiment):
                              link_round_trip_s=stated_round_trip(exp.rig), **slow)
 
 
-def stated_round_trip(rig: Any) -> float | None:
-    """The link's round trip stated to the controllers (s) by a :class:`~addedinertia_env.loop.control_loop.LoopRig`
-    whose loop states one; None otherwise (never the loop's true delay)."""
-    value = getattr(rig, "stated_round_trip_s", None)
-    return float(value) if value is not None else None
+def needs_stated_link(controller: Any) -> bool:
+    """Whether ``controller``, or the classical base under a residual policy (its ``base``), refuses a context
+    without the link's round trip (``needs_stated_link``: smith-pd and policies on it)."""
+    return bool(getattr(controller, "needs_stated_link", False)
+                or getattr(getattr(controller, "base", None), "needs_stated_link", False))
 
 
 def command_every(rig: Any) -> int:

@@ -49,10 +49,20 @@ def default_board_mode(controller: Controller) -> str:
 
 
 def two_rate_context(exp: Experiment, host_rate_hz: float, board_mode: str):
-    """The controller context at the host's rate."""
+    """The controller context at the host's rate (with the link's round trip the rig states, if any)."""
     return ControllerContext(rig=exp.known, layout=ReverseStrokeTask.layout, reference=exp.reference,
                              inertia_prior=exp.inertia_prior, dt=1.0 / host_rate_hz, hold_s=exp.plan.hold_s,
-                             policy_rate_hz=host_rate_hz, board_mode=board_mode, sample_dt=exp.rig.dt)
+                             policy_rate_hz=host_rate_hz, board_mode=board_mode, sample_dt=exp.rig.dt,
+                             link_round_trip_s=stated_round_trip(exp.rig))
+
+
+def stated_round_trip(rig: Any) -> float | None:
+    """The link's round trip stated to the controllers (s) by a rig that states one (a
+    :class:`~addedinertia_env.loop.control_loop.LoopRig` whose loop states it, a ``TwoRateSimRig`` around one,
+    a bench whose lab stated it: ``deploy --link-round-trip-ms``); None otherwise (never the loop's true delay).
+    Single-rate and two-rate contexts both read it here."""
+    value = getattr(rig, "stated_round_trip_s", None)
+    return float(value) if value is not None else None
 
 
 class SegmentPlanner:

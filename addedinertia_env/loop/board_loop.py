@@ -287,6 +287,13 @@ class TwoRateSimRig:
         return self.rig.truth()
 
     @property
+    def stated_round_trip_s(self) -> float | None:
+        """The link's round trip the wrapped rig states to the controllers, s (a
+        :class:`~addedinertia_env.loop.control_loop.LoopRig`'s; None: not stated); never the truth."""
+        value = getattr(self.rig, "stated_round_trip_s", None)
+        return float(value) if value is not None else None
+
+    @property
     def now_us(self) -> int:
         """Board time of the newest sample, us (0 before the first)."""
         return int(round(self.last.t * 1e6)) if self.last is not None else 0
