@@ -21,7 +21,7 @@ def controller_context(exp: Experiment):
                              link_round_trip_s=stated_round_trip(exp.rig), **slow)
 
 
-def needs_stated_link(controller: Any) -> bool:
+def needs_stated_link(controller: Controller) -> bool:
     """Whether ``controller``, or the classical base under a residual policy (its ``base``), refuses a context
     without the link's round trip (``needs_stated_link``: smith-pd and policies on it)."""
     return bool(getattr(controller, "needs_stated_link", False)
