@@ -115,13 +115,17 @@ class StrokeController(Controller):
         if obs["is_hold"] > 0.5:
             i = self.hold_current(obs)
         elif obs["is_reverse"] > 0.5:
-            e, e_rate = self.track_state(obs)
-            i = self.feedforward_current(obs) + self.feedback(obs, e, e_rate)
+            i = self.stroke_current(obs)
         else:
             i = 0.0
         i = float(np.clip(i, -ctx.i_max, ctx.i_max))
         self.i_prev = i
         return i
+
+    def stroke_current(self, obs: dict[str, float]) -> float:
+        """The reverse stroke's command before the drive's limit (A): feed-forward plus feedback on the tracked state."""
+        e, e_rate = self.track_state(obs)
+        return self.feedforward_current(obs) + self.feedback(obs, e, e_rate)
 
 
 class FeedforwardPD(StrokeController):

@@ -152,21 +152,17 @@ class SmithPD(FeedforwardPD):
         self.d_expected_prev = self.expected_damping(obs)
         return obs["phi_ref"] - float(x[0]), obs["rate_ref"] - float(x[1])
 
+    def stroke_current(self, obs: dict[str, float]) -> float:
+        """Feed-forward + PD on the predicted hull, clamped to the supply's reach on the predicted flywheel rate."""
+        i = super().stroke_current(obs)
+        rig = self.ctx.rig
+        if rig.u_max is not None and rig.R:
+            emf = self.ctx.k_t * self.flywheel_now(obs)
+            i = min(max(i, (-rig.u_max - emf) / rig.R), (rig.u_max - emf) / rig.R)
+        return i
+
     def current(self, obs: dict[str, float]) -> float:
-        """Hold: the pre-spin; reverse stroke: feed-forward + PD on the predicted hull, clamped to the supply's reach."""
-        ctx = self.ctx
-        if obs["is_hold"] > 0.5:
-            i = self.hold_current(obs)
-        elif obs["is_reverse"] > 0.5:
-            e, e_rate = self.track_state(obs)
-            i = self.feedforward_current(obs) + self.feedback(obs, e, e_rate)
-            rig = ctx.rig
-            if rig.u_max is not None and rig.R:
-                emf = ctx.k_t * self.flywheel_now(obs)
-                i = min(max(i, (-rig.u_max - emf) / rig.R), (rig.u_max - emf) / rig.R)
-        else:
-            i = 0.0
-        i = float(np.clip(i, -ctx.i_max, ctx.i_max))
-        self.i_prev = i
+        """Hold: the pre-spin; reverse stroke: :meth:`stroke_current`; every command sent is kept for the predictor."""
+        i = super().current(obs)
         self.sent.append(i)
         return i
