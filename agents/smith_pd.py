@@ -39,10 +39,11 @@ from typing import Any
 
 import numpy as np
 
-from agents.base import ControllerContext, stroke_feedforward_current
+from agents.base import ControllerContext
 from agents.dead_time import DeadTimePredictor
 from agents.feedforward_pd import FeedforwardPD
 from agents.stroke_inertia import stroke_fit_inertia
+from agents.supply_aware import prespin_bounds, stroke_plan
 
 MAX_ROUND_TRIP_S = 0.2  # s: a link slower than this is no loop to close at the stroke's 0.5-2 s
 
@@ -105,28 +106,14 @@ class SmithPD(FeedforwardPD):
         self.plan_peak_v = None
         self.i_ff_max = (1.0 - float(self.feedback_reserve)) * context.i_max  # A, the feed-forward's share
         if rig.u_max is not None and self.prespin:
-            i, h = self.stroke_plan()
+            i, h = stroke_plan(context, self.J, i_limit=self.i_ff_max)  # the feed-forward cut to its share
             u_lim = float(self.margin) * rig.u_max - rig.R * float(self.feedback_reserve) * context.i_max
-            i0, h0 = np.concatenate([[0.0], i]), np.concatenate([[0.0], h])
-            lo = float(np.max((-u_lim - rig.R * i0) / context.k_t - h0))
-            hi = float(np.min((u_lim - rig.R * i0) / context.k_t - h0))
-            self.omega_start = fit_prespin(lo, hi, self.omega_start)
+            self.omega_start = fit_prespin(*prespin_bounds(i, h, rig.R, context.k_t, u_lim), self.omega_start)
             self.plan_peak_v = float(np.max(np.abs(rig.R * i + context.k_t * (self.omega_start + h))))
 
     def feedforward_current(self, obs: dict[str, float]) -> float:
         """:meth:`FeedforwardPD.feedforward_current` cut to ``(1 - feedback_reserve) i_max`` (module doc)."""
         return float(np.clip(super().feedforward_current(obs), -self.i_ff_max, self.i_ff_max))
-
-    def stroke_plan(self, n: int = 400) -> tuple[np.ndarray, np.ndarray]:
-        """The feed-forward current (A, cut to its share of the current limit) over the reverse stroke in its own order, and the
-        flywheel's change of rate (rad/s) it implies (as :func:`agents.supply_aware.stroke_plan`, from zero at the start)."""
-        ctx, rig = self.ctx, self.ctx.rig
-        law = ctx.reference.law
-        s = np.linspace(law.t_stop, law.t_start, n)
-        i_lim = min(self.i_ff_max, rig.current_limit) if rig.current_limit is not None else self.i_ff_max
-        i = np.clip(stroke_feedforward_current(ctx, law.phi(s) - rig.phi_neutral, law.accel(s), self.J), -i_lim, i_lim)
-        h = np.concatenate([[0.0], np.cumsum(0.5 * (i[1:] + i[:-1]) * -np.diff(s))]) * ctx.k_t / rig.J_flywheel
-        return i, h
 
     def flywheel_now(self, obs: dict[str, float]) -> float:
         """The flywheel's rate now, rad/s: the reported (``n`` samples old) plus the commands' impulse since."""

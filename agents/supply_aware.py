@@ -42,28 +42,34 @@ from agents.base import ControllerContext, stroke_feedforward_current
 from agents.feedforward_pd import FeedforwardPD
 
 
-def stroke_plan(context: ControllerContext, J: float, n: int = 400) -> tuple[np.ndarray, np.ndarray]:
-    """The feed-forward current ``i(t)`` (A, cut to the current limit) over the reverse stroke, in the
-    stroke's order, and the flywheel's change of rate ``h(t)`` (rad/s, from 0 at the stroke's start) that it
-    implies. The reverse stroke retraces the free stroke's law backwards in time
-    (:class:`~addedinertia_env.experiment.reference.MirroredReference`: from its stop to its start)."""
+def stroke_plan(context: ControllerContext, J: float, n: int = 400,
+                i_limit: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The feed-forward current ``i(t)`` (A, cut to ``i_limit``, default ``context.i_max``, and to the rig's
+    current limit) over the reverse stroke, in the stroke's order, and the flywheel's change of rate ``h(t)``
+    (rad/s, from 0 at the stroke's start) that it implies. The reverse stroke retraces the free stroke's law
+    backwards in time (:class:`~addedinertia_env.experiment.reference.MirroredReference`: from its stop to its start)."""
     rig, law = context.rig, context.reference.law
     s = np.linspace(law.t_stop, law.t_start, n)  # the law's time, in the reverse stroke's order
-    i_lim = min(context.i_max, rig.current_limit) if rig.current_limit is not None else context.i_max
+    cut = context.i_max if i_limit is None else i_limit
+    i_lim = min(cut, rig.current_limit) if rig.current_limit is not None else cut
     i = np.clip(stroke_feedforward_current(context, law.phi(s) - rig.phi_neutral, law.accel(s), J), -i_lim, i_lim)
     dt = -np.diff(s)  # s, positive: the stroke's own time steps
     h = np.concatenate([[0.0], np.cumsum(0.5 * (i[1:] + i[:-1]) * dt)]) * context.k_t / rig.J_flywheel
     return i, h
 
 
-def plan_prespin(i: np.ndarray, h: np.ndarray, R: float, k_t: float, u_limit: float, target: float) -> float:
-    """``target`` (rad/s) where it keeps ``|R i + k_t (Omega_0 + h)| <= u_limit`` at every sample of the plan
-    (the rest before the stroke included, ``i = h = 0``); else the pre-spin that minimises the plan's peak
-    ``|u|`` (the middle of the interval of pre-spins that fit, where there is one)."""
+def prespin_bounds(i: np.ndarray, h: np.ndarray, R: float, k_t: float, u_limit: float) -> tuple[float, float]:
+    """The pre-spins ``Omega_0`` (rad/s) that keep ``|R i + k_t (Omega_0 + h)| <= u_limit`` at every sample of
+    the plan (the rest before the stroke included, ``i = h = 0``): ``(lo, hi)``, empty where ``lo > hi``."""
     i = np.concatenate([[0.0], np.asarray(i, float)])
     h = np.concatenate([[0.0], np.asarray(h, float)])
-    lo = float(np.max((-u_limit - R * i) / k_t - h))
-    hi = float(np.min((u_limit - R * i) / k_t - h))
+    return float(np.max((-u_limit - R * i) / k_t - h)), float(np.min((u_limit - R * i) / k_t - h))
+
+
+def plan_prespin(i: np.ndarray, h: np.ndarray, R: float, k_t: float, u_limit: float, target: float) -> float:
+    """``target`` (rad/s) where it lies within :func:`prespin_bounds`; else the pre-spin that minimises the
+    plan's peak ``|u|`` (the middle of the interval of pre-spins that fit, where there is one)."""
+    lo, hi = prespin_bounds(i, h, R, k_t, u_limit)
     if lo <= target <= hi:
         return float(target)
     # the plan's excess over u_limit, k_t max(Omega_0 - hi, lo - Omega_0), is least at the middle, which also

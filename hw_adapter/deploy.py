@@ -25,6 +25,7 @@ import numpy as np
 from addedinertia_env.experiment.controller import Controller
 from addedinertia_env.experiment.protocol import Experiment, ExperimentError
 from addedinertia_env.experiment.runner import drive, needs_stated_link
+from addedinertia_env.experiment.two_rate import MAX_STATED_ROUND_TRIP_S
 from addedinertia_env.identify import IdentificationError, identify
 from addedinertia_env.records.record import read_record
 from addedinertia_env.sim.motor import MotorCommand
@@ -109,13 +110,13 @@ def rate_mismatch(controller: Controller, caps: m.Caps, host_rate_hz: float | No
 
 def check_link_round_trip(value: Any) -> float | str | None:
     """``value`` as :attr:`DeployOptions.link_round_trip_s` accepts it (None, ``"ping"`` or seconds in
-    [0, 1]); ValueError naming the field and the value otherwise."""
+    [0, MAX_STATED_ROUND_TRIP_S]); ValueError naming the field and the value otherwise."""
     if value is None or value == "ping":
         return value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or not 0.0 <= value <= 1.0:
-        raise ValueError(f"link_round_trip_s = {value!r}: expected 'ping' or a finite number of seconds in [0, 1] "
-                         "(the link's round trip as the lab measured it)")
+            or not 0.0 <= value <= MAX_STATED_ROUND_TRIP_S:
+        raise ValueError(f"link_round_trip_s = {value!r}: expected 'ping' or a finite number of seconds in "
+                         f"[0, {MAX_STATED_ROUND_TRIP_S:g}] (the link's round trip as the lab measured it)")
     return float(value)
 
 

@@ -12,6 +12,7 @@ import math
 from pathlib import Path
 
 from addedinertia_env.cli.common import BadInput, emit_json, info, non_negative_float
+from addedinertia_env.experiment.two_rate import MAX_STATED_ROUND_TRIP_S
 
 
 def register(sub) -> None:
@@ -61,7 +62,6 @@ def _check_url(url: str) -> None:
                        "socket://127.0.0.1:5555 or loop://") from None
 
 
-MAX_LINK_ROUND_TRIP_MS = 1000.0  # ms: the longest watchdog; a round trip beyond it stops every run
 
 
 def link_round_trip_s(text: str | None) -> float | str | None:
@@ -73,9 +73,9 @@ def link_round_trip_s(text: str | None) -> float | str | None:
         ms = float(text)
     except ValueError:
         ms = math.nan
-    if not (math.isfinite(ms) and 0.0 <= ms <= MAX_LINK_ROUND_TRIP_MS):
+    if not (math.isfinite(ms) and 0.0 <= ms <= 1e3 * MAX_STATED_ROUND_TRIP_S):
         raise BadInput(f"--link-round-trip-ms {text!r}: expected 'ping' or a finite number of ms in "
-                       f"[0, {MAX_LINK_ROUND_TRIP_MS:g}] (the link's round trip as the lab measured it)")
+                       f"[0, {1e3 * MAX_STATED_ROUND_TRIP_S:g}] (the link's round trip as the lab measured it)")
     return 1e-3 * ms
 
 

@@ -10,13 +10,13 @@ from addedinertia_env.sim.effects import effect_names
 from addedinertia_env.sim.presets import SENSOR_QUALITY, load_preset, rig_from_mapping, sensors_for_quality
 from addedinertia_env.experiment.protocol import plan_from_preset
 from addedinertia_env.experiment.runner import needs_stated_link
+from addedinertia_env.experiment.two_rate import MAX_STATED_ROUND_TRIP_S
 from addedinertia_env.loop.control_loop import ControlLoop
 from addedinertia_env.apps.simulate import OTHER_KINDS, OutputInUse, effects_from_name, simulate_to_dir
 from addedinertia_env.cli.common import BadInput, emit_json, info, non_negative_float, non_negative_int, positive_int
 
 
 MAX_CYCLES = 1000  # records per call
-MAX_LINK_ROUND_TRIP_MS = 1000.0  # ms, as deploy's --link-round-trip-ms
 
 
 def register(sub) -> None:
@@ -82,9 +82,9 @@ def run(args) -> int:
         if args.kind != "reverse-symmetric":
             raise BadInput(f"--link-round-trip-ms applies to --kind reverse-symmetric only (a controlled experiment); "
                            f"got --kind {args.kind}")
-        if args.link_round_trip_ms > MAX_LINK_ROUND_TRIP_MS:
+        if args.link_round_trip_ms > 1e3 * MAX_STATED_ROUND_TRIP_S:
             raise BadInput(f"--link-round-trip-ms {args.link_round_trip_ms:g}: expected at most "
-                           f"{MAX_LINK_ROUND_TRIP_MS:g} ms (the longest link a controller may be told of)")
+                           f"{1e3 * MAX_STATED_ROUND_TRIP_S:g} ms (the longest link a controller may be told of)")
         rtt = 1e-3 * args.link_round_trip_ms
         loop = ControlLoop(obs_delay_s=rtt, stated_round_trip_s=rtt)
     if args.kind == "reverse-symmetric":

@@ -56,6 +56,9 @@ def two_rate_context(exp: Experiment, host_rate_hz: float, board_mode: str):
                              link_round_trip_s=stated_round_trip(exp.rig))
 
 
+MAX_STATED_ROUND_TRIP_S = 1.0  # s: the longest watchdog; a lab's round trip beyond it stops every run
+
+
 def stated_round_trip(rig: Any) -> float | None:
     """The link's round trip stated to the controllers (s) by a rig that states one (a
     :class:`~addedinertia_env.loop.control_loop.LoopRig` whose loop states it, a ``TwoRateSimRig`` around one,
