@@ -636,18 +636,28 @@ class RunBalance:
             return 0.5 * (shifted[1:] + shifted[:-1])
         return interval_mean_current(t, i, self.R, self.L, self.current_sampling)
 
+    def torque_scale_source(self) -> str:
+        """Where the motor work's scale comes from: ``"sampling rule"`` (a smooth current's scale alone),
+        ``"current sensor gain"`` (no calibration), ``"gear loss fit"`` (through a gearbox) or ``"flywheel
+        calibration"``."""
+        if self.scale_sigma is not None:
+            return "sampling rule"
+        if not self.calibrated:
+            return "current sensor gain"
+        return "gear loss fit" if self.gear_loss is not None else "flywheel calibration"
+
     def torque_scale_sigma(self) -> float:
         """The relative 1-sigma of the motor work's scale: the flywheel calibration's own (its fit's, per run:
         :func:`~.energy_calibration.calibration_sigma`) where it set the scale, at least
         :data:`CALIBRATED_TORQUE_UNCERTAINTY` where the rotor's friction law was not read (:data:`OWN_CALIBRATION_SIGMA`);
-        through a gearbox (the loss's
-        fit sets the scale) :data:`CALIBRATED_TORQUE_UNCERTAINTY`; the scale fitted at the sampling rule's own;
-        else the current sensor's gain."""
-        if self.scale_sigma is not None:
+        through a gearbox (the loss's fit sets the scale) :data:`CALIBRATED_TORQUE_UNCERTAINTY`; the scale fitted
+        at the sampling rule's own; else the current sensor's gain."""
+        source = self.torque_scale_source()
+        if source == "sampling rule":
             return self.scale_sigma
-        if not self.calibrated:
+        if source == "current sensor gain":
             return CURRENT_GAIN_UNCERTAINTY
-        if self.gear_loss is None and self.calibration is not None and OWN_CALIBRATION_SIGMA:
+        if source == "flywheel calibration" and self.calibration is not None and OWN_CALIBRATION_SIGMA:
             if self.rotor_w_s_measured:
                 return self.calibration.sigma
             return max(self.calibration.sigma, CALIBRATED_TORQUE_UNCERTAINTY)  # the friction law unread: the floor
@@ -655,15 +665,8 @@ class RunBalance:
 
     def torque_scale_summary(self) -> dict:
         """The motor work's scale as ``identify --json`` reports it per run: ``scale`` (per ``k_t``), ``sigma``
-        (relative 1-sigma in the budget) and ``source``."""
-        if self.scale_sigma is not None:
-            source = "sampling rule"
-        elif not self.calibrated:
-            source = "current sensor gain"
-        elif self.gear_loss is not None:
-            source = "gear loss fit"
-        else:
-            source = "flywheel calibration"
+        (relative 1-sigma in the budget) and ``source`` (:meth:`torque_scale_source`)."""
+        source = self.torque_scale_source()
         out = {"scale": float(self.torque_scale), "sigma": float(self.torque_scale_sigma()), "source": source}
         if source == "flywheel calibration" and self.calibration is not None:
             out.update(own_sigma=float(self.calibration.sigma), friction_law_read=bool(self.rotor_w_s_measured),

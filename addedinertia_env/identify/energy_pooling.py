@@ -58,13 +58,11 @@ def run_estimate(rec: RunRecord, work: str, fractions, asymmetry_correction: boo
     if not np.isfinite(first.value):
         return first
     phi1 = np.asarray(phi1_list, dtype=float)
+    estimate = None
     if not interval_details and weights is not None:  # the numbers alone, from the angles' columns
-        cols = balance.interval_columns(phi1)
-        estimate = _dense_from_columns(balance, cols, weights)
-        if np.isfinite(estimate.value):
-            estimate.torque_scale = balance.torque_scale_summary()
-            return estimate
-    estimate = _combine(balance, balance.intervals(phi1), weights)
+        estimate = _dense_from_columns(balance, balance.interval_columns(phi1), weights)
+    if estimate is None or not np.isfinite(estimate.value):
+        estimate = _combine(balance, balance.intervals(phi1), weights)
     estimate.torque_scale = balance.torque_scale_summary()
     return estimate
 
